@@ -1,0 +1,1 @@
+"""Robot descriptions: kinematic parameters, limits, sensor mounts (no simulator code)."""

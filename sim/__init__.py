@@ -1,0 +1,1 @@
+"""The PyBullet "hardware": worlds, robot bodies and sensors (the only package importing pybullet)."""

@@ -1,0 +1,170 @@
+"""``taskflow`` command line: run, validate, graph, schema, batch, plot.
+
+Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
+130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from .errors import MissionError
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_MISSION = REPO_ROOT / "missions" / "car_waypoints.yaml"
+
+
+def _print_problems(exc: MissionError) -> None:
+    for p in exc.problems:
+        print(str(p), file=sys.stderr)
+
+
+def _load(path: str, overrides: list[str] | None = None):  # type: ignore[no-untyped-def]
+    from .loader import load_mission
+
+    return load_mission(path, overrides)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .runtime import Progress, print_progress, run_mission
+
+    path = args.mission or str(DEFAULT_MISSION)
+    mission = _load(path, args.set)
+    progress = Progress(print_progress) if sys.stderr.isatty() and not args.quiet else None
+    print(f"running {mission.name} ({path}) seed={args.seed if args.seed is not None else mission.spec.seed}",
+          file=sys.stderr)
+    result = run_mission(mission, seed=args.seed, out_dir=args.out, gui=args.gui, max_time=args.max_time,
+                         progress=progress)
+    if progress is not None:
+        sys.stderr.write("\n")
+    s = result.summary
+    print(f"outcome: {s['outcome']} ({s.get('reason', '')})")
+    print(f"final state: {s['final_state']}   sim time: {s['sim_time_s']:.2f} s   wall: {s['wall_time_s']:.2f} s"
+          f"   RTF: {s['real_time_factor'] or 0:.1f}x   ticks: {s['ticks']}")
+    shown = {k: v for k, v in s["metrics"].items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    for k in sorted(shown)[:20]:
+        print(f"  {k:32s} {shown[k]:.6g}")
+    print(f"run record: {result.run_dir}")
+    if args.plot and result.run_dir is not None:
+        from .plots import plot_run
+
+        for f in plot_run(result.run_dir):
+            print(f"figure: {f}")
+    if s["outcome"] == "aborted" and "interrupted" in s.get("reason", ""):
+        return 130
+    return 0 if result.succeeded else 1
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    bad = 0
+    for f in args.files:
+        try:
+            m = _load(f, args.set)
+        except MissionError as exc:
+            _print_problems(exc)
+            bad += 1
+            continue
+        print(f"{f}: ok ({m.name}: {len(m.states)} states, {len(m.transitions)} transitions)")
+    return 1 if bad else 0
+
+
+def cmd_graph(args: argparse.Namespace) -> int:
+    from .graph import to_dot, to_mermaid
+
+    m = _load(args.file)
+    print(to_mermaid(m) if args.format == "mermaid" else to_dot(m))
+    return 0
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    from .schema import mission_json_schema
+
+    print(json.dumps(mission_json_schema(), indent=2))
+    return 0
+
+
+def cmd_batch(args: argparse.Namespace) -> int:
+    from .batch import format_table, run_batch
+
+    path = args.mission
+    _load(path, args.set)  # fail fast, with file:line:col, before any worker starts
+    result = run_batch(path, trials=args.trials, workers=args.workers, seed=args.seed, overrides=args.set,
+                       out=args.out, max_time=args.max_time)
+    print(format_table(result))
+    print(f"batch record: {result['batch_file']}")
+    return 0 if result["aggregate"]["success_rate"] == 1.0 else 1
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from .plots import plot_run
+
+    for f in plot_run(Path(args.run_dir)):
+        print(f)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="taskflow", description="Run robot missions written as YAML state machines.")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+
+    r = sub.add_parser("run", help="run a mission (default: the shipped default mission), headless unless --gui")
+    r.add_argument("mission", nargs="?", help=f"mission file (default {DEFAULT_MISSION.relative_to(REPO_ROOT)})")
+    r.add_argument("--seed", type=int, default=None)
+    r.add_argument("--out", default=None, help="run directory (default runs/NAME-seedN-TIME)")
+    r.add_argument("--gui", action="store_true", help="open a PyBullet window")
+    r.add_argument("--max-time", type=float, default=None, help="simulated seconds before 'timeout'")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a mission key")
+    r.add_argument("--plot", action="store_true", help="write the figures into the run directory")
+    r.add_argument("--quiet", action="store_true", help="no progress line")
+    r.set_defaults(fn=cmd_run)
+
+    v = sub.add_parser("validate", help="check mission files; exit 1 if any is invalid")
+    v.add_argument("files", nargs="+")
+    v.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    v.set_defaults(fn=cmd_validate)
+
+    g = sub.add_parser("graph", help="print the machine as a diagram")
+    g.add_argument("file")
+    g.add_argument("--format", choices=["mermaid", "dot"], default="mermaid")
+    g.set_defaults(fn=cmd_graph)
+
+    s = sub.add_parser("schema", help="print the JSON Schema of mission files")
+    s.set_defaults(fn=cmd_schema)
+
+    b = sub.add_parser("batch", help="N seeded runs in parallel processes; writes batch.json")
+    b.add_argument("mission")
+    b.add_argument("--trials", type=int, required=True)
+    b.add_argument("--workers", type=int, default=None)
+    b.add_argument("--seed", type=int, default=0, help="first seed; trial i uses seed+i")
+    b.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    b.add_argument("--out", default=None, help="batch directory (default runs/batch-NAME-TIME)")
+    b.add_argument("--max-time", type=float, default=None)
+    b.set_defaults(fn=cmd_batch)
+
+    p = sub.add_parser("plot", help="write the figures of a run directory as PNG")
+    p.add_argument("run_dir")
+    p.set_defaults(fn=cmd_plot)
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.fn(args))
+    except MissionError as exc:
+        _print_problems(exc)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
+

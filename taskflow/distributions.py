@@ -1,0 +1,62 @@
+"""Random world parameters: ``{uniform: [a, b]}``, ``{normal: [mu, sigma]}``, ``{choice: [...]}``,
+``{randint: [a, b]}`` anywhere inside a world's ``params``.
+
+A batch is a Monte Carlo campaign: every trial draws its own values from its seed.  Draws go through
+one ``numpy.random.Generator`` seeded from the run seed, in document order, so a seed reproduces them.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+KINDS = ("uniform", "normal", "choice", "randint")
+
+
+class DistributionError(ValueError):
+    def __init__(self, path: tuple[Any, ...], message: str) -> None:
+        super().__init__(message)
+        self.path = path
+
+
+def is_distribution(value: Any) -> bool:
+    return isinstance(value, dict) and len(value) == 1 and next(iter(value)) in KINDS
+
+
+def _draw(spec: dict[str, Any], rng: np.random.Generator, path: tuple[Any, ...]) -> Any:
+    kind, args = next(iter(spec.items()))
+    if kind == "choice":
+        if not isinstance(args, list) or not args:
+            raise DistributionError(path, "choice needs a non-empty list of values")
+        return args[int(rng.integers(len(args)))]
+    if not (isinstance(args, list) and len(args) == 2 and all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in args)):
+        raise DistributionError(path, f"{kind} needs two numbers, e.g. {{{kind}: [1.0, 2.0]}}")
+    a, b = float(args[0]), float(args[1])
+    if kind == "uniform":
+        if b < a:
+            raise DistributionError(path, f"uniform bounds must be ordered: [{a:g}, {b:g}]")
+        return float(rng.uniform(a, b))
+    if kind == "normal":
+        if b < 0:
+            raise DistributionError(path, f"normal standard deviation must be ≥ 0, got {b:g}")
+        return float(rng.normal(a, b))
+    if b < a or int(a) != a or int(b) != b:
+        raise DistributionError(path, f"randint bounds must be ordered integers: [{a:g}, {b:g}]")
+    return int(rng.integers(int(a), int(b) + 1))
+
+
+def sample(value: Any, rng: np.random.Generator, path: tuple[Any, ...] = ()) -> Any:
+    """A copy of ``value`` with every distribution replaced by a draw."""
+    if is_distribution(value):
+        return _draw(value, rng, path)
+    if isinstance(value, dict):
+        return {k: sample(v, rng, path + (k,)) for k, v in value.items()}
+    if isinstance(value, list):
+        return [sample(v, rng, path + (i,)) for i, v in enumerate(value)]
+    return value
+
+
+def world_rng(seed: int) -> np.random.Generator:
+    """The generator for world-parameter draws (its own stream, apart from sensor noise)."""
+    return np.random.default_rng([seed, 0x5EED])

@@ -1,0 +1,327 @@
+"""Runs a compiled machine tick by tick on `transitions`' HierarchicalMachine.
+
+Guards are evaluated every tick in taskflow's own per-leaf tables (outermost state first, then in
+the order written); `transitions` is called only when one fires, to exit and enter states through
+its nested-state callbacks.  Time is whatever the caller passes in: the simulation clock.
+
+Semantics in brief (docs/missions.md has the long form):
+
+* a transition on a composite state is checked while any of its sub-states is active; outer
+  transitions are checked before inner ones, so `target_lost` on a parent pre-empts its children;
+* entering a composite enters its ``initial`` chain, or, with ``history: true`` and ``resume`` (the
+  default), the leaf that was active when it was last left (deep history, foreach index included);
+* reaching a final sub-state finishes its parent: a ``foreach`` parent moves to the next item (or
+  stops on a failed/aborted iteration unless ``on_failure: continue``); otherwise the parent's
+  matching ``done`` transition fires.  A final state directly under the root ends the run;
+* ``blend: T`` on a transition mixes the last outgoing command into the incoming one with
+  ``h(τ) = ½(1 − cos(π τ / T))`` for ``τ < T``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+from transitions.extensions.nesting import HierarchicalMachine, NestedState
+
+from .api import Command, Observation, Robot, Task, TaskContext, World
+from .loader import CompiledMission, CompiledTransition, StateNode, resolve_refs
+
+START = "__start__"
+
+
+class _DotState(NestedState):
+    separator = "."
+
+
+class _Machine(HierarchicalMachine):
+    state_cls = _DotState
+
+
+def blend_weight(tau: float, duration: float) -> float:
+    """The papers' activation ``h(t) = ½(1 − cos(π (t − t0)/(tf − t0)))`` clipped to [0, 1]
+    (quadcopter paper eq. 20)."""
+    if duration <= 0.0 or tau >= duration:
+        return 1.0
+    if tau <= 0.0:
+        return 0.0
+    return 0.5 * (1.0 - math.cos(math.pi * tau / duration))
+
+
+@dataclass
+class TransitionRecord:
+    t: float
+    source: str
+    target: str
+    trigger: str
+
+
+@dataclass
+class IterationRecord:
+    state: str
+    index: int
+    item: Any
+    outcome: str
+    t_start: float
+    t_end: float
+
+
+TaskFactory = Callable[[type[Task], TaskContext], Task | None]
+
+
+class _Model:
+    """The model object `transitions` sets ``state`` on."""
+
+    state: str = START
+
+
+@dataclass
+class _Blend:
+    t0: float
+    duration: float
+    old: Command
+
+
+class Executor:
+    """One run of a machine: feed it observations, it returns commands and fires transitions."""
+
+    def __init__(self, mission: CompiledMission, world: World, robot: Robot, *,
+                 task_factory: TaskFactory | None = None,
+                 on_transition: Callable[[TransitionRecord], None] | None = None) -> None:
+        self.mission, self.world, self.robot = mission, world, robot
+        self.params = mission.spec.parameters
+        self.task_factory = task_factory or (lambda cls, ctx: cls(ctx))
+        self.on_transition = on_transition
+        self.memory: dict[str, Any] = {}
+        self.t = 0.0
+        self.leaf: StateNode | None = None
+        self.task: Task | None = None
+        self.entered_at: dict[str, float] = {}
+        self.dwell_since: dict[int, float] = {}
+        self.iteration: dict[str, int] = {}
+        self.iteration_start: dict[str, float] = {}
+        self.history: dict[str, str] = {}
+        self.iterations: list[IterationRecord] = []
+        self.path: list[str] = []  # leaves visited, in order
+        self.time_in_state: dict[str, float] = {}
+        self.transitions_fired: list[TransitionRecord] = []
+        self.outcome: str | None = None
+        self.reason: str = ""
+        self.last_command: Command = robot.stop_command()
+        self._stop = robot.stop_command()
+        self._blend: _Blend | None = None
+        self._running_actions: set[str] = set()
+        self._resuming = False
+        self._leaf_since = 0.0
+        self._tables: dict[str, list[CompiledTransition]] = {
+            leaf.path: [t for a in leaf.ancestors() for t in a.transitions if t.kind != "done"]
+            for leaf in mission.states.values() if leaf.is_leaf
+        }
+        self._model = _Model()
+        self._machine = _Machine(model=self._model, states=[START, *self._state_dicts(mission.root)], initial=START,
+                                 auto_transitions=True, send_event=False)
+        for node in mission.states.values():
+            st = self._machine.get_state(node.path)
+            st.on_enter.append(lambda n=node: self._enter(n))
+            st.on_exit.append(lambda n=node: self._exit(n))
+
+    # -- building ------------------------------------------------------------------------------
+    def _state_dicts(self, node: StateNode) -> list[dict[str, Any]]:
+        out = []
+        for child in node.children.values():
+            d: dict[str, Any] = {"name": child.name}
+            if child.children:
+                d["children"] = self._state_dicts(child)
+                d["initial"] = child.initial
+            out.append(d)
+        return out
+
+    # -- state path --------------------------------------------------------------------------------
+    @property
+    def state(self) -> str:
+        return self.leaf.path if self.leaf is not None else ""
+
+    def items(self, node: StateNode) -> dict[str, Any]:
+        """Current foreach items in scope at ``node``."""
+        out: dict[str, Any] = {}
+        for a in node.ancestors():
+            if a.foreach:
+                lst = self.params[a.foreach[0]]
+                out[a.foreach[1]] = lst[min(self.iteration.get(a.path, 0), len(lst) - 1)]
+        return out
+
+    # -- start -------------------------------------------------------------------------------------
+    def start(self, t: float) -> None:
+        self.t = t
+        first = self.mission.root.children[self.mission.root.initial]  # type: ignore[index]
+        self._go(first.initial_leaf(), None, "start", resume=False)
+
+    # -- entering and leaving -----------------------------------------------------------------------------
+    def _enter(self, node: StateNode) -> None:
+        t = self.t
+        self.entered_at[node.path] = t
+        for tr in node.transitions:
+            self.dwell_since.pop(tr.index, None)
+        if node.foreach and not self._resuming:
+            self.iteration[node.path] = 0
+            self.iteration_start[node.path] = t
+        if node.action is not None:
+            name, params = node.action
+            self.world.start_action(name, resolve_refs(params, self.params, self.items(node)))
+            self._running_actions.add(name)
+        if node.is_leaf:
+            self.leaf = node
+            self._leaf_since = t
+            self.path.append(node.path)
+            self.task = None
+            if node.task_cls is not None and not node.final:
+                params = node.task_cls.Params.model_validate(
+                    resolve_refs(node.task_params, self.params, self.items(node)))
+                ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self.memory,
+                                  robot=self.robot, items=self.items(node))
+                self.task = self.task_factory(node.task_cls, ctx)
+
+    def _exit(self, node: StateNode) -> None:
+        if node.is_leaf:
+            if self.task is not None:
+                self.task.on_exit(self.t)
+                self.task = None
+            self.time_in_state[node.path] = self.time_in_state.get(node.path, 0.0) + (self.t - self._leaf_since)
+        if node.action is not None and node.action[0] in self._running_actions:
+            self.world.cancel_action(node.action[0])
+            self._running_actions.discard(node.action[0])
+        if node.history and self.leaf is not None:
+            self.history[node.path] = self.leaf.path
+
+    def _destination(self, target: StateNode, resume: bool) -> tuple[StateNode, bool]:
+        if target.children and target.history and resume and target.path in self.history:
+            return self.mission.states[self.history[target.path]], True
+        return target.initial_leaf(), False
+
+    def _go(self, leaf: StateNode, tr: CompiledTransition | None, trigger: str, resume: bool) -> None:
+        source = self.state or START
+        self._resuming = resume
+        try:
+            self._model.trigger(f"to_{leaf.path}")  # type: ignore[attr-defined]
+        finally:
+            self._resuming = False
+        rec = TransitionRecord(self.t, source, leaf.path, trigger)
+        self.transitions_fired.append(rec)
+        if self.on_transition is not None:
+            self.on_transition(rec)
+        if leaf.final:
+            self._finished(leaf)
+
+    def fire(self, tr: CompiledTransition) -> None:
+        leaf, resumed = self._destination(tr.target, tr.resume)
+        if tr.blend > 0.0:
+            self._blend = _Blend(self.t, tr.blend, self.last_command)
+        label = f"{tr.source.path}: {tr.label}" + (" (resume)" if resumed else "")
+        self._go(leaf, tr, label, resume=resumed)
+
+    def _finished(self, leaf: StateNode) -> None:
+        """A final state was entered: finish its parent (foreach step, done transition or the run)."""
+        parent = leaf.parent
+        outcome = leaf.final or "succeeded"
+        if parent is None or parent.parent is None:
+            self.outcome = outcome
+            self.reason = self.reason or f"reached final state {leaf.path!r}"
+            return
+        if parent.foreach:
+            lst_name, item_name, on_failure = parent.foreach
+            lst = self.params[lst_name]
+            i = self.iteration.get(parent.path, 0)
+            self.iterations.append(IterationRecord(parent.path, i, lst[i], outcome,
+                                                   self.iteration_start.get(parent.path, self.t), self.t))
+            if outcome == "succeeded" or on_failure == "continue":
+                if i + 1 < len(lst):
+                    self.iteration[parent.path] = i + 1
+                    self.iteration_start[parent.path] = self.t
+                    self._go(parent.initial_leaf(), None, f"{parent.path}: next {item_name} ({i + 2}/{len(lst)})",
+                             resume=True)
+                    return
+                outcome = "succeeded" if outcome == "succeeded" or on_failure == "continue" else outcome
+        self._complete(parent, outcome)
+
+    def _complete(self, node: StateNode, outcome: str) -> None:
+        for tr in node.transitions:
+            if tr.kind == "done" and (tr.done is True or tr.done == outcome):
+                leaf, resumed = self._destination(tr.target, tr.resume)
+                self._go(leaf, tr, f"{node.path}: {tr.label} ({outcome})", resume=resumed)
+                return
+        # nobody handles this outcome: the run ends with it
+        self.outcome = outcome
+        self.reason = f"{node.path!r} finished {outcome} and no `done` transition handles it"
+
+    # -- one tick -------------------------------------------------------------------------------------
+    def tick(self, obs: Observation) -> tuple[Command, dict[str, float], set[str]]:
+        """Step the active task, apply nothing, check guards; returns (command, metrics, events)."""
+        t = self.t = obs.t
+        events = set(obs.events)
+        task = self.task
+        if task is not None:
+            res = task.step(obs)
+            command = res.command
+            metrics = {**obs.metrics, **res.metrics} if obs.metrics else res.metrics
+            if res.events:
+                events.update(res.events)
+        else:
+            command = self._stop
+            metrics = obs.metrics
+        if self._blend is not None:
+            command = self._blended(command, t)
+        self.last_command = command
+        self.check(t, metrics, events)
+        return command, metrics, events
+
+    def _blended(self, command: Command, t: float) -> Command:
+        b = self._blend
+        assert b is not None
+        h = blend_weight(t - b.t0, b.duration)
+        if h >= 1.0:
+            self._blend = None
+            return command
+        return {k: h * v + (1.0 - h) * b.old[k] if k in b.old else v for k, v in command.items()}
+
+    def check(self, t: float, metrics: dict[str, float], events: set[str]) -> CompiledTransition | None:
+        """Evaluate the active leaf's table; fire the first transition that holds."""
+        if self.leaf is None or self.outcome is not None:
+            return None
+        entered = self.entered_at
+        for tr in self._tables[self.leaf.path]:
+            kind = tr.kind
+            if kind == "when":
+                if tr.predicate(metrics):  # type: ignore[misc]
+                    if tr.dwell > 0.0:
+                        since = self.dwell_since.setdefault(tr.index, t)
+                        if t - since + 1e-9 < tr.dwell:
+                            continue
+                    self.fire(tr)
+                    return tr
+                if tr.dwell > 0.0:
+                    self.dwell_since.pop(tr.index, None)
+            elif kind == "on":
+                if tr.event in events:
+                    self.fire(tr)
+                    return tr
+            elif kind == "after":
+                if t - entered[tr.source.path] + 1e-9 >= tr.after:
+                    self.fire(tr)
+                    return tr
+        return None
+
+    def close(self, t: float) -> None:
+        """Account the time of the leaf still active at the end."""
+        self.t = t
+        if self.leaf is not None:
+            self.time_in_state[self.leaf.path] = self.time_in_state.get(self.leaf.path, 0.0) + (t - self._leaf_since)
+            self._leaf_since = t
+        for name in list(self._running_actions):
+            self.world.cancel_action(name)
+        self._running_actions.clear()
+
+
+def zero_like(command: Command) -> Command:
+    return {k: np.zeros_like(v) for k, v in command.items()}

@@ -1,0 +1,151 @@
+"""What a run leaves on disk, written as the run goes.
+
+``RUN_DIR/``
+  ``mission.yaml``        the mission as resolved (overrides applied, world parameters drawn)
+  ``seed``                the seed, alone on a line
+  ``transitions.jsonl``   one JSON object per fired transition: ``t``, ``from``, ``to``, ``trigger``
+  ``trace.csv``           one row per control tick: ``t``, ``state``, ``events``, metric columns
+                          ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
+                          (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it)
+  ``summary.json``        outcome, final state, states visited, times, final metrics
+
+Rows are buffered and flushed every ``flush_every`` ticks; ``summary.json`` exists from the start
+(outcome ``aborted``, reason ``run did not finish``) and is replaced when the run ends, so a crash or
+Ctrl-C still leaves a readable record.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+import yaml
+
+
+def _num(x: Any) -> str:
+    if x is None:
+        return ""
+    if isinstance(x, float):
+        return "" if math.isnan(x) else repr(x)
+    return str(x)
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, float) and math.isnan(o):
+        return None
+    return str(o)
+
+
+def write_json(path: Path, data: Any) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=_json_default, allow_nan=False) + "\n")
+    os.replace(tmp, path)
+
+
+def clean_floats(data: Any) -> Any:
+    """NaN/inf → None, numpy → Python, recursively (summary.json must be strict JSON)."""
+    if isinstance(data, dict):
+        return {str(k): clean_floats(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [clean_floats(v) for v in data]
+    if isinstance(data, np.ndarray):
+        return clean_floats(data.tolist())
+    if isinstance(data, np.generic):
+        data = data.item()
+    if isinstance(data, float) and not math.isfinite(data):
+        return None
+    return data
+
+
+class RunRecorder:
+    """Writes one run directory."""
+
+    def __init__(self, out_dir: Path, metric_names: Iterable[str], command_layout: dict[str, int],
+                 gt_names: Iterable[str], flush_every: int = 50) -> None:
+        self.dir = Path(out_dir)
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.metric_names = list(metric_names)
+        self.command_layout = dict(command_layout)
+        self.gt_names = list(gt_names)
+        self.flush_every = flush_every
+        self._rows: list[tuple[float, str, str, dict[str, float], dict[str, Any], dict[str, float]]] = []
+        cmd_cols = [f"cmd.{k}" if n == 1 else f"cmd.{k}.{i}" for k, n in self.command_layout.items() for i in range(n)]
+        self.columns = ["t", "state", "events", *[f"m.{m}" for m in self.metric_names], *cmd_cols,
+                        *[f"gt.{g}" for g in self.gt_names]]
+        self._trace = open(self.dir / "trace.csv", "w", buffering=1 << 16)
+        self._trace.write(",".join(self.columns) + "\n")
+        self._transitions = open(self.dir / "transitions.jsonl", "w")
+        self.ticks = 0
+
+    # -- start ---------------------------------------------------------------------------------
+    def write_mission(self, resolved: dict[str, Any], seed: int) -> None:
+        (self.dir / "mission.yaml").write_text(yaml.safe_dump(clean_floats(resolved), sort_keys=False))
+        (self.dir / "seed").write_text(f"{seed}\n")
+
+    # -- as the run goes ---------------------------------------------------------------------
+    def transition(self, t: float, source: str, target: str, trigger: str) -> None:
+        self._transitions.write(json.dumps({"t": round(t, 9), "from": source, "to": target, "trigger": trigger}) + "\n")
+        self._transitions.flush()
+
+    def tick(self, t: float, state: str, events: Iterable[str], metrics: dict[str, float],
+             command: dict[str, Any], gt: dict[str, float]) -> None:
+        self._rows.append((t, state, "|".join(sorted(events)) if events else "", metrics, command, gt))
+        self.ticks += 1
+        if len(self._rows) >= self.flush_every:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self._rows:
+            return
+        out = []
+        mnames, gnames, layout = self.metric_names, self.gt_names, self.command_layout
+        for t, state, events, metrics, command, gt in self._rows:
+            cells = [repr(t), state, events]
+            cells += [_num(metrics.get(m)) for m in mnames]
+            for k, n in layout.items():
+                v = command.get(k)
+                if v is None:
+                    cells += [""] * n
+                else:
+                    cells += [_num(float(x)) for x in np.ravel(v)[:n]]
+            cells += [_num(gt.get(g)) for g in gnames]
+            out.append(",".join(cells))
+        self._trace.write("\n".join(out) + "\n")
+        self._trace.flush()
+        self._rows.clear()
+
+    # -- end -------------------------------------------------------------------------------------
+    def summary(self, data: dict[str, Any]) -> None:
+        self.flush()
+        write_json(self.dir / "summary.json", clean_floats(data))
+
+    def close(self) -> None:
+        self.flush()
+        self._trace.close()
+        self._transitions.close()
+
+
+def read_trace(run_dir: str | Path) -> dict[str, np.ndarray]:
+    """The trace as columns of numpy arrays (numeric columns as float, NaN where empty)."""
+    import csv
+
+    with open(Path(run_dir) / "trace.csv", newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        rows = list(reader)
+    out: dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        col = [r[j] if j < len(r) else "" for r in rows]
+        if name in ("state", "events"):
+            out[name] = np.array(col, dtype=object)
+        else:
+            out[name] = np.array([float(x) if x else np.nan for x in col])
+    return out

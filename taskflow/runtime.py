@@ -1,0 +1,205 @@
+"""The control loop: world → task → world, on the simulation clock, with a run record.
+
+One tick at the mission's ``rate_hz``::
+
+    obs = world.observe()                 # sensors at their own rates inside the world
+    command, metrics, events = executor.tick(obs)   # task step, blend, guards, maybe a transition
+    world.apply(command)
+    recorder.tick(...)                    # state path, metrics, command, ground truth
+    world.advance(1 / rate_hz)            # whole physics steps
+
+A run ends at a final state, at ``max_time`` (outcome ``timeout``), on an exception (``aborted``,
+with the error in ``summary.json`` and ``error.txt``) or on Ctrl-C / SIGTERM (``aborted``,
+``interrupted``).  On anything but success the robot is commanded to a safe stop.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from .api import World
+from .executor import Executor, TaskFactory, TransitionRecord
+from .loader import CompiledMission
+from .records import RunRecorder, clean_floats
+
+OUTCOMES = ("succeeded", "failed", "aborted", "timeout")
+
+
+@dataclass
+class RunResult:
+    outcome: str
+    summary: dict[str, Any]
+    run_dir: Path | None
+    executor: Executor
+
+    @property
+    def succeeded(self) -> bool:
+        return self.outcome == "succeeded"
+
+
+@dataclass
+class Progress:
+    """Called about twice a wall-clock second with the active state, sim time and real-time factor."""
+
+    callback: Callable[[str, float, float], None]
+    period_s: float = 0.5
+
+
+class _Terminated(BaseException):
+    pass
+
+
+def _sigterm(signum: int, frame: Any) -> None:
+    raise _Terminated()
+
+
+def default_run_dir(mission: CompiledMission, seed: int, root: str | Path = "runs") -> Path:
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    base = Path(root) / f"{mission.name}-seed{seed}-{stamp}"
+    out, k = base, 1
+    while out.exists():
+        k += 1
+        out = Path(f"{base}-{k}")
+    return out
+
+
+def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: str | Path | None = None,
+                gui: bool = False, max_time: float | None = None, progress: Progress | None = None,
+                world: World | None = None, task_factory: TaskFactory | None = None,
+                record: bool = True, on_start: Callable[[Executor], None] | None = None) -> RunResult:
+    """Run ``mission`` to its end and return the outcome and summary.
+
+    ``out_dir=None`` with ``record=True`` writes under ``runs/``; ``record=False`` writes nothing
+    (tests and batches that only need the summary).  ``world`` replaces the registered world (the
+    scripted backend of :mod:`taskflow.testing` uses it).
+    """
+    seed = mission.spec.seed if seed is None else int(seed)
+    max_time = float(mission.spec.max_time if max_time is None else max_time)
+    robot = mission.build_robot()
+    world_params = mission.world_params(seed)
+    if world is None:
+        world = mission.world_cls(robot, world_params, seed, gui)
+    dt = 1.0 / mission.spec.rate_hz
+    recorder: RunRecorder | None = None
+    if record:
+        run_dir = Path(out_dir) if out_dir is not None else default_run_dir(mission, seed)
+        recorder = RunRecorder(run_dir, sorted(mission.metric_units), robot.command_keys, world.ground_truth_keys)
+        resolved = dict(mission.raw)
+        resolved["seed"] = seed
+        if isinstance(resolved.get("world"), dict):
+            resolved["world"] = {**resolved["world"], "params": world_params.model_dump(mode="json")}
+        recorder.write_mission(resolved, seed)
+
+    def on_transition(rec: TransitionRecord) -> None:
+        if recorder is not None:
+            recorder.transition(rec.t, rec.source, rec.target, rec.trigger)
+
+    executor = Executor(mission, world, robot, task_factory=task_factory, on_transition=on_transition)
+    if on_start is not None:
+        on_start(executor)
+    summary: dict[str, Any] = {"mission": mission.name, "file": mission.file, "seed": seed, "outcome": "aborted",
+                               "reason": "run did not finish"}
+    if recorder is not None:
+        recorder.summary(summary)
+    wall0 = time.perf_counter()
+    last_report = wall0
+    t = 0.0
+    metrics: dict[str, float] = {}
+    outcome = "aborted"
+    reason = ""
+    k = 0
+    old_handler = None
+    try:
+        try:
+            old_handler = signal.signal(signal.SIGTERM, _sigterm)
+        except ValueError:  # not the main thread
+            old_handler = None
+        world.reset()
+        obs = world.observe()
+        executor.start(obs.t)
+        while True:
+            obs = world.observe()
+            t = obs.t
+            if executor.outcome is not None:
+                break
+            if t >= max_time - 1e-9:
+                executor.outcome, executor.reason = "timeout", f"max_time {max_time:g} s reached"
+                break
+            leaf = executor.state
+            command, metrics, events = executor.tick(obs)
+            world.apply(command)
+            if recorder is not None:
+                recorder.tick(t, leaf, events, metrics, command, world.ground_truth())
+            k += 1
+            if progress is not None:
+                now = time.perf_counter()
+                if now - last_report >= progress.period_s:
+                    last_report = now
+                    progress.callback(executor.state, t, t / max(now - wall0, 1e-9))
+            if executor.outcome is not None:
+                continue  # re-observe so the summary's clock includes this tick
+            world.advance(dt)
+        outcome, reason = executor.outcome or "aborted", executor.reason
+    except KeyboardInterrupt:
+        outcome, reason = "aborted", "interrupted (Ctrl-C)"
+    except _Terminated:
+        outcome, reason = "aborted", "terminated (SIGTERM)"
+    except Exception as exc:  # the run record must survive any failure of a task or world
+        outcome, reason = "aborted", f"{type(exc).__name__}: {exc}"
+        if recorder is not None:
+            (recorder.dir / "error.txt").write_text(traceback.format_exc())
+    finally:
+        if old_handler is not None:
+            signal.signal(signal.SIGTERM, old_handler)
+    executor.outcome, executor.reason = outcome, reason
+    try:
+        if outcome != "succeeded":
+            world.safe_stop()
+        executor.close(t)
+        final_metrics: dict[str, Any] = dict(metrics)
+        try:
+            final_metrics.update(world.summary_metrics())
+        except Exception as exc:  # noqa: BLE001 - a summary must still be written
+            final_metrics["summary_error"] = f"{type(exc).__name__}: {exc}"
+        summary = build_summary(mission, seed, executor, t, time.perf_counter() - wall0, final_metrics, k)
+        if recorder is not None:
+            recorder.summary(summary)
+    finally:
+        if recorder is not None:
+            recorder.close()
+        world.close()
+    return RunResult(outcome, summary, recorder.dir if recorder else None, executor)
+
+
+def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: float, wall: float,
+                  metrics: dict[str, Any], ticks: int) -> dict[str, Any]:
+    return clean_floats({
+        "mission": mission.name,
+        "file": mission.file,
+        "seed": seed,
+        "outcome": ex.outcome,
+        "reason": ex.reason,
+        "final_state": ex.state,
+        "states_visited": list(ex.path),
+        "sim_time_s": round(sim_time, 9),
+        "wall_time_s": wall,
+        "real_time_factor": sim_time / wall if wall > 0 else None,
+        "ticks": ticks,
+        "time_in_state_s": {k: round(v, 9) for k, v in ex.time_in_state.items()},
+        "iterations": [
+            {"state": r.state, "index": r.index, "item": r.item, "outcome": r.outcome,
+             "t_start": r.t_start, "t_end": r.t_end} for r in ex.iterations],
+        "transitions": len(ex.transitions_fired),
+        "metrics": metrics,
+    })
+
+
+def print_progress(state: str, t: float, rtf: float) -> None:
+    sys.stderr.write(f"\r  t = {t:7.2f} s  RTF {rtf:6.1f}x  {state[:60]:<60}")
+    sys.stderr.flush()

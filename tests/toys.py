@@ -1,0 +1,128 @@
+"""Small registered robot/world/task used by the framework's own tests (no simulator).
+
+``toy_point`` is a 1-D point moved by a velocity command; ``toy_line`` integrates it exactly and
+emits ``target_lost`` / ``target_found`` at scheduled times; ``toy_goto`` is a P controller.
+They exist so the machine tests exercise real task and world code paths without PyBullet.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+from pydantic import Field
+
+from taskflow.api import Observation, Robot, StepResult, StrictModel, Task, TaskContext, World
+from taskflow.registry import ROBOTS, TASKS, WORLDS
+
+
+class ToyRobotParams(StrictModel):
+    v_max: float = Field(1.0, gt=0)
+
+
+class ToyPoint(Robot):
+    Params = ToyRobotParams
+    command_keys = {"v": 1}
+
+
+class ToyWorldParams(StrictModel):
+    start: float = 0.0
+    lose_at: list[float] = []
+    find_at: list[float] = []
+    tool_time: float = 0.5
+    tool_ok: bool = True
+    noise: float = 0.0
+
+
+class ToyLine(World):
+    Params = ToyWorldParams
+    events = ("target_lost", "target_found")
+    metrics = {"visible": ""}
+    ground_truth_keys = ("x",)
+    actions = {"tool": ("tool_done", "tool_failed")}
+    physics_hz = 100.0
+
+    def reset(self) -> None:
+        p = self.params
+        self.x = p.start
+        self.v = 0.0
+        self.k = 0
+        self.rng = np.random.default_rng(self.seed)
+        self.action: tuple[float, str] | None = None
+        self.visible = True
+        self.pending: list[str] = []
+
+    @property
+    def t(self) -> float:
+        return self.k / self.physics_hz
+
+    def observe(self) -> Observation:
+        ev = self.pending
+        self.pending = []
+        if self.action is not None and self.t >= self.action[0] - 1e-9:
+            ev.append(self.action[1])
+            self.action = None
+        x = self.x + (self.rng.normal(0, self.params.noise) if self.params.noise else 0.0)
+        return Observation(self.t, state={"x": x}, events=tuple(ev), metrics={"visible": float(self.visible)})
+
+    def apply(self, command: Mapping[str, np.ndarray]) -> None:
+        self.v = float(np.clip(command["v"][0], -self.robot.params.v_max, self.robot.params.v_max))
+
+    def advance(self, dt: float) -> None:
+        for _ in range(round(dt * self.physics_hz)):
+            self.k += 1
+            self.x += self.v / self.physics_hz
+            for tl in self.params.lose_at:
+                if abs(self.t - tl) < 0.5 / self.physics_hz:
+                    self.visible = False
+                    self.pending.append("target_lost")
+            for tf in self.params.find_at:
+                if abs(self.t - tf) < 0.5 / self.physics_hz:
+                    self.visible = True
+                    self.pending.append("target_found")
+
+    def ground_truth(self) -> dict[str, float]:
+        return {"x": self.x}
+
+    def summary_metrics(self) -> dict[str, Any]:
+        return {"final_x": self.x}
+
+    def start_action(self, name: str, params: Mapping[str, Any]) -> None:
+        ok = params.get("ok", self.params.tool_ok)
+        self.action = (self.t + self.params.tool_time, "tool_done" if ok else "tool_failed")
+
+    def cancel_action(self, name: str) -> None:
+        self.action = None
+
+
+
+class GainsModel(StrictModel):
+    kp: float = Field(gt=0)
+
+
+class GotoParams(StrictModel):
+    target: float
+
+
+class ToyGoto(Task):
+    Params = GotoParams
+    slots = {"gains": GainsModel}
+    metrics = {"pos_error": "m", "feature_error": "px", "yaw_error": "rad"}
+    events = ("arrived",)
+
+    def __init__(self, ctx: TaskContext) -> None:
+        super().__init__(ctx)
+        self.kp = ctx.profiles["gains"].kp  # type: ignore[attr-defined]
+        self.target = ctx.params.target  # type: ignore[attr-defined]
+        self.ctx.memory.setdefault("entries", []).append(self.target)
+
+    def step(self, obs: Observation) -> StepResult:
+        e = self.target - obs.state["x"]
+        return StepResult({"v": np.array([self.kp * e])},
+                          {"pos_error": abs(e), "feature_error": 100 * abs(e), "yaw_error": 0.0})
+
+
+def register() -> None:
+    for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (WORLDS, "toy_line", ToyLine), (TASKS, "toy_goto", ToyGoto)):
+        if name not in reg._items:
+            reg.add(name, cls)
