@@ -93,7 +93,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
     path = args.mission
     _load(path, args.set)  # fail fast, with file:line:col, before any worker starts
     result = run_batch(path, trials=args.trials, workers=args.workers, seed=args.seed, overrides=args.set,
-                       out=args.out, max_time=args.max_time)
+                       out=args.out, max_time=args.max_time, keep_runs=args.keep_runs)
     print(format_table(result))
     print(f"batch record: {result['batch_file']}")
     return 0 if result["aggregate"]["success_rate"] == 1.0 else 1
@@ -143,6 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     b.add_argument("--out", default=None, help="batch directory (default runs/batch-NAME-TIME)")
     b.add_argument("--max-time", type=float, default=None)
+    b.add_argument("--keep-runs", action="store_true", help="also write every trial's run directory")
     b.set_defaults(fn=cmd_batch)
 
     p = sub.add_parser("plot", help="write the figures of a run directory as PNG")

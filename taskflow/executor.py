@@ -23,7 +23,6 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-import numpy as np
 from transitions.extensions.nesting import HierarchicalMachine, NestedState
 
 from .api import Command, Observation, Robot, Task, TaskContext, World
@@ -119,6 +118,9 @@ class Executor:
             leaf.path: [t for a in leaf.ancestors() for t in a.transitions if t.kind != "done"]
             for leaf in mission.states.values() if leaf.is_leaf
         }
+        # per-leaf: a validated parameter model when the task's params hold no $reference
+        self._static_params: dict[str, Any] = {}
+        self._scoped: set[str] = {n.path for n in mission.states.values() if any(a.foreach for a in n.ancestors())}
         self._model = _Model()
         self._machine = _Machine(model=self._model, states=[START, *self._state_dicts(mission.root)], initial=START,
                                  auto_transitions=True, send_event=False)
@@ -146,6 +148,8 @@ class Executor:
     def items(self, node: StateNode) -> dict[str, Any]:
         """Current foreach items in scope at ``node``."""
         out: dict[str, Any] = {}
+        if node.path not in self._scoped:
+            return out
         for a in node.ancestors():
             if a.foreach:
                 lst = self.params[a.foreach[0]]
@@ -177,10 +181,14 @@ class Executor:
             self.path.append(node.path)
             self.task = None
             if node.task_cls is not None and not node.final:
-                params = node.task_cls.Params.model_validate(
-                    resolve_refs(node.task_params, self.params, self.items(node)))
+                items = self.items(node)
+                params = self._static_params.get(node.path)
+                if params is None:
+                    params = node.task_cls.Params.model_validate(resolve_refs(node.task_params, self.params, items))
+                    if not _has_refs(node.task_params):
+                        self._static_params[node.path] = params
                 ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self.memory,
-                                  robot=self.robot, items=self.items(node))
+                                  robot=self.robot, items=items)
                 self.task = self.task_factory(node.task_cls, ctx)
 
     def _exit(self, node: StateNode) -> None:
@@ -323,5 +331,11 @@ class Executor:
         self._running_actions.clear()
 
 
-def zero_like(command: Command) -> Command:
-    return {k: np.zeros_like(v) for k, v in command.items()}
+def _has_refs(value: Any) -> bool:
+    if isinstance(value, str):
+        return value.startswith("$")
+    if isinstance(value, dict):
+        return any(_has_refs(v) for v in value.values())
+    if isinstance(value, list):
+        return any(_has_refs(v) for v in value)
+    return False

@@ -6,7 +6,8 @@
   ``transitions.jsonl``   one JSON object per fired transition: ``t``, ``from``, ``to``, ``trigger``
   ``trace.csv``           one row per control tick: ``t``, ``state``, ``events``, metric columns
                           ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
-                          (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it)
+                          (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it; ``nan``
+                          where a metric has no value that tick)
   ``summary.json``        outcome, final state, states visited, times, final metrics
 
 Rows are buffered and flushed every ``flush_every`` ticks; ``summary.json`` exists from the start
@@ -24,14 +25,6 @@ from typing import Any, Iterable
 
 import numpy as np
 import yaml
-
-
-def _num(x: Any) -> str:
-    if x is None:
-        return ""
-    if isinstance(x, float):
-        return "" if math.isnan(x) else repr(x)
-    return str(x)
 
 
 def _json_default(o: Any) -> Any:
@@ -93,7 +86,6 @@ class RunRecorder:
     # -- as the run goes ---------------------------------------------------------------------
     def transition(self, t: float, source: str, target: str, trigger: str) -> None:
         self._transitions.write(json.dumps({"t": round(t, 9), "from": source, "to": target, "trigger": trigger}) + "\n")
-        self._transitions.flush()
 
     def tick(self, t: float, state: str, events: Iterable[str], metrics: dict[str, float],
              command: dict[str, Any], gt: dict[str, float]) -> None:
@@ -104,22 +96,21 @@ class RunRecorder:
 
     def flush(self) -> None:
         if not self._rows:
+            self._transitions.flush()
             return
         out = []
-        mnames, gnames, layout = self.metric_names, self.gt_names, self.command_layout
+        nan = math.nan
+        mnames, gnames, layout = self.metric_names, self.gt_names, list(self.command_layout.items())
         for t, state, events, metrics, command, gt in self._rows:
-            cells = [repr(t), state, events]
-            cells += [_num(metrics.get(m)) for m in mnames]
-            for k, n in layout.items():
+            vals = [metrics.get(m, nan) for m in mnames]
+            for k, n in layout:
                 v = command.get(k)
-                if v is None:
-                    cells += [""] * n
-                else:
-                    cells += [_num(float(x)) for x in np.ravel(v)[:n]]
-            cells += [_num(gt.get(g)) for g in gnames]
-            out.append(",".join(cells))
+                vals += [nan] * n if v is None else np.ravel(v)[:n].tolist()
+            vals += [gt.get(g, nan) for g in gnames]
+            out.append(f"{t!r},{state},{events}," + ",".join(map(repr, map(float, vals))))
         self._trace.write("\n".join(out) + "\n")
         self._trace.flush()
+        self._transitions.flush()
         self._rows.clear()
 
     # -- end -------------------------------------------------------------------------------------
@@ -147,5 +138,5 @@ def read_trace(run_dir: str | Path) -> dict[str, np.ndarray]:
         if name in ("state", "events"):
             out[name] = np.array(col, dtype=object)
         else:
-            out[name] = np.array([float(x) if x else np.nan for x in col])
+            out[name] = np.array([float(x) if x else np.nan for x in col], dtype=float)
     return out

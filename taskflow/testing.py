@@ -138,10 +138,16 @@ class _IdleTask(Task):
 
 
 def drive(mission: CompiledMission, script: Script, *, max_time: float | None = None,
-          out_dir: str | Path | None = None) -> RunResult:
-    """Run the mission's machine against ``script`` (tasks replaced; nothing rendered or simulated)."""
+          out_dir: str | Path | None = None,
+          on_world: Callable[[ScriptedWorld], None] | None = None) -> RunResult:
+    """Run the mission's machine against ``script`` (tasks replaced; nothing rendered or simulated).
+
+    ``on_world`` receives the :class:`ScriptedWorld` (its ``started``, ``cancelled`` and
+    ``applied`` lists record what the machine asked of the hardware)."""
     robot = mission.build_robot()
     world = ScriptedWorld(robot, script, mission)
+    if on_world is not None:
+        on_world(world)
 
     def factory(cls: type[Task], ctx: TaskContext) -> Task:
         return _IdleTask(ctx)

@@ -1,0 +1,94 @@
+"""Paper-style figures of a run directory, as PNG (matplotlib, no display needed).
+
+* ``path.png`` — top view of the ground-truth path (``gt.x``/``gt.y``, or ``gt.NAME_x``/``_y``),
+  coloured by state, with the world's target (``gt.target_x``/``gt.target_y``) when recorded;
+* ``commands.png`` — every command component over time, states as coloured bands;
+* ``metrics.png`` — every published metric over time (one panel per unit group), states as bands.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .records import read_trace
+
+
+def _bands(ax, t: np.ndarray, states: np.ndarray, colours: dict[str, tuple]) -> None:  # type: ignore[no-untyped-def]
+    if t.size == 0:
+        return
+    start = 0
+    for i in range(1, t.size + 1):
+        if i == t.size or states[i] != states[start]:
+            end_t = t[i] if i < t.size else t[-1]
+            ax.axvspan(t[start], end_t, color=colours[states[start]], alpha=0.15, lw=0)
+            start = i
+
+
+def plot_run(run_dir: str | Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    run_dir = Path(run_dir)
+    tr = read_trace(run_dir)
+    t, states = tr["t"], tr["state"]
+    names = list(dict.fromkeys(states.tolist()))
+    cmap = plt.get_cmap("tab10")
+    colours = {s: cmap(i % 10) for i, s in enumerate(names)}
+    out: list[Path] = []
+
+    # path
+    xk, yk = ("gt.x", "gt.y") if "gt.x" in tr else ("gt.robot_x", "gt.robot_y")
+    if xk in tr and yk in tr:
+        fig, ax = plt.subplots(figsize=(6, 6))
+        x, y = tr[xk], tr[yk]
+        for s in names:
+            m = states == s
+            ax.plot(x[m], y[m], ".", ms=2, color=colours[s], label=s)
+        if "gt.target_x" in tr:
+            ax.plot(tr["gt.target_x"][-1], tr["gt.target_y"][-1], "k*", ms=14, label="target")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title("ground-truth path by state")
+        ax.legend(fontsize=7, markerscale=4)
+        ax.grid(alpha=0.3)
+        out.append(run_dir / "path.png")
+        fig.savefig(out[-1], dpi=110, bbox_inches="tight")
+        plt.close(fig)
+
+    # commands
+    cmd_cols = [c for c in tr if c.startswith("cmd.")]
+    if cmd_cols:
+        fig, axes = plt.subplots(len(cmd_cols), 1, figsize=(8, 1.8 * len(cmd_cols) + 0.6), sharex=True, squeeze=False)
+        for ax, c in zip(axes[:, 0], cmd_cols):
+            _bands(ax, t, states, colours)
+            ax.plot(t, tr[c], lw=1.2)
+            ax.set_ylabel(c[4:], fontsize=8)
+            ax.grid(alpha=0.3)
+        axes[-1, 0].set_xlabel("t [s]")
+        axes[0, 0].set_title("commands (state bands)")
+        out.append(run_dir / "commands.png")
+        fig.savefig(out[-1], dpi=110, bbox_inches="tight")
+        plt.close(fig)
+
+    # metrics
+    m_cols = [c for c in tr if c.startswith("m.") and np.isfinite(tr[c]).any()]
+    if m_cols:
+        fig, axes = plt.subplots(len(m_cols), 1, figsize=(8, 1.6 * len(m_cols) + 0.6), sharex=True, squeeze=False)
+        for ax, c in zip(axes[:, 0], m_cols):
+            _bands(ax, t, states, colours)
+            ax.plot(t, tr[c], lw=1.2)
+            ax.set_ylabel(c[2:], fontsize=8)
+            ax.grid(alpha=0.3)
+        axes[-1, 0].set_xlabel("t [s]")
+        axes[0, 0].set_title("metrics (state bands)")
+        handles = [plt.Rectangle((0, 0), 1, 1, color=colours[s], alpha=0.3) for s in names]
+        fig.legend(handles, names, loc="lower center", ncol=min(4, len(names)), fontsize=7)
+        out.append(run_dir / "metrics.png")
+        fig.savefig(out[-1], dpi=110, bbox_inches="tight")
+        plt.close(fig)
+    return out
