@@ -65,6 +65,7 @@ class IterationRecord:
     outcome: str
     t_start: float
     t_end: float
+    ground_truth: dict[str, float]
 
 
 TaskFactory = Callable[[type[Task], TaskContext], Task | None]
@@ -242,7 +243,8 @@ class Executor:
             lst = self.params[lst_name]
             i = self.iteration.get(parent.path, 0)
             self.iterations.append(IterationRecord(parent.path, i, lst[i], outcome,
-                                                   self.iteration_start.get(parent.path, self.t), self.t))
+                                                   self.iteration_start.get(parent.path, self.t), self.t,
+                                                   self.world.ground_truth()))
             if outcome == "succeeded" or on_failure == "continue":
                 if i + 1 < len(lst):
                     self.iteration[parent.path] = i + 1

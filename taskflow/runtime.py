@@ -194,7 +194,7 @@ def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: f
         "time_in_state_s": {k: round(v, 9) for k, v in ex.time_in_state.items()},
         "iterations": [
             {"state": r.state, "index": r.index, "item": r.item, "outcome": r.outcome,
-             "t_start": r.t_start, "t_end": r.t_end} for r in ex.iterations],
+             "t_start": r.t_start, "t_end": r.t_end, "ground_truth": r.ground_truth} for r in ex.iterations],
         "transitions": len(ex.transitions_fired),
         "metrics": metrics,
     })
