@@ -105,7 +105,7 @@ def project_lidar_points(
     height: int,
     value: str = "range",
 ) -> NDArray[np.float64]:
-    """Eq. 11-12: depth image ``dI_l`` (height x width) of LiDAR points ``P_l`` (N x 3, LiDAR frame).
+    """Eq. 11-12: depth image ``dI_l`` (height x width) of LiDAR points ``P_l`` (N x 3).
 
     Each point is moved to the camera by ``T_cl``, projected with the pinhole model and written
     on pixel ``(rint(u), rint(v))`` if that pixel is in the image and the point is in front of
@@ -179,7 +179,7 @@ def interpolate_lidar_layers(
     el = np.asarray(elevations, dtype=float)
     if r.ndim != 2 or el.shape != (r.shape[0],):
         raise ValueError(
-            f"ranges must be (n_layers, n_azimuth) with one elevation per layer, got {r.shape}, {el.shape}"
+            f"ranges must be (n_layers, n_az), one elevation per layer; got {r.shape}, {el.shape}"
         )
     if r.shape[0] < 2:
         raise ValueError("need at least two beams to interpolate")
@@ -273,7 +273,9 @@ def fuse_depth(dI_l: ArrayLike, dI_c: ArrayLike, mask: ArrayLike) -> NDArray[np.
     b = np.asarray(dI_c, dtype=float)
     m = np.asarray(mask, dtype=bool)
     if not (a.shape == b.shape == m.shape):
-        raise ValueError(f"images and mask must have one shape, got {a.shape}, {b.shape}, {m.shape}")
+        raise ValueError(
+            f"images and mask must have one shape, got {a.shape}, {b.shape}, {m.shape}"
+        )
     out = a.copy()
     use = m & _valid(b)
     out[use] = b[use]

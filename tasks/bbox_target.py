@@ -35,7 +35,8 @@ def _centre(desired_centre: ArrayLike) -> tuple[float, float]:
     c = np.asarray(desired_centre, dtype=float)
     if c.shape != (2,):
         raise ValueError(f"desired_centre must be (u, v), got shape {c.shape}")
-    return float(c[0]), float(c[1])
+    cu, cv = c.tolist()
+    return cu, cv
 
 
 def desired_bbox(
@@ -48,11 +49,12 @@ def desired_bbox(
     b = np.asarray(current_bbox, dtype=float)
     if b.shape != (4,):
         raise ValueError(f"current_bbox must be (u0, v0, u2, v2), got shape {b.shape}")
-    k = Z_o / Z_d
-    hw = 0.5 * k * (b[2] - b[0])
-    hh = 0.5 * k * (b[3] - b[1])
-    if hw < 0.0 or hh < 0.0:
+    u0, v0, u2, v2 = b.tolist()
+    if not (u0 <= u2 and v0 <= v2):
         raise ValueError(f"current_bbox must satisfy u0 <= u2 and v0 <= v2, got {tuple(b)}")
+    k = Z_o / Z_d
+    hw = 0.5 * k * (u2 - u0)
+    hh = 0.5 * k * (v2 - v0)
     cu, cv = _centre(desired_centre)
     return np.array([cu - hw, cv - hh, cu + hw, cv + hh])
 

@@ -47,7 +47,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from tasks.image_features import CameraIntrinsics, as_intrinsics, point_interaction_matrix
+from tasks.image_features import (
+    CameraIntrinsics,
+    as_intrinsics,
+    point_interaction_matrix,
+)
 
 __all__ = [
     "skew",
@@ -85,7 +89,9 @@ def camera_mount_rotation(yaw: float = 0.0, pitch: float = 0.0) -> NDArray[np.fl
     return rz @ ry @ r0
 
 
-def _check_mount(R_rc: ArrayLike, t_rc: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _check_mount(
+    R_rc: ArrayLike, t_rc: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     R = np.asarray(R_rc, dtype=float)
     t = np.asarray(t_rc, dtype=float)
     if R.shape != (3, 3):
@@ -130,24 +136,31 @@ def car_jacobian_r(d: float = 0.0) -> NDArray[np.float64]:
     return J
 
 
+def _gains(lam: float | ArrayLike) -> tuple[float, float]:
+    if isinstance(lam, (float, int, np.floating, np.integer)):
+        gv = gw = float(lam)
+    else:
+        a = np.asarray(lam, dtype=float)
+        if a.ndim == 0:
+            gv = gw = float(a)
+        elif a.shape in ((2,), (5,)):
+            gv, gw = float(a[0]), float(a[1])
+        else:
+            raise ValueError(
+                f"lam must be a scalar, [lambda_v, lambda_w] or the paper's 5-vector, got {a.shape}"
+            )
+    if not (0.0 <= gv < np.inf and 0.0 <= gw < np.inf):
+        raise ValueError(f"gains must be finite and non-negative, got {(gv, gw)}")
+    return gv, gw
+
+
 def car_gains(lam: float | ArrayLike) -> NDArray[np.float64]:
     """Gains ``[lambda_v, lambda_w]`` for eq. 24 from a scalar, a pair, or the paper's 5-vector.
 
     A 5-vector ``[lambda_v, lambda_w, *rest]`` is the paper's format (section III-A); ``rest``
     has no counterpart in the 2-DoF law and is ignored (module docstring).
     """
-    a = np.asarray(lam, dtype=float)
-    if a.ndim == 0:
-        g = np.array([float(a), float(a)])
-    elif a.shape in ((2,), (5,)):
-        g = a[:2].copy()
-    else:
-        raise ValueError(
-            f"lam must be a scalar, [lambda_v, lambda_w] or the paper's 5-vector, got shape {a.shape}"
-        )
-    if np.any(g < 0.0) or not np.all(np.isfinite(g)):
-        raise ValueError(f"gains must be finite and non-negative, got {g}")
-    return g
+    return np.array(_gains(lam))
 
 
 def _feature_points(f: ArrayLike, K: CameraIntrinsics) -> NDArray[np.float64]:
@@ -170,7 +183,7 @@ def car_feature_jacobian(
     # v -> camera twist [R^T e_x; 0], w -> [-R^T (t x e_z); R^T e_z].
     TJ = np.zeros((6, 2))
     TJ[:3, 0] = R[0]  # R^T e_x
-    TJ[:3, 1] = -(R.T @ np.array([t[1], -t[0], 0.0]))  # -R^T (t x e_z)
+    TJ[:3, 1] = t[0] * R[1] - t[1] * R[0]  # -R^T (t x e_z), t x e_z = (t_y, -t_x, 0)
     TJ[3:, 1] = R[2]  # R^T e_z
     return L @ TJ
 
@@ -184,7 +197,7 @@ def car_vs_velocity(
     t_rc: ArrayLike,
     lam: float | ArrayLike,
 ) -> NDArray[np.float64]:
-    """Car visual-servo law, eq. 24: ``V_r = -diag(lambda_v, lambda_w) (L_f T_r^c J_r)^+ (f - f_d)``.
+    """Car visual-servo law, eq. 24: ``V_r = -diag(lambda_v, lambda_w) (L_f T_r^c J_r)^+ (f-f_d)``.
 
     Parameters
     ----------
@@ -206,19 +219,21 @@ def car_vs_velocity(
     The pseudo-inverse of the (2n x 2) matrix is computed by the normal equations (2x2 solve),
     with a minimum-norm least-squares fallback when the matrix is rank-deficient.
     """
-    g = car_gains(lam)
-    e = np.asarray(f, dtype=float).reshape(-1) - np.asarray(f_d, dtype=float).reshape(-1)
-    A = car_feature_jacobian(f, Z, intrinsics, R_rc, t_rc)
-    if e.shape[0] != A.shape[0]:
-        raise ValueError(f"f and f_d must have the same size, got {A.shape[0]} and {e.shape[0]}")
-    (a, b), (_, c) = A.T @ A
-    p, q = A.T @ e
+    gv, gw = _gains(lam)
+    fa = np.asarray(f, dtype=float).reshape(-1)
+    fd = np.asarray(f_d, dtype=float).reshape(-1)
+    if fa.shape != fd.shape:
+        raise ValueError(f"f and f_d must have the same size, got {fa.size} and {fd.size}")
+    e = fa - fd
+    A = car_feature_jacobian(fa, Z, intrinsics, R_rc, t_rc)
+    At = A.T
+    (a, b), (_, c) = (At @ A).tolist()
+    p, q = (At @ e).tolist()
     det = a * c - b * b
-    if det > 1e-12 * a * c and det > 0.0:
-        x = np.array([(c * p - b * q) / det, (a * q - b * p) / det])
-    else:
-        x = np.linalg.lstsq(A, e, rcond=None)[0]
-    return -g * x
+    if det > 1e-12 * a * c:
+        return np.array([-gv * (c * p - b * q) / det, -gw * (a * q - b * p) / det])
+    x = np.linalg.lstsq(A, e, rcond=None)[0]  # rank-deficient: minimum-norm solution
+    return np.array([-gv * x[0], -gw * x[1]])
 
 
 def camera_vs_velocity(
@@ -235,10 +250,12 @@ def camera_vs_velocity(
     minimum-norm least-squares solution (equal to the pseudo-inverse).
     """
     K = as_intrinsics(intrinsics)
-    e = np.asarray(f, dtype=float).reshape(-1) - np.asarray(f_d, dtype=float).reshape(-1)
-    L = point_interaction_matrix(_feature_points(f, K), Z, K.fx, K.fy)
-    if e.shape[0] != L.shape[0]:
-        raise ValueError(f"f and f_d must have the same size, got {L.shape[0]} and {e.shape[0]}")
+    fa = np.asarray(f, dtype=float).reshape(-1)
+    fd = np.asarray(f_d, dtype=float).reshape(-1)
+    if fa.shape != fd.shape:
+        raise ValueError(f"f and f_d must have the same size, got {fa.size} and {fd.size}")
+    e = fa - fd
+    L = point_interaction_matrix(_feature_points(fa, K), Z, K.fx, K.fy)
     g = np.asarray(lam, dtype=float)
     if g.shape not in ((), (6,)):
         raise ValueError(f"lam must be a scalar or a 6-vector, got shape {g.shape}")

@@ -49,6 +49,5 @@ def smooth_velocity(v_new: ArrayLike, v_prev: ArrayLike) -> NDArray[np.float64]:
     b = np.asarray(v_prev, dtype=float)
     if a.shape != b.shape:
         raise ValueError(f"v_new and v_prev must have the same shape, got {a.shape} and {b.shape}")
-    factor = 1.0 - np.abs(a - b)
-    np.clip(factor, 0.0, 1.0, out=factor)
+    factor = np.maximum(1.0 - np.abs(a - b), 0.0)  # <= 1 by construction
     return factor * a

@@ -106,24 +106,29 @@ def point_interaction_matrix(
     p = np.asarray(uv, dtype=float).reshape(-1, 2)
     u = p[:, 0]
     v = p[:, 1]
-    z = np.asarray(Z, dtype=float)
-    if np.any(z <= 0.0):
-        raise ValueError("depth Z must be positive")
-    iz = 1.0 / z
+    iz: float | NDArray[np.float64]
+    if isinstance(Z, (float, int, np.floating, np.integer)):
+        if not Z > 0.0:
+            raise ValueError(f"depth Z must be positive, got {Z}")
+        iz = 1.0 / float(Z)
+    else:
+        z = np.asarray(Z, dtype=float)
+        if not (z > 0.0).all():
+            raise ValueError("depth Z must be positive")
+        iz = 1.0 / z
     n = p.shape[0]
-    L = np.empty((n, 2, 6))
+    uv_ = u * v
+    L = np.zeros((n, 2, 6))
     L[:, 0, 0] = -fx * iz
-    L[:, 0, 1] = 0.0
     L[:, 0, 2] = u * iz
-    L[:, 0, 3] = u * v / fy
-    L[:, 0, 4] = -(fx + u * u / fx)
-    L[:, 0, 5] = fx * v / fy
-    L[:, 1, 0] = 0.0
+    L[:, 0, 3] = uv_ / fy
+    L[:, 0, 4] = -fx - u * u / fx
+    L[:, 0, 5] = (fx / fy) * v
     L[:, 1, 1] = -fy * iz
     L[:, 1, 2] = v * iz
     L[:, 1, 3] = fy + v * v / fy
-    L[:, 1, 4] = -u * v / fx
-    L[:, 1, 5] = -fy * u / fx
+    L[:, 1, 4] = -uv_ / fx
+    L[:, 1, 5] = (-fy / fx) * u
     return L.reshape(2 * n, 6)
 
 
@@ -132,18 +137,24 @@ def bbox_corners(bbox: ArrayLike) -> NDArray[np.float64]:
 
     ``p0 = (left, top)``, ``p1 = (left, bottom)``, ``p2 = (right, bottom)``, ``p3 = (right, top)``.
     """
+    u0, v0, u2, v2 = _bbox(bbox)
+    return np.array([[u0, v0], [u0, v2], [u2, v2], [u2, v0]])
+
+
+def _bbox(bbox: ArrayLike) -> tuple[float, float, float, float]:
     b = np.asarray(bbox, dtype=float)
     if b.shape != (4,):
         raise ValueError(f"bbox must be (u0, v0, u2, v2), got shape {b.shape}")
-    u0, v0, u2, v2 = b
-    if u2 < u0 or v2 < v0:
-        raise ValueError(f"bbox must satisfy u0 <= u2 and v0 <= v2, got {tuple(b)}")
-    return np.array([[u0, v0], [u0, v2], [u2, v2], [u2, v0]])
+    u0, v0, u2, v2 = b.tolist()
+    if not (u0 <= u2 and v0 <= v2):
+        raise ValueError(f"bbox must satisfy u0 <= u2 and v0 <= v2, got {(u0, v0, u2, v2)}")
+    return u0, v0, u2, v2
 
 
 def bbox_features(bbox: ArrayLike) -> NDArray[np.float64]:
     """Feature vector ``f = [u0, v0, u1, v1, u2, v2, u3, v3]`` (px) of section II-E: the corners."""
-    return bbox_corners(bbox).reshape(8)
+    u0, v0, u2, v2 = _bbox(bbox)
+    return np.array([u0, v0, u0, v2, u2, v2, u2, v0])
 
 
 def feature_error(f: ArrayLike, f_d: ArrayLike) -> float:
