@@ -22,8 +22,9 @@ from taskflow.registry import register_robot
 
 Vec3 = tuple[float, float, float]
 
-# Camera body frame (x forward, y left, z up) → optical frame (x right, y down, z forward).
-_BODY_TO_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]).T
+# Rotation camera body frame (x forward, y left, z up) ← optical frame (x right, y down, z forward):
+# its columns are the optical axes in the body frame.
+_BODY_TO_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> NDArray[np.float64]:
@@ -66,12 +67,12 @@ class CameraMount(Mount):
     TinyRenderer costs ~0.2 s per 1280x720 frame (SIMULATOR_NOTES.md).
     """
 
-    width: int = Field(640, gt=0)
-    height: int = Field(360, gt=0)
-    fov: float = Field(0.7330, gt=0.0, lt=math.pi)  # vertical, 42 deg (RealSense D435 colour)
-    rate_hz: float = Field(15.0, gt=0.0)
-    near: float = Field(0.05, gt=0.0)
-    far: float = Field(20.0, gt=0.0)
+    width: int = Field(default=640, gt=0)
+    height: int = Field(default=360, gt=0)
+    fov: float = Field(default=0.7330, gt=0.0, lt=math.pi)  # vertical, 42 deg (RealSense D435 colour)
+    rate_hz: float = Field(default=15.0, gt=0.0)
+    near: float = Field(default=0.05, gt=0.0)
+    far: float = Field(default=20.0, gt=0.0)
 
     def optical_transform(self) -> NDArray[np.float64]:
         """4x4 transform robot ← camera optical frame (x right, y down, z along the view, OpenCV).
@@ -96,13 +97,13 @@ class LidarMount(Mount):
     used by eq. (11), so the default spans a little more than the camera's horizontal field of view.
     """
 
-    layers: int = Field(16, gt=0)
+    layers: int = Field(default=16, gt=0)
     v_fov: tuple[float, float] = (-math.radians(15.0), math.radians(15.0))
-    h_fov: float = Field(1.4, gt=0.0, le=2.0 * math.pi)
-    azimuths: int = Field(128, gt=0)
-    rate_hz: float = Field(10.0, gt=0.0)
-    min_range: float = Field(0.1, ge=0.0)
-    max_range: float = Field(30.0, gt=0.0)
+    h_fov: float = Field(default=1.4, gt=0.0, le=2.0 * math.pi)
+    azimuths: int = Field(default=128, gt=0)
+    rate_hz: float = Field(default=10.0, gt=0.0)
+    min_range: float = Field(default=0.1, ge=0.0)
+    max_range: float = Field(default=30.0, gt=0.0)
 
     @field_validator("v_fov")
     @classmethod
@@ -118,11 +119,11 @@ _PITCH = math.radians(30.0)
 class RacecarParams(StrictModel):
     """Geometry (m), limits (m/s, rad) and sensor mounts of the racecar."""
 
-    wheelbase: float = Field(0.325, gt=0.0)
-    track: float = Field(0.2, gt=0.0)
-    wheel_radius: float = Field(0.05, gt=0.0)
-    v_max: float = Field(0.5, gt=0.0)
-    psi_max: float = Field(0.44, gt=0.0, lt=math.pi / 2)
+    wheelbase: float = Field(default=0.325, gt=0.0)
+    track: float = Field(default=0.2, gt=0.0)
+    wheel_radius: float = Field(default=0.05, gt=0.0)
+    v_max: float = Field(default=0.5, gt=0.0)
+    psi_max: float = Field(default=0.44, gt=0.0, lt=math.pi / 2)
     # Cameras 0.55 m high pitched 30 deg down: the optical axis meets the ground ~0.95 m away and the
     # image spans ~0.45–3.5 m of ground ahead (behind for the rear camera).
     front_camera: CameraMount = CameraMount(xyz=(0.40, 0.0, 0.55), rpy=(0.0, _PITCH, 0.0))
@@ -141,5 +142,5 @@ class Racecar(Robot):
 
     def __init__(self, params: RacecarParams) -> None:
         if not isinstance(params, RacecarParams):
-            raise ValueError(f"Racecar needs Racecar.Params, got {type(params).__name__}")
+            raise TypeError(f"Racecar needs Racecar.Params, got {type(params).__name__}")
         super().__init__(params)

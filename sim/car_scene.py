@@ -69,7 +69,7 @@ class CarScene:
         actuation: Actuation,
         floor_half_size: float = 25.0,
         friction: float = 1.0,
-    ) -> "CarScene":
+    ) -> CarScene:
         client = connect(gui, physics_hz)
         floor = add_floor(client, floor_half_size, friction)
         car = RacecarBody(client, start, actuation, tire_friction=friction)

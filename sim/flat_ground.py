@@ -25,13 +25,13 @@ class FlatGroundParams(StrictModel):
     """Start pose ``[x, y, yaw]`` (m, rad) of the rear-axle midpoint, physics rate, noise and actuators."""
 
     start: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    physics_hz: float = Field(240.0, gt=0.0)
-    odom_noise: float = Field(0.0, ge=0.0, description="std of odometry x, y noise (m)")
-    odom_yaw_noise: float = Field(0.0, ge=0.0, description="std of odometry yaw noise (rad)")
-    friction: float = Field(1.0, gt=0.0, description="floor and tyre lateral friction")
-    speed_tau: float = Field(0.05, ge=0.0, description="speed response time constant (s)")
-    steer_tau: float = Field(0.05, ge=0.0, description="steering response time constant (s)")
-    floor_half_size: float = Field(25.0, gt=0.0)
+    physics_hz: float = Field(default=240.0, gt=0.0)
+    odom_noise: float = Field(default=0.0, ge=0.0, description="std of odometry x, y noise (m)")
+    odom_yaw_noise: float = Field(default=0.0, ge=0.0, description="std of odometry yaw noise (rad)")
+    friction: float = Field(default=1.0, gt=0.0, description="floor and tyre lateral friction")
+    speed_tau: float = Field(default=0.05, ge=0.0, description="speed response time constant (s)")
+    steer_tau: float = Field(default=0.05, ge=0.0, description="steering response time constant (s)")
+    floor_half_size: float = Field(default=25.0, gt=0.0)
 
 
 @register_world("flat_ground")
@@ -39,14 +39,15 @@ class FlatGround(World):
     """A floor and the racecar; ``observe`` gives odometry, speed and steering."""
 
     Params: ClassVar[type[FlatGroundParams]] = FlatGroundParams
-    ground_truth_keys: ClassVar[tuple[str, ...]] = ("gt_x", "gt_y", "gt_yaw", "gt_v")
+    ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "yaw", "v")
     robots: ClassVar[tuple[str, ...]] = ("racecar",)
 
     params: FlatGroundParams
+    robot: Racecar
 
     def __init__(self, robot: Robot, params: FlatGroundParams, seed: int, gui: bool = False) -> None:
         if not isinstance(robot, Racecar):
-            raise ValueError(f"world flat_ground drives a racecar, got {type(robot).__name__}")
+            raise TypeError(f"world flat_ground drives a racecar, got {type(robot).__name__}")
         super().__init__(robot, params, seed, gui)
         self.physics_hz = float(params.physics_hz)
         self.scene: CarScene | None = None
@@ -133,4 +134,9 @@ class FlatGround(World):
     def ground_truth(self) -> dict[str, float]:
         car = self._require_scene().car
         x, y, yaw = car.pose()
-        return {"gt_x": float(x), "gt_y": float(y), "gt_yaw": float(yaw), "gt_v": car.speed()}
+        return {"x": float(x), "y": float(y), "yaw": float(yaw), "v": car.speed()}
+
+    def summary_metrics(self) -> dict[str, Any]:
+        """Final ground-truth pose and speed of the rear-axle midpoint."""
+        gt = self.ground_truth()
+        return {"gt_x_m": gt["x"], "gt_y_m": gt["y"], "gt_yaw_rad": gt["yaw"], "gt_speed_mps": abs(gt["v"])}

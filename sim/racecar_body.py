@@ -46,10 +46,17 @@ FRONT_WHEELS = ("left_front_wheel_joint", "right_front_wheel_joint")
 
 @dataclass(frozen=True)
 class Geometry:
-    """Car geometry as loaded: wheelbase, track (m) and rolling radius (m)."""
+    """Car geometry as loaded (m).
+
+    ``track`` is the distance between the steering hinges (the Ackermann angles are exact for it, since
+    each wheel's contact is offset along its own axis); ``drive_track`` the distance between the rear
+    wheels' contact centres, which the URDF offsets 2.25 cm outward from the wheel joints (0.245 m):
+    the electronic differential must use it or the rear wheels fight each other.
+    """
 
     wheelbase: float
     track: float
+    drive_track: float
     wheel_radius: float
 
 
@@ -118,7 +125,9 @@ class RacecarBody:
                 self.body, j, p.VELOCITY_CONTROL, targetVelocity=0.0, force=0.0, physicsClientId=client
             )
         for name in REAR_WHEELS + FRONT_WHEELS:
-            p.changeDynamics(self.body, self.joints[name], lateralFriction=tire_friction, physicsClientId=client)
+            p.changeDynamics(
+                self.body, self.joints[name], lateralFriction=tire_friction, physicsClientId=client
+            )
         self.set_pose(x, y, yaw)
         self._cmd = (0.0, 0.0)  # commanded (v, psi), clipped
         self._act = (0.0, 0.0)  # actuator state after the first-order response
@@ -127,9 +136,7 @@ class RacecarBody:
     # --- set-up --------------------------------------------------------------------------------
     def _joint_map(self) -> dict[str, int]:
         n = p.getNumJoints(self.body, physicsClientId=self.client)
-        return {
-            p.getJointInfo(self.body, j, physicsClientId=self.client)[1].decode(): j for j in range(n)
-        }
+        return {p.getJointInfo(self.body, j, physicsClientId=self.client)[1].decode(): j for j in range(n)}
 
     def _read_geometry(self) -> Geometry:
         """Wheelbase and track from the hinge/wheel joint origins, radius from the wheel collision shape."""
@@ -137,11 +144,20 @@ class RacecarBody:
         def origin(name: str) -> tuple[float, ...]:
             return tuple(p.getJointInfo(self.body, self.joints[name], physicsClientId=self.client)[14])
 
-        rl, rr = origin(REAR_WHEELS[0]), origin(REAR_WHEELS[1])
-        hl = origin(HINGES[0])
+        rl = origin(REAR_WHEELS[0])
+        hl, hr = origin(HINGES[0]), origin(HINGES[1])
+        inv = p.invertTransform(*self._base_frame())
+        cl, cr = (
+            p.multiplyTransforms(
+                *inv, p.getLinkState(self.body, self.joints[n], physicsClientId=self.client)[0], (0, 0, 0, 1)
+            )[0]
+            for n in REAR_WHEELS
+        )  # rear wheel contact centres (link centres of mass) in the base frame
         shape = p.getCollisionShapeData(self.body, self.joints[REAR_WHEELS[0]], physicsClientId=self.client)
         radius = float(shape[0][3][1]) if shape and shape[0][2] == p.GEOM_CYLINDER else 0.05
-        return Geometry(wheelbase=hl[0] - rl[0], track=rl[1] - rr[1], wheel_radius=radius)
+        return Geometry(
+            wheelbase=hl[0] - rl[0], track=hl[1] - hr[1], drive_track=cl[1] - cr[1], wheel_radius=radius
+        )
 
     def set_pose(self, x: float, y: float, yaw: float) -> None:
         """Teleport the base frame (rear-axle midpoint on the ground) to ``(x, y, yaw)``, at rest."""
@@ -177,7 +193,7 @@ class RacecarBody:
     def _send(self, v: float, psi: float) -> None:
         g, a, c = self.geometry, self.actuation, self.client
         left, right = ackermann_wheel_angles(psi, g.wheelbase, g.track)
-        wl, wr = differential_wheel_speeds(v, psi, g.wheelbase, g.track, g.wheel_radius)
+        wl, wr = differential_wheel_speeds(v, psi, g.wheelbase, g.drive_track, g.wheel_radius)
         p.setJointMotorControlArray(
             self.body,
             [self.joints[n] for n in HINGES],
@@ -217,8 +233,6 @@ class RacecarBody:
 
     def steering(self) -> float:
         """Measured bicycle-equivalent steering angle (rad) from the two hinge joint angles."""
-        ql, qr = (
-            p.getJointState(self.body, self.joints[n], physicsClientId=self.client)[0] for n in HINGES
-        )
+        ql, qr = (p.getJointState(self.body, self.joints[n], physicsClientId=self.client)[0] for n in HINGES)
         g = self.geometry
         return bicycle_from_wheel_angles(ql, qr, g.wheelbase, g.track)

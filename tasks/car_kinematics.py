@@ -71,9 +71,7 @@ def car_jacobian_b_inv(theta: float, d: float) -> FloatArray:
     return np.array([[c, s], [-s / d, c / d]])
 
 
-def kinematic_control(
-    pose: ArrayLike, target_xy: ArrayLike, k1: ArrayLike, d: float
-) -> tuple[float, float]:
+def kinematic_control(pose: ArrayLike, target_xy: ArrayLike, k1: ArrayLike, d: float) -> tuple[float, float]:
     """Eq. (4), as meant: ``V_r = J_b^-1 (k1 * tanh(h_d - h))`` → ``(v, w)``.
 
     ``h`` is the control point of eq. (1) (``d`` ahead of the rear axle) and ``h_d = target_xy``.  The
@@ -83,21 +81,25 @@ def kinematic_control(
     means the same gain on both axes.  The result is the unconstrained unicycle twist: convert it with
     :func:`car_command` (eq. 5 + limits) before sending it to the car.
     """
-    pose_a = _pose(pose)
+    x, y, th = _pose(pose)
+    d = _positive("d", d)
     hd = np.asarray(target_xy, dtype=np.float64).reshape(-1)
     if hd.shape != (2,):
         raise ValueError(f"target_xy must be (x, y), got shape {np.shape(target_xy)}")
-    gains = np.broadcast_to(np.asarray(k1, dtype=np.float64), (2,))
-    if not np.all(np.isfinite(gains)) or np.any(gains <= 0.0):
-        raise ValueError(f"k1 must be positive, got {k1!r}")
-    h_dot = gains * np.tanh(hd - control_point(pose_a, d))
-    v, w = car_jacobian_b_inv(float(pose_a[2]), d) @ h_dot
+    gains = np.asarray(k1, dtype=np.float64).reshape(-1)
+    if gains.shape == (1,):
+        gains = np.repeat(gains, 2)
+    if gains.shape != (2,) or not (math.isfinite(gains[0]) and math.isfinite(gains[1])) or min(gains) <= 0:
+        raise ValueError(f"k1 must be a positive scalar or pair, got {k1!r}")
+    c, s = math.cos(th), math.sin(th)
+    hx = float(gains[0]) * math.tanh(float(hd[0]) - (x + d * c))  # eq. (4): k1 tanh(h_d - h), eq. (1)
+    hy = float(gains[1]) * math.tanh(float(hd[1]) - (y + d * s))
+    v = c * hx + s * hy  # J_b^-1 of eq. (2)
+    w = (-s * hx + c * hy) / d
     return float(v), float(w)
 
 
-def steering_from_twist(
-    v: float, w: float, wheelbase: float, psi_max: float, v_eps: float = 1e-9
-) -> float:
+def steering_from_twist(v: float, w: float, wheelbase: float, psi_max: float, v_eps: float = 1e-9) -> float:
     """Eq. (5): steering ``psi = atan(L w / v)``, saturated to ``|psi| <= psi_max``.
 
     ``L`` is the wheelbase.  The sign of ``v`` is kept inside the arctangent so reversing flips the
@@ -124,22 +126,26 @@ def saturate(v: float, psi: float, v_max: float, psi_max: float) -> tuple[float,
 
 
 def car_command(
-    v: float, w: float, wheelbase: float, v_max: float, psi_max: float
+    v: float, w: float, wheelbase: float, v_max: float, psi_max: float, direction: float = 0.0
 ) -> tuple[float, float]:
     """Unicycle twist ``(v, w)`` → car command ``(v, psi)``: eq. (5) plus the robot's limits.
 
     A car cannot turn on the spot: the largest yaw rate at speed ``v`` is ``|v| tan(psi_max) / L``.
     When the twist asks for more (e.g. a target straight to the side gives ``v ≈ 0, w ≠ 0``, where a
     plain eq. (5) would steer to full lock and never move), the speed is raised to the smallest one
-    that realises ``w`` at full lock, keeping the sign of ``v`` (forward when ``v = 0``).  Then eq. (5)
-    gives ``psi`` and :func:`saturate` applies ``v_max`` at constant curvature.  The result is
-    continuous in ``(v, w)`` except across ``v = 0`` with ``w ≠ 0`` and vanishes with the twist.
+    that realises ``w`` at full lock.  Its sign is ``direction`` (the current direction of travel,
+    ``±1``) when given, else the sign of ``v`` (forward when ``v = 0``): keeping the direction while
+    the speed is raised avoids flipping between forward and reverse every tick when the target is
+    beside the control point — the car then makes parallel-parking-like legs, each reversing only once
+    the law's own ``v`` exceeds the raised speed.  Then eq. (5) gives ``psi`` and :func:`saturate`
+    applies ``v_max`` at constant curvature.  The command vanishes with the twist.
     """
     wheelbase = _positive("wheelbase", wheelbase)
     psi_max = _positive("psi_max", psi_max)
     v_min = abs(w) * wheelbase / math.tan(psi_max)
     if abs(v) < v_min:
-        v = math.copysign(v_min, v) if v != 0.0 else v_min
+        sign = direction if direction != 0.0 else (v if v != 0.0 else 1.0)
+        v = math.copysign(v_min, sign)
     psi = steering_from_twist(v, w, wheelbase, psi_max)
     return saturate(v, psi, v_max, psi_max)
 
@@ -162,9 +168,7 @@ def ackermann_wheel_angles(psi: float, wheelbase: float, track: float) -> tuple[
     return float(left), float(right)
 
 
-def bicycle_from_wheel_angles(
-    psi_left: float, psi_right: float, wheelbase: float, track: float
-) -> float:
+def bicycle_from_wheel_angles(psi_left: float, psi_right: float, wheelbase: float, track: float) -> float:
     """Inverse of :func:`ackermann_wheel_angles`: ``cot(psi) = (cot(psi_l) + cot(psi_r)) / 2``."""
     _positive("wheelbase", wheelbase)
     _positive("track", track)
