@@ -72,8 +72,13 @@ def default_run_dir(mission: CompiledMission, seed: int, root: str | Path = "run
 def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: str | Path | None = None,
                 gui: bool = False, max_time: float | None = None, progress: Progress | None = None,
                 world: World | None = None, task_factory: TaskFactory | None = None,
-                record: bool = True, on_start: Callable[[Executor], None] | None = None) -> RunResult:
+                record: bool = True, on_start: Callable[[Executor], None] | None = None,
+                safe_stop_s: float = 1.0) -> RunResult:
     """Run ``mission`` to its end and return the outcome and summary.
+
+    On any outcome but success the world is told to stop the robot every tick for ``safe_stop_s``
+    simulated seconds (recorded in the trace with the event ``safe_stop``; ``sim_time_s`` in the
+    summary stays the time the outcome was decided, ``stopped_at_s`` is when the stop ended).
 
     ``out_dir=None`` with ``record=True`` writes under ``runs/``; ``record=False`` writes nothing
     (tests and batches that only need the summary).  ``world`` replaces the registered world (the
@@ -114,6 +119,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     outcome = "aborted"
     reason = ""
     k = 0
+    t_end = 0.0
     old_handler = None
     try:
         try:
@@ -158,16 +164,18 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
         if old_handler is not None:
             signal.signal(signal.SIGTERM, old_handler)
     executor.outcome, executor.reason = outcome, reason
+    t_end = t
     try:
-        if outcome != "succeeded":
-            world.safe_stop()
         executor.close(t)
+        if outcome != "succeeded" and reason != "interrupted (Ctrl-C)":
+            t = _safe_stop(world, executor, recorder, t, dt, safe_stop_s)
         final_metrics: dict[str, Any] = dict(metrics)
         try:
             final_metrics.update(world.summary_metrics())
         except Exception as exc:  # noqa: BLE001 - a summary must still be written
             final_metrics["summary_error"] = f"{type(exc).__name__}: {exc}"
-        summary = build_summary(mission, seed, executor, t, time.perf_counter() - wall0, final_metrics, k)
+        summary = build_summary(mission, seed, executor, t_end, time.perf_counter() - wall0, final_metrics, k)
+        summary["stopped_at_s"] = t
         if recorder is not None:
             recorder.summary(summary)
     finally:
@@ -175,6 +183,22 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             recorder.close()
         world.close()
     return RunResult(outcome, summary, recorder.dir if recorder else None, executor)
+
+
+def _safe_stop(world: World, executor: Executor, recorder: RunRecorder | None, t: float, dt: float,
+               duration: float) -> float:
+    """Command the robot to stop and let the world settle for ``duration`` s, recording the ticks."""
+    try:
+        for _ in range(round(duration / dt)):
+            world.safe_stop()
+            world.advance(dt)
+            obs = world.observe()
+            t = obs.t
+            if recorder is not None:
+                recorder.tick(t, executor.state, ("safe_stop",), {}, executor.robot.stop_command(), world.ground_truth())
+    except Exception:  # noqa: BLE001 - the world may be what failed; the record matters more
+        pass
+    return t
 
 
 def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: float, wall: float,

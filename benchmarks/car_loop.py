@@ -1,11 +1,12 @@
 """Costs of the car loop: physics step, car_goto control tick, real-time factor at 20 Hz / 240 Hz.
 
-Run: ``PYTHONPATH=. python benchmarks/bench_car_loop.py`` (prints medians of a few repeats).
+Run: ``python benchmarks/car_loop.py`` (prints medians of a few repeats; last line JSON).
 """
 
 from __future__ import annotations
 
 import math
+import json
 import statistics
 import time
 
@@ -67,6 +68,11 @@ def main() -> None:
     )
     print(f"car_goto control tick: {statistics.median(c for c, _ in loops):.1f} us")
     print(f"real-time factor, 20 Hz control / 240 Hz physics: {statistics.median(r for _, r in loops):.1f}x")
+    print(json.dumps({
+        "step_simulation_us": statistics.median(steps),
+        "car_goto_tick_us": statistics.median(c for c, _ in loops),
+        "real_time_factor": statistics.median(r for _, r in loops),
+    }))
 
 
 if __name__ == "__main__":

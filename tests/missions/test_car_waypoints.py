@@ -1,0 +1,54 @@
+"""The waypoint mission on PyBullet, judged from the simulator's ground truth."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from taskflow.cli import main
+from taskflow.loader import load_mission
+from taskflow.records import read_trace
+from taskflow.runtime import run_mission
+from taskflow.testing import assert_outcome
+
+ROOT = Path(__file__).resolve().parents[2]
+MISSION = ROOT / "missions" / "car_waypoints.yaml"
+UNREACHABLE = ROOT / "missions" / "car_waypoints_unreachable.yaml"
+
+
+def test_reaches_every_waypoint_within_5_cm_of_ground_truth(tmp_path):
+    m = load_mission(MISSION)
+    d = m.spec.profiles["gains"]["fine"]["d"]
+    r = run_mission(m, out_dir=tmp_path / "run")
+    assert_outcome(r, "succeeded")
+    waypoints = m.spec.parameters["waypoints"]
+    its = r.summary["iterations"]
+    assert [it["item"] for it in its] == waypoints
+    for it in its:
+        gt = it["ground_truth"]  # the simulator's pose of the rear axle when the iteration ended
+        point = (gt["x"] + d * math.cos(gt["yaw"]), gt["y"] + d * math.sin(gt["yaw"]))
+        err = math.dist(point, it["item"])
+        assert err < 0.05, f"waypoint {it['item']}: ground-truth error {100 * err:.1f} cm"
+    # the record on disk agrees with the result, and the trace carries ground truth every tick
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["outcome"] == "succeeded" and summary["final_state"] == "done"
+    trace = read_trace(tmp_path / "run")
+    assert len(trace["t"]) == summary["ticks"]
+    assert set(trace["state"]) >= {"drive.approach", "drive.settle"}
+    assert not any(math.isnan(x) for x in trace["gt.x"])
+
+
+def test_unreachable_goal_ends_in_error_through_its_timeout_and_exits_nonzero(tmp_path, capsys):
+    code = main(["run", str(UNREACHABLE), "--out", str(tmp_path / "run"), "--quiet"])
+    assert code == 1
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["outcome"] == "failed"
+    assert summary["final_state"] == "error"
+    assert summary["sim_time_s"] == pytest.approx(20.0, abs=0.06)
+    transitions = [json.loads(line) for line in (tmp_path / "run" / "transitions.jsonl").read_text().splitlines()]
+    assert transitions[-1]["to"] == "error" and "after 20 s" in transitions[-1]["trigger"]
+    # the car was commanded to a safe stop: ground-truth speed is (almost) zero at the end
+    assert summary["metrics"]["gt_speed_mps"] < 0.05
