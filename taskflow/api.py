@@ -156,7 +156,7 @@ class World:
 
     # --- lifecycle -------------------------------------------------------------------------
     def reset(self) -> None:
-        """Build the scene; called once before the first observation."""
+        """Build the scene; called once before the first observation.  The clock restarts at 0."""
 
     def close(self) -> None:
         """Release the simulator."""

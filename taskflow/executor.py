@@ -209,11 +209,21 @@ class Executor:
             return self.mission.states[self.history[target.path]], True
         return target.initial_leaf(), False
 
-    def _go(self, leaf: StateNode, tr: CompiledTransition | None, trigger: str, resume: bool) -> None:
+    def _go(self, leaf: StateNode, tr: CompiledTransition | None, trigger: str, resume: bool,
+            domain: StateNode | None = None) -> None:
+        """Make ``leaf`` active.  States below ``domain`` on both sides are exited and entered (UML
+        external semantics: a transition into its own source or an ancestor re-enters it); the
+        ``transitions`` machine does the work unless its own least common ancestor would leave a
+        state of the domain un-exited, in which case the callbacks run here and the machine's state
+        is set to match."""
         source = self.state or START
         self._resuming = resume
         try:
-            self._model.trigger(f"to_{leaf.path}")  # type: ignore[attr-defined]
+            current = self.leaf
+            if domain is not None and current is not None and _is_strict_ancestor(domain, _lca(current, leaf)):
+                self._manual_switch(current, leaf, domain)
+            else:
+                self._model.trigger(f"to_{leaf.path}")  # type: ignore[attr-defined]
         finally:
             self._resuming = False
         rec = TransitionRecord(self.t, source, leaf.path, trigger)
@@ -223,12 +233,21 @@ class Executor:
         if leaf.final:
             self._finished(leaf)
 
+    def _manual_switch(self, current: StateNode, leaf: StateNode, domain: StateNode) -> None:
+        exiting = [n for n in reversed(current.ancestors()) if _is_strict_ancestor(domain, n)]
+        entering = [n for n in leaf.ancestors() if _is_strict_ancestor(domain, n)]
+        for n in exiting:
+            self._exit(n)
+        self._machine.set_state(leaf.path, model=self._model)
+        for n in entering:
+            self._enter(n)
+
     def fire(self, tr: CompiledTransition) -> None:
         leaf, resumed = self._destination(tr.target, tr.resume)
         if tr.blend > 0.0:
             self._blend = _Blend(self.t, tr.blend, self.last_command)
         label = f"{tr.source.path}: {tr.label}" + (" (resume)" if resumed else "")
-        self._go(leaf, tr, label, resume=resumed)
+        self._go(leaf, tr, label, resume=resumed, domain=_domain(tr.source, tr.target))
 
     def _finished(self, leaf: StateNode) -> None:
         """A final state was entered: finish its parent (foreach step, done transition or the run)."""
@@ -259,7 +278,8 @@ class Executor:
         for tr in node.transitions:
             if tr.kind == "done" and (tr.done is True or tr.done == outcome):
                 leaf, resumed = self._destination(tr.target, tr.resume)
-                self._go(leaf, tr, f"{node.path}: {tr.label} ({outcome})", resume=resumed)
+                self._go(leaf, tr, f"{node.path}: {tr.label} ({outcome})", resume=resumed,
+                         domain=_domain(tr.source, tr.target))
                 return
         # nobody handles this outcome: the run ends with it
         self.outcome = outcome
@@ -300,7 +320,8 @@ class Executor:
         if self.leaf is None or self.outcome is not None:
             return None
         entered = self.entered_at
-        for tr in self._tables[self.leaf.path]:
+        table = self._tables[self.leaf.path]
+        for i, tr in enumerate(table):
             kind = tr.kind
             if kind == "when":
                 if tr.predicate(metrics):  # type: ignore[misc]
@@ -308,19 +329,25 @@ class Executor:
                         since = self.dwell_since.setdefault(tr.index, t)
                         if t - since + 1e-9 < tr.dwell:
                             continue
-                    self.fire(tr)
-                    return tr
+                    return self._fire_from(table, i, metrics)
                 if tr.dwell > 0.0:
                     self.dwell_since.pop(tr.index, None)
             elif kind == "on":
                 if tr.event in events:
-                    self.fire(tr)
-                    return tr
+                    return self._fire_from(table, i, metrics)
             elif kind == "after":
                 if t - entered[tr.source.path] + 1e-9 >= tr.after:
-                    self.fire(tr)
-                    return tr
+                    return self._fire_from(table, i, metrics)
         return None
+
+    def _fire_from(self, table: list[CompiledTransition], i: int, metrics: dict[str, float]) -> CompiledTransition:
+        """Fire ``table[i]``; dwell timers of the guards not evaluated this tick still see this tick's
+        metrics (a break in their condition must not go unnoticed if their state stays active)."""
+        for later in table[i + 1:]:
+            if later.dwell > 0.0 and later.index in self.dwell_since and not later.predicate(metrics):  # type: ignore[misc]
+                del self.dwell_since[later.index]
+        self.fire(table[i])
+        return table[i]
 
     def close(self, t: float) -> None:
         """Account the time of the leaf still active at the end."""
@@ -331,6 +358,36 @@ class Executor:
         for name in list(self._running_actions):
             self.world.cancel_action(name)
         self._running_actions.clear()
+
+
+def _lca(a: StateNode, b: StateNode) -> StateNode:
+    """Deepest common ancestor-or-self of two states."""
+    pa = a.ancestors()
+    pb = b.ancestors()
+    common = pa[0]
+    for x, y in zip(pa, pb):
+        if x is not y:
+            break
+        common = x
+    return common
+
+
+def _is_strict_ancestor(a: StateNode, b: StateNode) -> bool:
+    n = b.parent
+    while n is not None:
+        if n is a:
+            return True
+        n = n.parent
+    return False
+
+
+def _domain(source: StateNode, target: StateNode) -> StateNode:
+    """The state whose descendants a transition exits and enters: the common ancestor of source and
+    target, or its parent when one of them contains the other (so that one is re-entered)."""
+    common = _lca(source, target)
+    if common is source or common is target:
+        return common.parent if common.parent is not None else common
+    return common
 
 
 def _has_refs(value: Any) -> bool:

@@ -235,16 +235,17 @@ def parse_guard(text: str) -> Guard:
     return Guard(text, _Parser(text).parse())
 
 
-def bind_units(guard: Guard, metric_units: Mapping[str, str], params: Mapping[str, tuple[float, str]]) -> list[str]:
+def bind_units(guard: Guard, metric_units: Mapping[str, str], params: Mapping[str, tuple[float, str]],
+               skip: set[str] | frozenset[str] = frozenset()) -> list[str]:
     """Convert every quantity to its metric's base unit; return a list of problems (empty: fine).
 
     ``metric_units`` maps metric → declared base unit; ``params`` maps parameter → (base value,
-    dimension) for ``$name`` operands.
+    dimension) for ``$name`` operands; parameters in ``skip`` are reported by the caller.
     """
     problems: list[str] = []
     for c in guard.comparisons():
         unit = metric_units.get(c.metric)
-        if unit is None:
+        if unit is None or (c.param is not None and c.param in skip):
             continue  # unknown metrics are reported by the loader with the valid names
         want = dimension(unit)
         if c.param is not None:

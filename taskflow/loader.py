@@ -142,8 +142,11 @@ def load_mission_text(text: str, file: str = "<string>", overrides: list[str] | 
     return compile_mission(data, smap, overrides)
 
 
-def apply_overrides(data: Any, overrides: list[str], file: str) -> Any:
-    """``--set a.b.0.c=value``: the value is read as YAML (safe loader)."""
+def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap | None = None) -> Any:
+    """``--set a.b.0.c=value``: the value is read as YAML (safe loader).
+
+    With ``smap``, each overridden path is remembered so that a problem inside it names the
+    ``--set`` that caused it instead of a line of the file."""
     data = copy.deepcopy(data)
     for item in overrides:
         key, sep, text = item.partition("=")
@@ -155,11 +158,13 @@ def apply_overrides(data: Any, overrides: list[str], file: str) -> Any:
             raise MissionError([Problem(file, 0, 0, f"--set {key}: value is not valid YAML ({exc})")]) from None
         node = data
         parts = key.split(".")
+        ypath: list[Any] = []
         for i, part in enumerate(parts):
             last = i == len(parts) - 1
             if isinstance(node, list):
                 try:
                     idx = int(part)
+                    ypath.append(idx)
                     if last:
                         node[idx] = value
                     else:
@@ -169,17 +174,20 @@ def apply_overrides(data: Any, overrides: list[str], file: str) -> Any:
                     raise MissionError([Problem(file, 0, 0, f"--set {key}: {part!r} is not an index of a list of {len(node)}")]) from None
             if not isinstance(node, dict):
                 raise MissionError([Problem(file, 0, 0, f"--set {key}: {'.'.join(parts[:i])} is not a mapping")])
+            ypath.append(part)
             if last:
                 node[part] = value
             else:
                 node = node.setdefault(part, {})
+        if smap is not None:
+            smap.overrides[tuple(ypath)] = item
     return data
 
 
 def compile_mission(data: Any, smap: SourceMap, overrides: list[str] | None = None) -> CompiledMission:
     file = smap.file
     if overrides:
-        data = apply_overrides(data, overrides, file)
+        data = apply_overrides(data, overrides, file, smap)
     if not isinstance(data, dict):
         raise MissionError([smap.problem((), f"a mission is a mapping of keys, got {type(data).__name__}",
                                          "start with `mission: NAME`")])
@@ -208,15 +216,24 @@ def _clean_loc(loc: tuple[Any, ...]) -> tuple[Any, ...]:
     return tuple(out)
 
 
+_UNION_NOISE = ("bool_type", "bool_parsing", "string_type", "float_type", "float_parsing", "int_type",
+                "int_parsing", "dict_type", "list_type", "model_type", "model_attributes_type")
+
+
 def _pydantic_problems(exc: ValidationError, smap: SourceMap, base: YPath, model: type[BaseModel] | None = None) -> list[Problem]:
+    errors = [(base + _clean_loc(tuple(e["loc"])), e) for e in exc.errors()]
+    # a value that fails a union (e.g. `final: crashed` against bool | Literal[...]) produces one error per
+    # member: keep the most telling ones (the literal's choices) and drop the members' type noise
+    informative = {p for p, e in errors if e["type"] not in _UNION_NOISE}
     problems: list[Problem] = []
     seen: set[tuple[Any, ...]] = set()
-    for err in exc.errors():
-        loc = _clean_loc(tuple(err["loc"]))
-        path = base + loc
+    for path, err in errors:
+        etype = err["type"]
+        if etype in _UNION_NOISE and path in informative:
+            continue
+        loc = path[len(base):]
         msg = err["msg"].removeprefix("Value error, ")
         hint = ""
-        etype = err["type"]
         if etype == "extra_forbidden":
             key = loc[-1] if loc else "?"
             valid = _allowed_keys(model or Mission, loc[:-1])
@@ -233,7 +250,6 @@ def _pydantic_problems(exc: ValidationError, smap: SourceMap, base: YPath, model
             continue
         seen.add(key)
         problems.append(smap.problem(path, msg, hint))
-    # a union error repeats for every member: keep the most specific messages
     return _dedupe(problems)
 
 
@@ -418,6 +434,8 @@ class _Compiler:
                 self._build(child, child_spec, ypath + ("states", name))
         elif isinstance(spec, State) and spec.initial is not None:
             self.err(ypath + ("initial",), "`initial` given but the state has no sub-states")
+        elif isinstance(spec, Machine):
+            self.err(ypath + ("states",), "the machine has no states", "declare at least one state and a final one")
 
     # -- what names exist ---------------------------------------------------------------------
     def _catalogue(self, root: StateNode) -> tuple[dict[str, str], set[str]]:
@@ -498,6 +516,19 @@ class _Compiler:
     def _check_task_params(self, root: StateNode) -> None:
         params = self.spec.parameters
         for n in root.walk():
+            if n.action is not None:
+                name, aparams = n.action
+                if name not in self.world_cls.actions:
+                    self.err(n.ypath + ("action", "name"), f"world {self.world_cls.name!r} has no action {name!r}",
+                             describe_choices(name, list(self.world_cls.actions)))
+                scope = {item: (params.get(lst) or [None])[0] if isinstance(params.get(lst), list) else None
+                         for item, lst in n.scope_items()}
+                try:
+                    resolve_refs(aparams, params, scope)
+                except UnknownRef as exc:
+                    valid = ["$" + k for k in list(params) + list(scope)]
+                    self.err(n.ypath + ("action", "params") + exc.path, f"unknown reference ${exc.name}",
+                             describe_choices("$" + exc.name, valid))
             spec = self._spec_of(n)
             if isinstance(spec, State) and spec.foreach is not None:
                 fe = spec.foreach
@@ -515,9 +546,10 @@ class _Compiler:
             sample_scope = {k: (v[0] if isinstance(v, list) and v else None) for k, v in scope.items()}
             try:
                 resolved = resolve_refs(n.task_params, params, sample_scope)
-            except KeyError as exc:
+            except UnknownRef as exc:
                 valid = ["$" + k for k in list(params) + list(scope)]
-                self.err(n.task_ypath, f"unknown reference ${exc.args[0]}", describe_choices("$" + exc.args[0], valid))
+                self.err(n.task_ypath + ("params",) + exc.path, f"unknown reference ${exc.name}",
+                         describe_choices("$" + exc.name, valid))
                 continue
             self._validate_model(n.task_cls.Params, resolved, n.task_ypath + ("params",))
 
@@ -532,18 +564,21 @@ class _Compiler:
             scope = scope.parent
         return None
 
-    def _guard_params(self) -> dict[str, tuple[float, str]]:
+    def _guard_params(self) -> tuple[dict[str, tuple[float, str]], dict[str, str]]:
+        """Parameters usable in guards (quantities), and why each other parameter is not."""
         out: dict[str, tuple[float, str]] = {}
+        bad: dict[str, str] = {}
         for k, v in self.spec.parameters.items():
-            if isinstance(v, (str, int, float)) and not isinstance(v, bool):
-                try:
-                    out[k] = parse_quantity(v)
-                except UnitError:
-                    pass
-        return out
+            try:
+                if isinstance(v, bool) or not isinstance(v, (str, int, float)):
+                    raise UnitError(f"it is {type(v).__name__} {v!r}")
+                out[k] = parse_quantity(v)
+            except UnitError as exc:
+                bad[k] = f"${k} is not a quantity like '2 mm' ({exc})"
+        return out, bad
 
     def _compile_transitions(self, root: StateNode, metric_units: dict[str, str], events: set[str]) -> None:
-        gparams = self._guard_params()
+        gparams, not_quantities = self._guard_params()
         for n in root.walk():
             if n.parent is None:
                 continue
@@ -577,7 +612,11 @@ class _Compiler:
                                      describe_choices(m, list(available)))
                     if bad:
                         continue
-                    for msg in bind_units(guard, available, gparams):
+                    for c in guard.comparisons():
+                        if c.param is not None and c.param in not_quantities:
+                            self.err(tpath + ("when",), f"guard {tr.when!r}: {not_quantities[c.param]}",
+                                     "give the parameter a number with a unit")
+                    for msg in bind_units(guard, available, gparams, skip=set(not_quantities)):
                         self.err(tpath + ("when",), f"guard {tr.when!r}: {msg}")
                     ct.predicate = compile_guard(guard) if not any(c.value is None for c in guard.comparisons()) else None
                     if ct.predicate is None:
@@ -643,12 +682,20 @@ class _Compiler:
                          "add a transition to it, or remove it")
         # ways out: a non-final leaf with no transition on itself or any ancestor
         for n in self.states.values():
-            if n.is_leaf and not n.final and not any(a.transitions for a in n.ancestors()):
-                self.err(n.ypath, f"state {n.path!r} has no way out: neither it nor a parent has a transition",
+            if n.is_leaf and not n.final and not any(t.kind != "done" for a in n.ancestors() for t in a.transitions):
+                self.err(n.ypath, f"state {n.path!r} has no way out: neither it nor a parent has a transition that can fire while it is active",
                          "add a transition, or mark it `final`")
 
 
-def resolve_refs(value: Any, params: dict[str, Any], items: dict[str, Any]) -> Any:
+class UnknownRef(KeyError):
+    """A ``$name`` that is neither a foreach item in scope nor a mission parameter."""
+
+    def __init__(self, name: str, path: YPath) -> None:
+        super().__init__(name)
+        self.name, self.path = name, path
+
+
+def resolve_refs(value: Any, params: dict[str, Any], items: dict[str, Any], path: YPath = ()) -> Any:
     """Replace every ``"$name"`` string by the foreach item or mission parameter of that name."""
     if isinstance(value, str) and value.startswith("$") and value[1:].isidentifier():
         key = value[1:]
@@ -656,10 +703,10 @@ def resolve_refs(value: Any, params: dict[str, Any], items: dict[str, Any]) -> A
             return items[key]
         if key in params:
             return params[key]
-        raise KeyError(key)
+        raise UnknownRef(key, path)
     if isinstance(value, dict):
-        return {k: resolve_refs(v, params, items) for k, v in value.items()}
+        return {k: resolve_refs(v, params, items, path + (k,)) for k, v in value.items()}
     if isinstance(value, list):
-        return [resolve_refs(v, params, items) for v in value]
+        return [resolve_refs(v, params, items, path + (i,)) for i, v in enumerate(value)]
     return value
 

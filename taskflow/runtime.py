@@ -127,10 +127,9 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
         except ValueError:  # not the main thread
             old_handler = None
         world.reset()
-        obs = world.observe()
-        executor.start(obs.t)
+        executor.start(0.0)  # a world's clock starts at 0 on reset; the machine is entered first, so the
+        obs = world.observe()  # first observation (and its events) is seen by the first tick
         while True:
-            obs = world.observe()
             t = obs.t
             if executor.outcome is not None:
                 break
@@ -148,9 +147,9 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                 if now - last_report >= progress.period_s:
                     last_report = now
                     progress.callback(executor.state, t, t / max(now - wall0, 1e-9))
-            if executor.outcome is not None:
-                continue  # re-observe so the summary's clock includes this tick
-            world.advance(dt)
+            if executor.outcome is None:
+                world.advance(dt)
+            obs = world.observe()
         outcome, reason = executor.outcome or "aborted", executor.reason
     except KeyboardInterrupt:
         outcome, reason = "aborted", "interrupted (Ctrl-C)"

@@ -91,12 +91,16 @@ def parse_quantity(text: str | float | int, expect: str | None = None) -> tuple[
 
 
 def parse_duration(text: str | float | int) -> float:
-    """Seconds from ``"5 s"``, ``"200 ms"``, or a bare number of seconds."""
+    """Seconds from ``"5 s"``, ``"200 ms"``, or a bare number of seconds (finite, ≥ 0)."""
     if isinstance(text, (int, float)) and not isinstance(text, bool):
+        if not math.isfinite(text):
+            raise UnitError(f"a duration must be a finite number of seconds, got {text!r}")
         if text < 0:
             raise UnitError(f"a duration cannot be negative: {text!r}")
         return float(text)
     value, _ = parse_quantity(text, expect="time")
+    if not math.isfinite(value):
+        raise UnitError(f"a duration must be finite, got {text!r}")
     if value < 0:
         raise UnitError(f"a duration cannot be negative: {text!r}")
     return value

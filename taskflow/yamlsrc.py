@@ -34,12 +34,23 @@ MissionLoader.add_implicit_resolver(
     "tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF"))
 
 
+def _construct_bool(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> bool:
+    value = str(loader.construct_scalar(node))
+    if value.lower() not in ("true", "false"):
+        raise yaml.constructor.ConstructorError(None, None, f"{value!r} is not a boolean (true or false)", node.start_mark)
+    return value.lower() == "true"
+
+
+MissionLoader.add_constructor("tag:yaml.org,2002:bool", _construct_bool)
+
+
 class SourceMap:
     """Where each value of a loaded document sits in its file."""
 
     def __init__(self, file: str) -> None:
         self.file = file
         self.marks: dict[Path_, tuple[int, int]] = {}
+        self.overrides: dict[Path_, str] = {}  # path → the --set KEY=VALUE that wrote it
 
     def where(self, path: Path_) -> tuple[int, int]:
         """Line and column of ``path``, or of its nearest ancestor that has a mark."""
@@ -53,6 +64,10 @@ class SourceMap:
         return self.marks.get((), (1, 1))
 
     def problem(self, path: Path_, message: str, hint: str = "") -> Problem:
+        p = tuple(path)
+        for opath, item in self.overrides.items():
+            if p[: len(opath)] == opath:
+                return Problem(self.file, 0, 0, f"--set {item}: {message}", hint)
         line, col = self.where(path)
         return Problem(self.file, line, col, message, hint)
 
@@ -63,9 +78,14 @@ def _walk(node: yaml.Node, path: Path_, smap: SourceMap, budget: list[int]) -> N
         raise _TooBig()
     smap.marks.setdefault(path, (node.start_mark.line + 1, node.start_mark.column + 1))
     if isinstance(node, yaml.MappingNode):
+        seen: dict[str, int] = {}
         for key_node, value_node in node.value:
             key = key_node.value if isinstance(key_node, yaml.ScalarNode) else str(key_node.value)
-            smap.marks.setdefault(path + (key, "__key__"), (key_node.start_mark.line + 1, key_node.start_mark.column + 1))
+            line = key_node.start_mark.line + 1
+            if key in seen and isinstance(key_node, yaml.ScalarNode) and key != "<<":
+                raise _Duplicate(key, line, key_node.start_mark.column + 1, seen[key])
+            seen[key] = line
+            smap.marks.setdefault(path + (key, "__key__"), (line, key_node.start_mark.column + 1))
             _walk(value_node, path + (key,), smap, budget)
     elif isinstance(node, yaml.SequenceNode):
         for i, item in enumerate(node.value):
@@ -76,12 +96,43 @@ class _TooBig(Exception):
     pass
 
 
+class _Duplicate(Exception):
+    def __init__(self, key: str, line: int, col: int, first: int) -> None:
+        self.key, self.line, self.col, self.first = key, line, col, first
+
+
+def _bad_scalar(node: yaml.Node, loader: yaml.SafeLoader, budget: list[int]) -> tuple[yaml.Node, Exception] | None:
+    """The first scalar whose explicit tag cannot be constructed (``!!float fast``), with its error."""
+    budget[0] -= 1
+    if budget[0] < 0:
+        return None
+    if isinstance(node, yaml.ScalarNode):
+        try:
+            loader.construct_object(node, deep=True)
+        except Exception as exc:  # noqa: BLE001 - PyYAML raises ValueError/KeyError/... for bad tags
+            return node, exc
+        return None
+    children: list[yaml.Node] = []
+    if isinstance(node, yaml.MappingNode):
+        for k, v in node.value:
+            children += [k, v]
+    elif isinstance(node, yaml.SequenceNode):
+        children = list(node.value)
+    for child in children:
+        found = _bad_scalar(child, loader, budget)
+        if found is not None:
+            return found
+    return None
+
+
 def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
     smap = SourceMap(file)
     if len(text) > MAX_BYTES:
         raise MissionError([Problem(file, 1, 1, f"file is {len(text)} bytes", f"a mission must be under {MAX_BYTES} bytes")])
-    loader = MissionLoader(text)
+    loader: MissionLoader | None = None
+    node: yaml.Node | None = None
     try:
+        loader = MissionLoader(text)
         node = loader.get_single_node()
         if node is None:
             raise MissionError([Problem(file, 1, 1, "the file is empty", "a mission needs at least `mission`, `robot`, `world`, `rate_hz` and `machine`")])
@@ -90,21 +141,44 @@ def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
         except _TooBig:
             raise MissionError([Problem(file, 1, 1, f"the document expands to more than {MAX_NODES} nodes (alias bomb?)",
                                         "remove the nested aliases")]) from None
+        except _Duplicate as dup:
+            raise MissionError([Problem(file, dup.line, dup.col, f"duplicate key {dup.key!r}",
+                                        f"it is already given on line {dup.first}; keep one")]) from None
         data = loader.construct_document(node)
+    except yaml.reader.ReaderError as exc:
+        line = text.count("\n", 0, exc.position) + 1
+        col = exc.position - (text.rfind("\n", 0, exc.position) + 1) + 1
+        char = chr(exc.character) if isinstance(exc.character, int) else exc.character
+        raise MissionError([Problem(file, line, col, f"character {char!r} is not allowed in YAML",
+                                    "remove control characters from the file")]) from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line, col = (mark.line + 1, mark.column + 1) if mark else (1, 1)
         what = exc.problem or "malformed YAML"
         hint = exc.context or ""
+        if exc.context_mark is not None and exc.problem_mark is not None and exc.context_mark.line != exc.problem_mark.line:
+            hint = f"{hint} started at line {exc.context_mark.line + 1}, column {exc.context_mark.column + 1}".strip()
         if isinstance(exc, yaml.constructor.ConstructorError):
             hint = "only plain YAML is accepted (no !!python tags or custom tags)"
+            if "not a boolean" in what:
+                hint = "write true or false"
         raise MissionError([Problem(file, line, col, f"YAML error: {what}", hint)]) from None
     except yaml.YAMLError as exc:
         raise MissionError([Problem(file, 1, 1, f"YAML error: {exc}")]) from None
     except RecursionError:
         raise MissionError([Problem(file, 1, 1, "the document nests too deeply")]) from None
+    except (ValueError, TypeError, KeyError, AttributeError, OverflowError) as exc:
+        # an explicit tag PyYAML cannot construct (``!!float fast``, ``!!int 0x``): find which one
+        found = _bad_scalar(node, MissionLoader(""), [MAX_NODES]) if node is not None else None
+        if found is not None:
+            bad, err = found
+            raise MissionError([Problem(file, bad.start_mark.line + 1, bad.start_mark.column + 1,
+                                        f"YAML error: {bad.value!r} cannot be read as {bad.tag.rsplit(':', 1)[-1]}",
+                                        "fix the value or drop the explicit !! tag")]) from None
+        raise MissionError([Problem(file, 1, 1, f"YAML error: {exc}")]) from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
     return data, smap
 
 

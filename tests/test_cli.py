@@ -1,0 +1,260 @@
+"""The ``taskflow`` command line, run in-process with :func:`taskflow.cli.main`.
+
+The toy robot/world/task are registered in this process by ``tests/conftest.py``; a batch with
+``--workers`` > 1 would start processes that do not have them, so batches here use ``--workers 1``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from taskflow.cli import main
+from taskflow.records import read_trace
+
+HERE = Path(__file__).parent
+TOY = HERE / "machine" / "missions" / "toy_full.yaml"
+BROKEN = HERE / "broken"
+TOY_STATES = ["search", "operate", "visit", "approach", "settle", "next", "broken", "home", "home_done",
+              "searching", "done", "error"]
+
+
+def _no_traceback(*texts: str) -> None:
+    for t in texts:
+        assert "Traceback" not in t
+
+
+# -- validate -------------------------------------------------------------------------------------------
+
+
+def test_validate_ok(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", str(TOY)]) == 0
+    out, err = capsys.readouterr()
+    assert f"{TOY}: ok" in out and "toy_full" in out
+    assert err == ""
+
+
+def test_validate_broken_prints_file_line_col(capsys: pytest.CaptureFixture[str]) -> None:
+    broken = BROKEN / "unknown_task.yaml"
+    assert main(["validate", str(broken)]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert out == ""
+    first = err.splitlines()[0]
+    assert first.startswith(f"{broken}:21:9: unknown task 'toy_gotoo' — did you mean 'toy_goto'?")
+
+
+def test_validate_several_files(capsys: pytest.CaptureFixture[str]) -> None:
+    bad1, bad2 = BROKEN / "unknown_robot.yaml", BROKEN / "guard_wrong_dimension.yaml"
+    assert main(["validate", str(TOY), str(bad1), str(TOY), str(bad2)]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert out.count(f"{TOY}: ok") == 2
+    lines = err.splitlines()
+    assert any(line.startswith(f"{bad1}:4:1: unknown robot") for line in lines)
+    assert any(line.startswith(f"{bad2}:24:11: guard 'pos_error < 3 deg'") for line in lines)
+    # every problem line names its file
+    assert all(line.startswith((str(bad1), str(bad2))) for line in lines)
+
+
+def test_validate_all_good_files(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", str(TOY), str(TOY)]) == 0
+
+
+@pytest.mark.parametrize("make, fragment", [
+    (lambda p: p / "missing.yaml", "no such file"),
+    (lambda p: p, "is a directory"),
+    (lambda p: (p / "x.yaml").write_bytes(b"mission: caf\xe9\n") and p / "x.yaml", "not UTF-8"),
+    (lambda p: (p / "e.yaml").write_text("") or p / "e.yaml", "the file is empty"),
+], ids=["missing", "directory", "not-utf8", "empty"])
+def test_validate_non_files(tmp_path: Path, capsys: pytest.CaptureFixture[str], make, fragment: str) -> None:
+    path = make(tmp_path)
+    assert main(["validate", str(path)]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert err.startswith(str(path)) and fragment in err
+
+
+def test_validate_with_set(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", str(TOY), "--set", "rate_hz=50", "--set", "world.params.start=1.5"]) == 0
+    assert main(["validate", str(TOY), "--set", "rate_hz=0"]) == 1
+    err = capsys.readouterr().err
+    assert "greater than 0" in err
+
+
+def test_set_unknown_key(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["validate", str(TOY), "--set", "max_tries=3"]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert "unknown key 'max_tries'" in err and "did you mean 'max_time'" in err
+
+
+def test_set_unknown_key_names_the_override(capsys: pytest.CaptureFixture[str]) -> None:
+    main(["validate", str(TOY), "--set", "machine.states.search.max_tries=3"])
+    err = capsys.readouterr().err
+    assert "--set" in err and "machine.states.search.max_tries" in err
+
+
+@pytest.mark.parametrize("item, fragment", [
+    ("max_time", "is not KEY=VALUE"),
+    ("=3", "is not KEY=VALUE"),
+    ("rate_hz=[1", "not valid YAML"),
+    ("machine.states.search.transitions.7.after=1", "is not an index"),
+    ("mission.name=x", "is not a mapping"),
+])
+def test_set_malformed(capsys: pytest.CaptureFixture[str], item: str, fragment: str) -> None:
+    assert main(["validate", str(TOY), "--set", item]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert fragment in err
+
+
+# -- graph, schema ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("fmt, head", [("mermaid", "stateDiagram-v2"), ("dot", 'digraph "toy_full"')])
+def test_graph(capsys: pytest.CaptureFixture[str], fmt: str, head: str) -> None:
+    assert main(["graph", str(TOY), "--format", fmt]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(head)
+    for name in TOY_STATES:
+        assert name in out, f"{name} missing from the {fmt} graph"
+    assert "on target_lost" in out and "after 3 s" in out
+
+
+def test_graph_of_broken_file(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["graph", str(BROKEN / "unknown_target.yaml")]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert "unknown target state 'eror'" in err and out == ""
+
+
+def test_graph_bad_format() -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["graph", str(TOY), "--format", "svg"])
+    assert exc.value.code == 2
+
+
+def test_schema(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["schema"]) == 0
+    schema = json.loads(capsys.readouterr().out)
+    assert "machine" in schema["properties"]
+    assert set(schema["required"]) >= {"mission", "robot", "world", "rate_hz", "machine"}
+    assert "$defs" in schema and "Transition" in schema["$defs"]
+
+
+# -- run ------------------------------------------------------------------------------------------------------
+
+SUMMARY_KEYS = {"mission", "seed", "outcome", "final_state", "states_visited", "sim_time_s", "wall_time_s", "ticks",
+                "metrics"}
+
+
+def test_run_toy_mission(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out_dir = tmp_path / "run"
+    assert main(["run", str(TOY), "--out", str(out_dir), "--quiet"]) == 0
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert "outcome: succeeded" in out
+
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert SUMMARY_KEYS <= set(summary)
+    assert summary["mission"] == "toy_full" and summary["seed"] == 0 and summary["outcome"] == "succeeded"
+    assert summary["final_state"] == "done" and summary["states_visited"][-1] == "done"
+    assert summary["states_visited"][0] == "search"
+    assert summary["ticks"] > 0 and summary["sim_time_s"] > 0 and summary["wall_time_s"] > 0
+    assert summary["metrics"]["final_x"] == pytest.approx(0.0, abs=0.03)  # home again
+
+    trace = read_trace(out_dir)
+    assert len(trace["t"]) == summary["ticks"]
+    assert np.all(np.diff(trace["t"]) > 0)
+    assert set(trace["state"]) <= set(summary["states_visited"])
+    assert {"m.pos_error", "cmd.v", "gt.x"} <= set(trace)
+    arr = np.genfromtxt(out_dir / "trace.csv", names=True, delimiter=",", dtype=None, encoding=None)
+    assert arr.shape == (summary["ticks"],)
+    assert np.allclose(arr["t"], trace["t"])
+
+    recs = [json.loads(line) for line in (out_dir / "transitions.jsonl").read_text().splitlines()]
+    assert recs[0]["trigger"] == "start" and recs[0]["to"] == "search"
+    assert all(set(r) == {"t", "from", "to", "trigger"} for r in recs)
+    assert [r["to"] for r in recs] == summary["states_visited"]
+    assert all(a["to"] == b["from"] for a, b in itertools.pairwise(recs))
+
+
+def test_run_seed_flag(tmp_path: Path) -> None:
+    assert main(["run", str(TOY), "--out", str(tmp_path / "r"), "--seed", "7", "--quiet"]) == 0
+    assert json.loads((tmp_path / "r" / "summary.json").read_text())["seed"] == 7
+    assert (tmp_path / "r" / "seed").read_text().strip() == "7"
+
+
+@pytest.mark.parametrize("override, final", [
+    ("world.params.lose_at=[1.0]", "error"),  # target lost for good: searching -> error after 3 s
+    ("world.params.tool_ok=false", "error"),  # the tool fails: broken -> visit done failed -> error
+])
+def test_run_that_cannot_finish_exits_1(tmp_path: Path, capsys: pytest.CaptureFixture[str], override: str,
+                                        final: str) -> None:
+    out_dir = tmp_path / "run"
+    assert main(["run", str(TOY), "--out", str(out_dir), "--set", override, "--quiet"]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert summary["outcome"] == "failed" and summary["final_state"] == final
+
+
+def test_run_timeout_exits_1(tmp_path: Path) -> None:
+    out_dir = tmp_path / "run"
+    assert main(["run", str(TOY), "--out", str(out_dir), "--max-time", "1.0", "--quiet"]) == 1
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert summary["outcome"] == "timeout" and summary["sim_time_s"] == pytest.approx(1.0)
+
+
+def test_run_broken_mission(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out_dir = tmp_path / "run"
+    assert main(["run", str(BROKEN / "guard_unknown_metric.yaml"), "--out", str(out_dir)]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert "metric 'position_error' is not published" in err
+    assert not out_dir.exists()  # nothing is recorded for a mission that does not validate
+
+
+def test_run_set_unknown_key(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", str(TOY), "--out", str(tmp_path / "r"), "--set", "world.params.speed=2"]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert "unknown key 'speed'" in err and "valid:" in err
+
+
+# -- batch ------------------------------------------------------------------------------------------------------
+
+
+def test_batch(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out_dir = tmp_path / "b"
+    assert main(["batch", str(TOY), "--trials", "3", "--workers", "1", "--seed", "5", "--out", str(out_dir)]) == 0
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    batch = json.loads((out_dir / "batch.json").read_text())
+    assert batch["aggregate"]["success_rate"] == 1.0
+    assert batch["aggregate"]["trials"] == 3 and len(batch["trials"]) == 3
+    assert [t["seed"] for t in batch["trials"]] == [5, 6, 7]
+    assert all(t["outcome"] == "succeeded" for t in batch["trials"])
+    assert "3 trials" in out
+
+
+def test_batch_with_failures_exits_1(tmp_path: Path) -> None:
+    out_dir = tmp_path / "b"
+    assert main(["batch", str(TOY), "--trials", "2", "--workers", "1", "--out", str(out_dir),
+                 "--set", "world.params.tool_ok=false"]) == 1
+    batch = json.loads((out_dir / "batch.json").read_text())
+    assert batch["aggregate"]["success_rate"] == 0.0 and batch["aggregate"]["outcomes"] == {"failed": 2}
+
+
+def test_batch_broken_mission_fails_fast(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out_dir = tmp_path / "b"
+    assert main(["batch", str(BROKEN / "unknown_world.yaml"), "--trials", "2", "--workers", "1",
+                 "--out", str(out_dir)]) == 1
+    out, err = capsys.readouterr()
+    _no_traceback(out, err)
+    assert "unknown world 'toy_lines'" in err and not out_dir.exists()
