@@ -255,7 +255,8 @@ class Executor:
         outcome = leaf.final or "succeeded"
         if parent is None or parent.parent is None:
             self.outcome = outcome
-            self.reason = self.reason or f"reached final state {leaf.path!r}"
+            desc = self.mission.description_of(leaf)
+            self.reason = self.reason or f"reached final state {leaf.path!r}" + (f" ({desc})" if desc else "")
             return
         if parent.foreach:
             lst_name, item_name, on_failure = parent.foreach

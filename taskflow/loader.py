@@ -124,6 +124,13 @@ class CompiledMission:
     def build_robot(self) -> Robot:
         return self.robot_cls(self.robot_params)
 
+    def description_of(self, node: StateNode) -> str:
+        """The ``description`` written on a state (empty when none)."""
+        spec: Any = self.spec.machine
+        for a in node.ancestors()[1:]:
+            spec = spec.states[a.name]
+        return getattr(spec, "description", "") or ""
+
     def leaves(self) -> list[StateNode]:
         return [n for n in self.states.values() if n.is_leaf]
 

@@ -3,7 +3,8 @@
 * ``path.png`` — top view of the ground-truth path (``gt.x``/``gt.y``, or ``gt.NAME_x``/``_y``),
   coloured by state, with the world's target (``gt.target_x``/``gt.target_y``) when recorded;
 * ``commands.png`` — every command component over time, states as coloured bands;
-* ``metrics.png`` — every published metric over time (one panel per unit group), states as bands.
+* ``camera_velocities.png`` — the camera twist, when the task publishes ``cam_v*`` / ``cam_w*``;
+* ``metrics.png`` — every other published metric over time, states as bands.
 """
 
 from __future__ import annotations
@@ -24,6 +25,18 @@ def _bands(ax, t: np.ndarray, states: np.ndarray, colours: dict[str, tuple]) -> 
             end_t = t[i] if i < t.size else t[-1]
             ax.axvspan(t[start], end_t, color=colours[states[start]], alpha=0.15, lw=0)
             start = i
+
+
+def _target_of(run_dir: Path) -> tuple[float, float] | None:
+    """The world position of the run's object, when the world reports one in the summary
+    (``object_world_x_m`` / ``object_world_y_m``)."""
+    import json
+
+    try:
+        m = json.loads((run_dir / "summary.json").read_text()).get("metrics", {})
+        return float(m["object_world_x_m"]), float(m["object_world_y_m"])
+    except (OSError, KeyError, TypeError, ValueError):
+        return None
 
 
 def plot_run(run_dir: str | Path) -> list[Path]:
@@ -48,8 +61,9 @@ def plot_run(run_dir: str | Path) -> list[Path]:
         for s in names:
             m = states == s
             ax.plot(x[m], y[m], ".", ms=2, color=colours[s], label=s)
-        if "gt.target_x" in tr:
-            ax.plot(tr["gt.target_x"][-1], tr["gt.target_y"][-1], "k*", ms=14, label="target")
+        target = _target_of(run_dir)
+        if target is not None:
+            ax.plot(*target, "k*", ms=14, label="object")
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
@@ -75,8 +89,26 @@ def plot_run(run_dir: str | Path) -> list[Path]:
         fig.savefig(out[-1], dpi=110, bbox_inches="tight")
         plt.close(fig)
 
+    # camera velocities (tasks that publish cam_v*/cam_w*), one panel each for linear and angular
+    cam = [c for c in tr if c.startswith("m.cam_") and np.isfinite(tr[c]).any()]
+    if cam:
+        fig, axes = plt.subplots(2, 1, figsize=(8, 4.5), sharex=True)
+        for ax, kind, unit in ((axes[0], "m.cam_v", "m/s"), (axes[1], "m.cam_w", "rad/s")):
+            _bands(ax, t, states, colours)
+            for c in cam:
+                if c.startswith(kind):
+                    ax.plot(t, tr[c], lw=1.2, label=c[6:])
+            ax.set_ylabel(unit)
+            ax.legend(fontsize=7, ncol=3)
+            ax.grid(alpha=0.3)
+        axes[0].set_title("camera velocities (state bands)")
+        axes[1].set_xlabel("t [s]")
+        out.append(run_dir / "camera_velocities.png")
+        fig.savefig(out[-1], dpi=110, bbox_inches="tight")
+        plt.close(fig)
+
     # metrics
-    m_cols = [c for c in tr if c.startswith("m.") and np.isfinite(tr[c]).any()]
+    m_cols = [c for c in tr if c.startswith("m.") and not c.startswith("m.cam_") and np.isfinite(tr[c]).any()]
     if m_cols:
         fig, axes = plt.subplots(len(m_cols), 1, figsize=(8, 1.6 * len(m_cols) + 0.6), sharex=True, squeeze=False)
         for ax, c in zip(axes[:, 0], m_cols):

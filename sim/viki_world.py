@@ -1,0 +1,307 @@
+"""``viki_ground``: the racecar, a floor and one waste-like object — the world of the ViKi-HyCo missions.
+
+Scene: :class:`sim.flat_ground.FlatGround` (racecar on a thin box floor, odometry with optional noise)
+plus one static object (:mod:`sim.viki_objects`: ``can``, ``bottle`` or ``carton``) placed relative to the
+start pose (``object_distance`` / ``object_bearing`` from the rear-axle midpoint, heading-relative) or at
+world ``object_xy``.  Missions draw these from distributions (``{uniform: [...]}``, ``{choice: [...]}``),
+so a batch is a Monte Carlo campaign.
+
+Perception (``perception: geometric | rendered``, :mod:`sim.perception_geometric`,
+:mod:`sim.perception_rendered`) fills ``obs.sensors["detection"]`` with a
+:class:`robots.sensors.Detection` of the **active camera** at the camera's rate (15 Hz by default; the
+control runs at the mission's rate and sees the latest frame with ``fresh = False`` in between).
+
+Active camera: chosen by the running task through its command (``camera_front`` / ``camera_rear`` keys,
+:func:`robots.sensors.camera_command`); a command without camera keys keeps the current one (so a
+task-less "searching" state keeps looking); all keys 0 switches perception off (the kinematic rotation
+state: nothing is rendered).  ``initial_camera`` is the one used before the first command.  Only the
+active camera is processed: in ``rendered`` mode one ``getCameraImage`` per frame (plus the LiDAR at its
+own rate for the front camera).
+
+Events: ``target_found`` / ``target_lost`` when the active camera's detection (after dropout) appears /
+disappears from one frame to the next (the first frame of a camera emits ``target_found`` if it sees the
+object).
+
+Ground truth (trace columns): robot pose ``x, y, yaw, v`` (rear-axle midpoint), ``obj_x, obj_y`` (the
+object's base centre in the robot frame), ``err_x, err_y`` (that minus the manipulation-zone ``goal``),
+``detected`` (last frame, after dropout) and ``camera`` (0 none, 1 front, 2 rear).
+
+``summary_metrics()``: ``final_error_x_m``, ``final_error_y_m``, ``final_error_m`` (object in the robot
+frame at the end minus ``goal``), detection counts (``frames``, ``detections``, ``detections_missed`` —
+frames the dropout model dropped while the object was in view, ``dropout_fraction``), perception cost
+(``perception_ms_per_frame``), motion statistics (``v_sign_changes``, ``v_sign_changes_last_5s``,
+``path_length_m``) and the object's kind and placement.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from robots.racecar import CameraMount
+from robots.sensors import CAMERAS, Detection, active_camera_from_command
+from sim.flat_ground import FlatGround, FlatGroundParams
+from sim.perception_common import CameraModel, DropoutModel, pose_matrix
+from sim.perception_geometric import GeometricPerception
+from sim.perception_rendered import LidarScanner, RenderedPerception
+from sim.viki_objects import SHAPES, PlacedObject, create_body
+from taskflow.api import Command, Observation, Robot
+from taskflow.registry import register_world
+
+CAMERA_CODE = {None: 0.0, "front": 1.0, "rear": 2.0}
+
+
+class VikiGroundParams(FlatGroundParams):
+    """Object placement, manipulation-zone goal, perception mode and detector model (see module doc)."""
+
+    object_kind: Literal["can", "bottle", "carton"] = "can"
+    object_distance: float = Field(default=2.2, gt=0.0, description="m from the start rear-axle midpoint")
+    object_bearing: float = Field(default=0.0, description="rad, relative to the start heading (pi: behind)")
+    object_xy: tuple[float, float] | None = Field(default=None, description="world position; overrides distance/bearing")
+    object_yaw: float = 0.0
+    goal: tuple[float, float] = Field(default=(-0.9, 0.0),
+                                      description="manipulation zone: object position in the robot frame (m)")
+    perception: Literal["geometric", "rendered"] = "geometric"
+    initial_camera: Literal["front", "rear", "none"] = "front"
+    image_size: tuple[int, int] | None = Field(default=None, description="(W, H) for every camera; default: the mounts'")
+    camera_rate_hz: float | None = Field(default=None, gt=0.0, description="default: the mounts' rate")
+    depth_max: float = Field(default=5.0, gt=0.0, description="depth camera range (m)")
+    pixel_noise: float = Field(default=0.5, ge=0.0, description="std of each box edge (px), geometric mode")
+    depth_noise: float = Field(default=0.005, ge=0.0, description="relative std of the depth per frame, geometric mode")
+    min_pixels: int = Field(default=4, ge=1, description="fewer visible object pixels: no detection")
+    dropout: float = Field(default=0.0, ge=0.0, lt=1.0, description="fraction of frames the detector misses")
+    dropout_burst: float = Field(default=1.0, ge=1.0, description="mean length of a miss burst (frames)")
+    static_motion_m: float = Field(default=0.001, ge=0.0, description="camera still below this: same image")
+    static_motion_rad: float = Field(default=0.002, ge=0.0)
+    static_flip: float = Field(default=0.01, ge=0.0, le=1.0,
+                               description="chance per frame that a still image changes outcome (sensor noise)")
+    lidar_fusion: bool = Field(default=True, description="rendered front camera: fuse the LiDAR (eq. 11-15)")
+
+    @model_validator(mode="after")
+    def _check(self) -> "VikiGroundParams":
+        if self.image_size is not None and min(self.image_size) < 8:
+            raise ValueError(f"image_size must be at least 8x8 pixels, got {self.image_size}")
+        return self
+
+
+@register_world("viki_ground")
+class VikiGround(FlatGround):
+    """Racecar + one object + front/rear RGB-D cameras (+ LiDAR) with a detector."""
+
+    Params: ClassVar[type[VikiGroundParams]] = VikiGroundParams  # type: ignore[assignment]
+    events: ClassVar[tuple[str, ...]] = ("target_found", "target_lost")
+    ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "yaw", "v", "obj_x", "obj_y", "err_x", "err_y",
+                                                    "detected", "camera")
+    robots: ClassVar[tuple[str, ...]] = ("racecar",)
+
+    params: VikiGroundParams
+
+    def __init__(self, robot: Robot, params: VikiGroundParams, seed: int, gui: bool = False) -> None:
+        if not isinstance(params, VikiGroundParams):
+            raise TypeError(f"viki_ground needs VikiGround.Params, got {type(params).__name__}")
+        super().__init__(robot, params, seed, gui)
+        self._init_state()
+
+    def _init_state(self) -> None:
+        self.object: PlacedObject | None = None
+        self.object_body = -1
+        self.cameras: dict[str, CameraModel] = {}
+        self._perceptors: dict[str, Any] = {}
+        self._lidar: LidarScanner | None = None
+        self._dropout: DropoutModel | None = None
+        self._active: str | None = None
+        self._next_frame = 0.0
+        self._stream_t0 = 0.0
+        self._stream_k = 0
+        self._frame = 0
+        self._last: Detection | None = None
+        self._last_detected: bool | None = None
+        self._events: list[str] = []
+        self.frames = 0
+        self.first_detection_t: float | None = None
+        self.detections = 0
+        self.missed = 0
+        self._perception_s = 0.0
+        self._v_trace: list[tuple[float, float]] = []
+        self._path = 0.0
+        self._last_xy: tuple[float, float] | None = None
+
+    # --- scene ---------------------------------------------------------------------------------
+    def _populate(self) -> None:
+        self._init_state()
+        wp, rp = self.params, self.robot.params
+        sx, sy, syaw = wp.start
+        if wp.object_xy is not None:
+            ox, oy = wp.object_xy
+        else:
+            a = syaw + wp.object_bearing
+            ox, oy = sx + wp.object_distance * math.cos(a), sy + wp.object_distance * math.sin(a)
+        self.object = PlacedObject(SHAPES[wp.object_kind], float(ox), float(oy), float(wp.object_yaw))
+        scene = self._require_scene()
+        self.object_body = create_body(scene.client, self.object)
+        mounts: dict[str, CameraMount] = {"front": rp.front_camera, "rear": rp.rear_camera}
+        for name in CAMERAS:
+            m = mounts[name]
+            if wp.image_size is not None:
+                m = m.model_copy(update={"width": int(wp.image_size[0]), "height": int(wp.image_size[1])})
+            if wp.camera_rate_hz is not None:
+                m = m.model_copy(update={"rate_hz": float(wp.camera_rate_hz)})
+            self.cameras[name] = CameraModel(name, m, m.width, m.height, wp.depth_max)
+        # one generator for the detector, independent of the odometry noise stream
+        det_rng = np.random.default_rng([self.seed, 0x7A1])
+        self._det_rng = det_rng
+        self._dropout = DropoutModel(det_rng, wp.dropout, wp.dropout_burst, wp.static_motion_m,
+                                     wp.static_motion_rad, wp.static_flip)
+        self._active = None if wp.initial_camera == "none" else wp.initial_camera
+
+    def _perceptor(self, name: str) -> Any:
+        per = self._perceptors.get(name)
+        if per is None:
+            scene = self._require_scene()
+            cam = self.cameras[name]
+            obj = self._require_object()
+            if self.params.perception == "geometric":
+                per = GeometricPerception(scene.client, cam, obj, self.object_body, self._det_rng,
+                                          self.params.pixel_noise, self.params.depth_noise, self.params.min_pixels)
+            else:
+                lidar = None
+                if name == "front" and self.params.lidar_fusion:
+                    if self._lidar is None:
+                        self._lidar = LidarScanner(scene.client, self.robot.params.lidar, scene.car.body)
+                    lidar = self._lidar
+                per = RenderedPerception(scene.client, cam, self.object_body, self.params.min_pixels, lidar)
+            self._perceptors[name] = per
+        return per
+
+    def _require_object(self) -> PlacedObject:
+        if self.object is None:
+            raise RuntimeError("viki_ground: call reset() before using the world")
+        return self.object
+
+    def robot_pose_matrix(self) -> np.ndarray:
+        """World ← robot (rear-axle midpoint) 4x4 from the simulator (full 3-D, ground truth)."""
+        pos, q = self._require_scene().car._base_frame()
+        return pose_matrix(pos, q)
+
+    # --- the loop --------------------------------------------------------------------------------
+    def observe(self) -> Observation:
+        obs = super().observe()
+        v = float(obs.state["v"])  # FlatGround's measured speed is the simulator's (no noise on it)
+        self._v_trace.append((self.t, v))
+        x, y, _ = self._require_scene().car.pose()
+        if self._last_xy is not None:
+            self._path += math.hypot(x - self._last_xy[0], y - self._last_xy[1])
+        self._last_xy = (float(x), float(y))
+        if self._active is not None and self.t + 1e-9 >= self._next_frame:
+            self._new_frame(self._active)
+        elif self._last is not None and self._last.fresh:
+            self._last = self._last.stale()
+        if self._active is not None and self._last is not None and self._last.camera == self._active:
+            obs.sensors["detection"] = self._last
+        obs.sensors["camera"] = self._active
+        obs.events = tuple(self._events)
+        self._events = []
+        return obs
+
+    def _new_frame(self, name: str) -> None:
+        cam = self.cameras[name]
+        T_wr = self.robot_pose_matrix()
+        T_wc = cam.pose(T_wr)
+        t0 = time.perf_counter()
+        per = self._perceptor(name)
+        if self.params.perception == "geometric":
+            bbox, depth, depth_at, depth_in = per.detect(T_wc)
+        else:
+            bbox, depth, depth_at, depth_in = per.detect(T_wc, self.t, T_wr)
+        self._perception_s += time.perf_counter() - t0
+        dropped = self._dropout.frame(T_wc) if self._dropout is not None else False
+        self.frames += 1
+        if bbox is not None:
+            if dropped:
+                self.missed += 1
+                bbox, depth = None, None
+            else:
+                self.detections += 1
+                if self.first_detection_t is None:
+                    self.first_detection_t = self.t
+        # frames on a fixed grid from the stream's start (15 Hz camera, 20 Hz control: 3 frames / 4 ticks)
+        rate = cam.mount.rate_hz
+        self._stream_k = max(self._stream_k + 1, math.floor((self.t - self._stream_t0) * rate + 1e-6) + 1)
+        self._next_frame = self._stream_t0 + self._stream_k / rate
+        self._frame += 1
+        self._last = Detection(name, self.t, self._frame, bbox, depth, cam.intrinsics, cam.width, cam.height,
+                               True, depth_at, depth_in)
+        detected = self._last.detected
+        if detected != self._last_detected and (self._last_detected is not None or detected):
+            self._events.append("target_found" if detected else "target_lost")
+        self._last_detected = detected
+
+    def apply(self, command: Command) -> None:
+        active = active_camera_from_command(command, self._active)
+        if active is not None and active not in self.cameras:
+            raise ValueError(f"viki_ground has no camera {active!r}; cameras: {', '.join(self.cameras)}")
+        if active != self._active:
+            self._active = active
+            self._last = None
+            self._last_detected = None
+            self._next_frame = self._stream_t0 = self.t  # first frame of the new camera at the next observation
+            self._stream_k = 0
+            if self._dropout is not None:
+                self._dropout.reset()
+        motion = {k: v for k, v in command.items() if not k.startswith("camera_")}
+        super().apply(motion)
+
+    def object_in_robot_frame(self) -> tuple[float, float]:
+        """Ground truth: object base centre in the robot frame (m)."""
+        obj = self._require_object()
+        x, y, yaw = self._require_scene().car.pose()
+        dx, dy = obj.x - x, obj.y - y
+        c, s = math.cos(yaw), math.sin(yaw)
+        return float(c * dx + s * dy), float(-s * dx + c * dy)
+
+    def ground_truth(self) -> dict[str, float]:
+        gt = super().ground_truth()
+        ox, oy = self.object_in_robot_frame()
+        gx, gy = self.params.goal
+        gt.update({"obj_x": ox, "obj_y": oy, "err_x": ox - gx, "err_y": oy - gy,
+                   "detected": 1.0 if (self._last is not None and self._last.detected) else 0.0,
+                   "camera": CAMERA_CODE.get(self._active, 0.0)})
+        return gt
+
+    def summary_metrics(self) -> dict[str, Any]:
+        out = super().summary_metrics()
+        ox, oy = self.object_in_robot_frame()
+        gx, gy = self.params.goal
+        obj = self._require_object()
+        ts = np.array([t for t, _ in self._v_trace]) if self._v_trace else np.zeros(0)
+        vs = np.array([v for _, v in self._v_trace]) if self._v_trace else np.zeros(0)
+        out.update({
+            "final_error_x_m": ox - gx,
+            "final_error_y_m": oy - gy,
+            "final_error_m": math.hypot(ox - gx, oy - gy),
+            "object_x_m": ox,
+            "object_y_m": oy,
+            "object_kind": obj.shape.kind,
+            "object_world_x_m": obj.x,
+            "object_world_y_m": obj.y,
+            "first_detection_s": self.first_detection_t,
+            "frames": self.frames,
+            "detections": self.detections,
+            "detections_missed": self.missed,
+            "dropout_fraction": self.missed / (self.detections + self.missed) if self.detections + self.missed else 0.0,
+            "perception_ms_per_frame": 1e3 * self._perception_s / self.frames if self.frames else 0.0,
+            "v_sign_changes": _sign_changes(vs),
+            "v_sign_changes_last_5s": _sign_changes(vs[ts >= ts[-1] - 5.0]) if ts.size else 0,
+            "path_length_m": self._path,
+        })
+        return out
+
+
+def _sign_changes(v: np.ndarray, deadband: float = 0.01) -> int:
+    """Reversals of the direction of travel, ignoring speeds below ``deadband`` (m/s)."""
+    s = np.sign(v[np.abs(v) > deadband])
+    return int(np.count_nonzero(s[1:] != s[:-1])) if s.size > 1 else 0

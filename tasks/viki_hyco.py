@@ -1,0 +1,288 @@
+"""``viki_hyco``: the ViKi-HyCo positioning task (paper section II-F, eq. 19–26) and its two baselines.
+
+One task, three ``mode`` s:
+
+* ``hybrid`` — ViKi-HyCo, eq. 25 as meant: the visual servo law of eq. 24 on the four box corners with
+  the desired box of eq. 19 while the camera detects the object, the kinematic controller of eq. 4–5
+  toward the kinematic target otherwise;
+* ``vs_only`` — the paper's VS-only baseline (section III-B): no fallback, zero velocity without a
+  detection (the robot stops; Fig. 12);
+* ``mgbm`` — the MGBM-YOLO baseline (section III-D): static desired box of a known object size
+  (``object_size``), depth from box areas, no fallback.
+
+Eq. 26 (as meant, never amplifying) smooths the output in every mode; eq. 5 and the robot's limits turn
+it into ``(v, steer)``.
+
+Camera: ``camera: front | rear`` picks the mount ``(R_rc, t_rc)`` of eq. 22 and is sent to the world in
+the command (``camera_front`` / ``camera_rear`` keys, :func:`robots.sensors.camera_command`), so only that
+camera is processed.  A camera name the robot does not have is a load-time error.
+
+Desired features: ``desired: [x, y]`` is the object's desired position in the robot frame (e.g. the
+manipulation zone); the desired box centre follows from it and the measured object (see
+:mod:`tasks.viki_laws`), or is given directly in pixels with ``desired_centre`` (the paper's way).  ``Z_d``
+is read every frame in the depth image at the desired centre (eq. 19).  ``zd: pixel`` reads the single pixel
+(as printed; the world's ``depth_at``); ``zd: window`` (default) applies eq. 17's rule — mean depth of the
+40 %-shrunk box — to the current box moved to the desired centre (``depth_in``).  Away from the goal both
+read the floor there; at the goal the window gives exactly ``Z_d = Z_o`` (``k = 1``) whereas a single
+pixel on a slanted face (a carton seen corner-on) differs from the box mean by a few per cent, which
+leaves the corners 2–3 px off on a 100 px box — outside the paper's ±2 px band, so the state never ends.
+If ``Z_d`` cannot be read (desired centre outside the image) the tick falls back as if undetected.
+
+Kinematic target (eq. 25's fallback, eq. 4's ``h_d``): the object's position in the odometry frame is
+fixed by the **first** usable detection of the mission (eq. 18 + base-centre estimate) and stored in the
+mission memory (``memory["viki.object"]``) so later states — the rotation, the backward positioning —
+use it.  A state turns it into its control-point target once (on entry if the memory has the object,
+else at its first detection): the pose with the object at ``desired`` and the heading of
+:func:`tasks.viki_laws.goal_heading` (stored as ``memory["viki.target"]``).  ``target_update: latest``
+re-anchors the object on every detection instead (not the paper's rule).  For a goal behind the robot
+(``desired[0] < 0``, the rear camera) the fallback is the paper's *backward* kinematic controller: eq. 4 on
+the car seen backwards, servoing the point ``d`` behind the rear axle (:func:`tasks.viki_laws.reverse_control`;
+plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`` forces either.
+
+No detection yet and no object in memory: the robot holds still and, after ``search_timeout``, the task
+raises ``no_target`` every tick (declare ``on: no_target`` to an error state).
+
+Metrics: ``feature_error`` (px, max |f - f_d| of the latest detection, absent before the first),
+``pos_error`` (m, control point to the kinematic target, from odometry), ``detected`` (``c`` of eq. 25),
+``detection_age`` (s), ``object_x`` / ``object_y`` (m, object in the robot frame from odometry and the
+memory), ``v_cmd`` (m/s, signed command) and ``speed`` (m/s, measured).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+from pydantic import BaseModel, Field, field_validator, model_validator
+
+from robots.racecar import RacecarParams
+from robots.sensors import Detection, camera_command
+from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
+from taskflow.registry import register_task
+from tasks.car_visual_servo import car_jacobian_r, twist_transform
+from tasks.viki_laws import (
+    ServoInputs,
+    desired_centre,
+    goal_heading,
+    kinematic_target,
+    object_base,
+    viki_velocity,
+)
+
+MEM_OBJECT = "viki.object"  # odometry (x, y) of the object's base centre, fixed by the first detection
+MEM_TARGET = "viki.target"  # the active state's kinematic control-point target (x, y)
+MEM_FIRST = "viki.first_detection"  # {"t", "camera"} of the detection that fixed the object
+
+
+class ViKiGains(StrictModel):
+    """Gains of one positioning direction (profile kind ``viki_gains``).
+
+    ``lam``: the paper's five numbers (section III-A: front ``[0.85, 0.3, 1, 1, 1]``, rear
+    ``[0.85, 1.05, 1, 1, 1]``); ``diag(lam[0], lam[1])`` acts on ``[v, w]`` in eq. 24 and the other three
+    have no counterpart in the 2-DoF law (:func:`tasks.car_visual_servo.car_gains`).  ``k1``: eq. 4's
+    ``[k_x, k_y]`` (forward ``[2, 1]``, backward ``[1, 2]``).  ``d``: control-point distance of eq. 1
+    (``None``: the wheelbase, as in the paper).
+    """
+
+    kind: ClassVar[str] = "viki_gains"
+
+    lam: tuple[float, ...]
+    k1: tuple[float, float] = (2.0, 1.0)
+    d: float | None = Field(default=None, gt=0.0)
+
+    @field_validator("lam")
+    @classmethod
+    def _lam(cls, lam: tuple[float, ...]) -> tuple[float, ...]:
+        if len(lam) != 5:
+            raise ValueError(
+                f"lam needs the paper's 5 gains [lambda_v, lambda_w, l3, l4, l5] (only the first two act in the "
+                f"2-DoF law), got {len(lam)}: {list(lam)}")
+        if not all(math.isfinite(v) and v > 0.0 for v in lam):
+            raise ValueError(f"lam gains must be finite and > 0, got {list(lam)}")
+        return lam
+
+    @field_validator("k1")
+    @classmethod
+    def _k1(cls, k1: tuple[float, float]) -> tuple[float, float]:
+        if not all(math.isfinite(v) and v > 0.0 for v in k1):
+            raise ValueError(f"k1 gains must be finite and > 0, got {list(k1)}")
+        return k1
+
+
+class ViKiHyCoParams(StrictModel):
+    """See the module docstring."""
+
+    camera: Literal["front", "rear"]
+    desired: tuple[float, float] = Field(description="object position in the robot frame at the goal (m)")
+    desired_centre: tuple[float, float] | None = Field(default=None, description="desired box centre (px)")
+    mode: Literal["hybrid", "vs_only", "mgbm"] = "hybrid"
+    object_size: tuple[float, float] | None = Field(default=None, description="mgbm: known (W, H) of the object (m)")
+    search_timeout: float = Field(default=2.0, gt=0.0, description="s without any detection → event no_target")
+    max_age: float = Field(default=0.2, gt=0.0, description="s: an older frame counts as no detection")
+    target_update: Literal["first", "latest"] = "first"
+    zd: Literal["window", "pixel"] = "window"
+    fallback: Literal["auto", "forward", "reverse"] = "auto"
+    smoothing: bool = True
+
+    @model_validator(mode="after")
+    def _check(self) -> "ViKiHyCoParams":
+        if self.mode == "mgbm" and self.object_size is None:
+            raise ValueError("mode 'mgbm' needs object_size: [W, H] (m), the object's known size")
+        if self.object_size is not None and min(self.object_size) <= 0.0:
+            raise ValueError(f"object_size must be positive, got {self.object_size}")
+        return self
+
+
+_CAM_KEYS = ("cam_vx", "cam_vy", "cam_vz", "cam_wx", "cam_wy", "cam_wz")
+
+
+@register_task("viki_hyco")
+class ViKiHyCo(Task):
+    """ViKi-HyCo visual/kinematic positioning with the front or rear camera (module docstring)."""
+
+    Params: ClassVar[type[ViKiHyCoParams]] = ViKiHyCoParams
+    slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": ViKiGains}
+    metrics: ClassVar[dict[str, str]] = {
+        "feature_error": "px", "pos_error": "m", "detected": "", "detection_age": "s",
+        "object_x": "m", "object_y": "m", "v_cmd": "m/s", "speed": "m/s",
+        "cam_vx": "m/s", "cam_vy": "m/s", "cam_vz": "m/s", "cam_wx": "rad/s", "cam_wy": "rad/s", "cam_wz": "rad/s",
+    }
+    events: ClassVar[tuple[str, ...]] = ("no_target",)
+    robots: ClassVar[tuple[str, ...]] = ("racecar",)
+
+    def __init__(self, ctx: TaskContext) -> None:
+        super().__init__(ctx)
+        params, gains, rp = ctx.params, ctx.profiles.get("gains"), ctx.robot.params
+        if not isinstance(params, ViKiHyCoParams):
+            raise TypeError(f"viki_hyco needs ViKiHyCo.Params, got {type(params).__name__}")
+        if not isinstance(gains, ViKiGains):
+            raise TypeError(f"viki_hyco needs a ViKiGains profile in slot 'gains', got {type(gains).__name__}")
+        if not isinstance(rp, RacecarParams):
+            raise TypeError(f"viki_hyco drives a racecar, got robot parameters {type(rp).__name__}")
+        self.p = params
+        self.camera = params.camera
+        mount = getattr(rp, f"{params.camera}_camera", None)
+        if mount is None:
+            raise ValueError(f"the robot has no {params.camera!r} camera")
+        self.T_rc = mount.optical_transform()
+        # camera twist of a robot velocity [v, w] (eq. 20-22): V_c = T_r^c J_r V_r, for the figures
+        self._cam_twist = twist_transform(self.T_rc[:3, :3], self.T_rc[:3, 3]) @ car_jacobian_r()
+        self.lam = np.asarray(gains.lam, dtype=float)
+        self.k1 = np.asarray(gains.k1, dtype=float)
+        self.d = float(gains.d) if gains.d is not None else rp.wheelbase
+        self.wheelbase, self.v_max, self.psi_max = rp.wheelbase, rp.v_max, rp.psi_max
+        self.goal = np.asarray(params.desired, dtype=float)
+        # eq. 4's fallback drives toward the goal pose: backwards (point d behind) for a goal behind
+        self.reverse = params.fallback == "reverse" or (params.fallback == "auto" and self.goal[0] < 0.0)
+        self.d_point = -self.d if self.reverse else self.d  # signed offset of the controlled point
+        self.memory = ctx.memory
+        self.t0 = ctx.t
+        self.v_prev = np.zeros(2)
+        self.direction = 0.0
+        self.last_feature_error: float | None = None
+        self.last_detection_t: float | None = None
+        self.target: np.ndarray | None = None
+        self.theta_f: float | None = None
+        self._cmd_cam = camera_command(self.camera)
+        self.last: Any = None  # last ServoOutput, for inspection
+
+    # -- the kinematic target --------------------------------------------------------------------
+    def _set_target(self, pose: np.ndarray) -> None:
+        O = self.memory[MEM_OBJECT]
+        if self.theta_f is None:
+            self.theta_f = goal_heading(pose, O, self.goal)
+        self.target = kinematic_target(O, self.goal, self.theta_f, self.d_point)
+        self.memory[MEM_TARGET] = self.target.copy()
+
+    def _object_from(self, det: Detection, pose: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """Object base centre in odometry, half-width and height (eq. 18 + base estimate)."""
+        if det.bbox is None or det.depth is None:
+            raise ValueError("object position needs a detection with a box and a depth")
+        B, r, z_c = object_base(det.bbox, det.depth, det.intrinsics, self.T_rc)
+        x, y, th = pose
+        c, s = math.cos(th), math.sin(th)
+        return np.array([x + c * B[0] - s * B[1], y + s * B[0] + c * B[1]]), r, z_c
+
+    # -- one tick ------------------------------------------------------------------------------------
+    def step(self, obs: Observation) -> StepResult:
+        pose = np.asarray(obs.state["pose"], dtype=float)
+        raw = obs.sensors.get("detection")
+        det = raw if isinstance(raw, Detection) and raw.camera == self.camera else None
+        usable = det is not None and det.detected and obs.t - det.t <= self.p.max_age + 1e-9
+        events: tuple[str, ...] = ()
+        bbox = Z_o = Z_d = centre = None
+        if det is not None and usable:
+            O, r, z_c = self._object_from(det, pose)
+            if MEM_OBJECT not in self.memory or self.p.target_update == "latest":
+                if MEM_OBJECT not in self.memory:
+                    self.memory[MEM_FIRST] = {"t": obs.t, "camera": self.camera}
+                self.memory[MEM_OBJECT] = O
+                if self.p.target_update == "latest":
+                    self.theta_f = None
+                self.target = None
+            bbox = np.asarray(det.bbox, dtype=float)
+            Z_o = float(det.depth) if det.depth is not None else None
+            if self.p.mode == "mgbm" and self.p.object_size is not None:
+                # MGBM-YOLO knows the object: half-width and centre height from its size
+                r, z_c = 0.5 * self.p.object_size[0], 0.5 * self.p.object_size[1]
+            if self.p.desired_centre is not None:
+                centre = np.asarray(self.p.desired_centre, dtype=float)
+            else:
+                try:
+                    centre = desired_centre(self.goal, r, z_c, det.intrinsics, self.T_rc)
+                except ValueError:
+                    centre = None
+            if centre is not None:
+                if self.p.mode == "mgbm":
+                    Z_d = self._goal_depth(r, z_c)
+                elif self.p.zd == "pixel":
+                    Z_d = det.depth_at(float(centre[0]), float(centre[1]))  # eq. 19 as printed: (O_du, O_dv)
+                else:  # eq. 19 with eq. 17's rule: the current box moved to the desired centre
+                    hw, hh = 0.5 * (bbox[2] - bbox[0]), 0.5 * (bbox[3] - bbox[1])
+                    Z_d = det.depth_in((centre[0] - hw, centre[1] - hh, centre[0] + hw, centre[1] + hh))
+            self.last_detection_t = det.t
+        if self.target is None and MEM_OBJECT in self.memory:
+            self._set_target(pose)
+        out = viki_velocity(
+            ServoInputs(pose=pose, detected=bool(usable), bbox=bbox, Z_o=Z_o, Z_d=Z_d, centre=centre,
+                        target=self.target, reverse=self.reverse, v_prev=self.v_prev),
+            intrinsics=det.intrinsics if det is not None else (1.0, 1.0, 0.0, 0.0),
+            T_rc=self.T_rc, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
+            psi_max=self.psi_max, mode=self.p.mode, object_size=self.p.object_size, smoothing=self.p.smoothing,
+            direction=self.direction)
+        self.last = out
+        self.v_prev = out.V
+        if out.v_cmd != 0.0:
+            self.direction = math.copysign(1.0, out.v_cmd)
+        if out.feature_error is not None:
+            self.last_feature_error = out.feature_error
+        metrics: dict[str, float] = {"detected": 1.0 if out.used_vs else 0.0, "v_cmd": out.v_cmd,
+                                     "speed": abs(float(obs.state.get("v", 0.0)))}
+        metrics.update(zip(_CAM_KEYS, (self._cam_twist @ out.V).tolist()))
+        if self.last_feature_error is not None:
+            metrics["feature_error"] = self.last_feature_error
+        if self.last_detection_t is not None:
+            metrics["detection_age"] = obs.t - self.last_detection_t
+        if self.target is not None:
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            h = pose[:2] + self.d_point * np.array([c, s])  # the controlled point, eq. 1
+            metrics["pos_error"] = float(np.hypot(*(self.target - h)))
+        if MEM_OBJECT in self.memory:
+            O = np.asarray(self.memory[MEM_OBJECT], dtype=float)
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            dx, dy = O[0] - pose[0], O[1] - pose[1]
+            metrics["object_x"], metrics["object_y"] = c * dx + s * dy, -s * dx + c * dy
+        elif obs.t - self.t0 >= self.p.search_timeout - 1e-9:
+            events = ("no_target",)
+        command = {"v": np.array([out.v_cmd]), "steer": np.array([out.psi]), **self._cmd_cam}
+        return StepResult(command=command, metrics=metrics, events=events)
+
+    def _goal_depth(self, r: float, z_c: float) -> float:
+        """MGBM's desired depth: camera Z of the object's box-centre point at the goal."""
+        G = self.goal
+        cam = self.T_rc[:2, 3]
+        u = G - cam
+        u = u / max(float(np.hypot(*u)), 1e-9)
+        P = np.array([*(G - r * u), z_c])
+        return float((self.T_rc[:3, :3].T @ (P - self.T_rc[:3, 3]))[2])

@@ -1,0 +1,215 @@
+"""The viki_hyco and viki_rotate Task classes fed synthetic detections (no simulator)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from robots.racecar import Racecar
+from robots.sensors import Detection
+from taskflow.api import Observation, TaskContext
+from tasks.car_goto import CarGains
+from tasks.car_kinematics import kinematic_control
+from tasks.viki_hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
+from tasks.viki_laws import desired_centre, object_base, reverse_control, saturate_twist
+from tasks.viki_rotation import ViKiRotate, k_turn_legs
+
+ROBOT = Racecar(Racecar.Params())
+RP = ROBOT.params
+K = (468.94, 468.94, 320.0, 179.0)
+REAR = dict(lam=(0.85, 1.05, 1.0, 1.0, 1.0), k1=(1.0, 2.0))
+W_MAX = RP.v_max * math.tan(RP.psi_max) / RP.wheelbase
+
+
+def make_task(memory=None, t=0.0, gains=REAR, **params):
+    p = dict(camera="rear", desired=(-0.9, 0.0), smoothing=False)
+    p.update(params)
+    ctx = TaskContext(t=t, params=ViKiHyCoParams(**p), profiles={"gains": ViKiGains(**gains)},
+                      memory={} if memory is None else memory, robot=ROBOT)
+    return ViKiHyCo(ctx)
+
+
+def det(t, bbox=(300.0, 110.0, 340.0, 190.0), depth=1.3, camera="rear", zd=1.25):
+    return Detection(camera, t, int(t * 15), bbox, depth, K, 640, 360, True, lambda u, v: zd, lambda box: zd)
+
+
+def obs(t, detection=None, pose=(0.0, 0.0, 0.0)):
+    sensors = {} if detection is None else {"detection": detection}
+    return Observation(t=t, state={"pose": np.array(pose, float), "v": 0.0, "steer": 0.0}, sensors=sensors)
+
+
+def test_a_detection_drives_eq24_toward_the_desired_box_and_selects_the_camera():
+    task = make_task()
+    d = det(0.0)
+    r = task.step(obs(0.0, d))
+    assert r.command["camera_rear"][0] == 1.0 and r.command["camera_front"][0] == 0.0
+    assert r.metrics["detected"] == 1.0 and task.last.used_vs
+    # desired centre: the object's measured base would be at the goal
+    T = RP.rear_camera.optical_transform()
+    _, rad, z_c = object_base(d.bbox, d.depth, K, T)
+    c = desired_centre((-0.9, 0.0), rad, z_c, K, T)
+    fd = task.last.f_d
+    assert 0.5 * (fd[0] + fd[4]) == pytest.approx(c[0]) and 0.5 * (fd[1] + fd[5]) == pytest.approx(c[1])
+    # eq. 19: size k = Z_o / Z_d times the current box
+    assert (fd[4] - fd[0]) == pytest.approx(40.0 * 1.3 / 1.25)
+    assert r.metrics["feature_error"] == pytest.approx(task.last.feature_error)
+
+
+@pytest.mark.parametrize("camera", ["rear", "front"])
+def test_eq25_switches_between_visual_and_kinematic_laws(camera):
+    front = camera == "front"
+    gains = dict(lam=(0.85, 0.3, 1, 1, 1), k1=(2.0, 1.0)) if front else REAR
+    task = make_task(camera=camera, desired=(1.0, 0.0) if front else (-0.9, 0.0), gains=gains)
+    seq = [True, True, False, False, True, False]
+    pose = np.array([0.0, 0.0, 0.1])
+    used = []
+    for k, seen in enumerate(seq):
+        t = k / 20
+        r = task.step(obs(t, det(t, camera=camera) if seen else None, pose))
+        used.append(r.metrics["detected"])
+        if not seen:
+            # goal ahead: eq. 4 driving forward; goal behind: eq. 4 on the car seen backwards
+            law = kinematic_control if front else reverse_control
+            V = saturate_twist(law(pose, task.target, gains["k1"], RP.wheelbase), RP.v_max, W_MAX)
+            np.testing.assert_allclose(task.last.V, V)
+            assert "feature_error" in r.metrics  # the latest detection's error stays published
+            # pos_error: the controlled point (d ahead, or d behind when reversing) to the target
+            d = RP.wheelbase if front else -RP.wheelbase
+            h = pose[:2] + d * np.array([math.cos(pose[2]), math.sin(pose[2])])
+            assert r.metrics["pos_error"] == pytest.approx(np.hypot(*(task.target - h)))
+    assert used == [1.0 if s else 0.0 for s in seq]
+
+
+def test_first_detection_fixes_the_object_and_later_states_use_it():
+    memory: dict = {}
+    task = make_task(memory)
+    task.step(obs(0.0, det(0.0)))
+    O1 = memory[MEM_OBJECT].copy()
+    target1 = task.target.copy()
+    task.step(obs(0.05, det(0.05, bbox=(200.0, 60.0, 230.0, 120.0), depth=2.0)))  # the box moved a lot
+    np.testing.assert_array_equal(memory[MEM_OBJECT], O1)
+    np.testing.assert_array_equal(task.target, target1)
+    # a later state (same mission memory) has a target before it sees anything, and drives toward it
+    later = make_task(memory, t=1.0, gains=dict(lam=(0.85, 0.3, 1, 1, 1), k1=(2.0, 1.0)))
+    r = later.step(obs(1.0, None, pose=(0.5, 0.2, 0.0)))
+    assert r.metrics["detected"] == 0.0 and "pos_error" in r.metrics and abs(r.command["v"][0]) > 0.0
+    np.testing.assert_allclose(memory[MEM_TARGET], later.target)
+    # the object seen from the new pose, in the robot frame, comes from the memory
+    assert (r.metrics["object_x"], r.metrics["object_y"]) == pytest.approx((O1[0] - 0.5, O1[1] - 0.2))
+
+
+def test_target_update_latest_re_anchors_on_every_detection():
+    memory: dict = {}
+    task = make_task(memory, target_update="latest")
+    task.step(obs(0.0, det(0.0)))
+    O1 = memory[MEM_OBJECT].copy()
+    task.step(obs(0.05, det(0.05, bbox=(200.0, 60.0, 230.0, 120.0), depth=2.0)))
+    assert not np.allclose(memory[MEM_OBJECT], O1)
+
+
+def test_vs_only_stops_when_the_detection_drops():
+    task = make_task(mode="vs_only")
+    assert task.step(obs(0.0, det(0.0))).command["v"][0] != 0.0
+    r = task.step(obs(0.05, None))
+    assert r.command["v"][0] == 0.0 and r.metrics["detected"] == 0.0
+
+
+def test_other_camera_and_stale_frames_count_as_no_detection():
+    task = make_task()
+    r = task.step(obs(0.0, det(0.0, camera="front")))
+    assert r.metrics["detected"] == 0.0 and MEM_OBJECT not in task.memory
+    r = task.step(obs(0.5, det(0.1)))  # 0.4 s old > max_age
+    assert r.metrics["detected"] == 0.0 and MEM_OBJECT not in task.memory
+
+
+def test_no_detection_at_the_start_raises_no_target_after_the_timeout():
+    task = make_task(search_timeout=1.0)
+    assert task.step(obs(0.5)).events == ()
+    r = task.step(obs(1.0))
+    assert r.events == ("no_target",) and r.command["v"][0] == 0.0
+    # with the object already in memory there is something to drive to: no event
+    task2 = make_task({MEM_OBJECT: np.array([-2.0, 0.0])}, search_timeout=1.0)
+    assert task2.step(obs(1.5)).events == ()
+
+
+def test_gain_and_parameter_validation():
+    with pytest.raises(ValidationError, match="5 gains"):
+        ViKiGains(lam=(0.85, 0.3, 1.0))
+    with pytest.raises(ValidationError, match="> 0"):
+        ViKiGains(lam=(0.85, -0.3, 1.0, 1.0, 1.0))
+    with pytest.raises(ValidationError, match="k1"):
+        ViKiGains(lam=(0.85, 0.3, 1.0, 1.0, 1.0), k1=(0.0, 1.0))
+    with pytest.raises(ValidationError, match="object_size"):
+        ViKiHyCoParams(camera="front", desired=(1.0, 0.0), mode="mgbm")
+    with pytest.raises(ValidationError):
+        ViKiHyCoParams(camera="top", desired=(1.0, 0.0))
+
+
+# -- the rotation -----------------------------------------------------------------------------------
+
+
+def test_k_turn_ends_behind_the_start_facing_away():
+    r, d = 0.8, RP.wheelbase
+    legs = k_turn_legs((1.0, 2.0), 0.5, r, 1, d)
+    (p1, dir1), (p2, dir2) = legs
+    assert (dir1, dir2) == (-1.0, 1.0)
+    c, s = math.cos(0.5), math.sin(0.5)
+    end_rear = np.array([1.0, 2.0]) + (-2 * r) * np.array([c, s])
+    np.testing.assert_allclose(p2[-1], end_rear + d * np.array([-c, -s]), atol=1e-12)  # forward point, heading + pi
+    # the legs join at the cusp: rear axle at (-r, -r) in the path frame, heading +90 deg
+    cusp_rear = np.array([1.0, 2.0]) + np.array([[c, -s], [s, c]]) @ np.array([-r, -r])
+    heading = 0.5 + math.pi / 2
+    np.testing.assert_allclose(p1[-1], cusp_rear - d * np.array([math.cos(heading), math.sin(heading)]), atol=1e-12)
+    np.testing.assert_allclose(p2[0], cusp_rear + d * np.array([math.cos(heading), math.sin(heading)]), atol=1e-12)
+
+
+def test_reverse_control_backs_toward_a_point_behind():
+    v, w = reverse_control(np.array([0.0, 0.0, 0.0]), np.array([-1.325, 0.0]), np.array([1.0, 1.0]), 0.325)
+    assert v < 0.0 and w == pytest.approx(0.0)
+
+
+def make_rotate(memory, **params):
+    ctx = TaskContext(t=0.0, params=ViKiRotate.Params(**params), profiles={"gains": CarGains(k1=(2.0, 2.0))},
+                      memory=memory, robot=ROBOT)
+    return ViKiRotate(ctx)
+
+
+def test_rotation_plans_from_the_memory_object_and_starts_reversing():
+    memory = {MEM_OBJECT: np.array([1.0, 0.0])}
+    task = make_rotate(memory)
+    r = task.step(obs(0.0))
+    assert r.command["v"][0] < 0.0 and r.command["camera_front"][0] == 0.0 and r.command["camera_rear"][0] == 0.0
+    np.testing.assert_allclose(memory["viki.rotation_target"], [-1.6 - RP.wheelbase, 0.0], atol=1e-12)
+    assert r.metrics["pos_error"] == pytest.approx(1.6 + RP.wheelbase + RP.wheelbase)
+    assert r.metrics["leg"] == 0.0
+
+
+def test_rotation_without_an_object_raises_no_target():
+    r = make_rotate({}).step(obs(0.0))
+    assert r.events == ("no_target",) and r.command["v"][0] == 0.0
+
+
+def test_rotation_radius_below_the_car_minimum_is_refused():
+    with pytest.raises(ValueError, match="minimum turning radius"):
+        make_rotate({}, radius=0.3)
+
+
+@pytest.mark.parametrize("zd", ["window", "pixel"])
+def test_zd_is_read_at_the_desired_centre(zd):
+    calls = []
+    d = Detection("rear", 0.0, 0, (300.0, 110.0, 340.0, 190.0), 1.3, K, 640, 360, True,
+                  lambda u, v: calls.append(("pixel", (u, v))) or 1.2,
+                  lambda box: calls.append(("window", box)) or 1.2)
+    task = make_task(zd=zd)
+    task.step(obs(0.0, d))
+    fd = task.last.f_d
+    c = (0.5 * (fd[0] + fd[4]), 0.5 * (fd[1] + fd[5]))
+    assert [k for k, _ in calls] == [zd]
+    if zd == "pixel":
+        assert calls[0][1] == pytest.approx(c)
+    else:  # the current box (40 x 80 px) moved to the desired centre
+        assert calls[0][1] == pytest.approx((c[0] - 20, c[1] - 40, c[0] + 20, c[1] + 40))
+    assert fd[4] - fd[0] == pytest.approx(40.0 * 1.3 / 1.2)  # eq. 19, k = Z_o / Z_d
