@@ -1,4 +1,4 @@
-"""``taskflow`` command line: run, validate, graph, schema, batch, plot.
+"""``taskflow`` command line: run, validate, graph, schema, batch, teach, plot.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
 130 interrupted.
@@ -99,6 +99,18 @@ def cmd_batch(args: argparse.Namespace) -> int:
     return 0 if result["aggregate"]["success_rate"] == 1.0 else 1
 
 
+def cmd_teach(args: argparse.Namespace) -> int:
+    mission = _load(args.mission, args.set)
+    teach = getattr(mission.world_cls, "teach", None)
+    if teach is None:
+        print(f"{args.mission}: world {mission.world_cls.name!r} has nothing to teach "
+              "(teach-by-showing needs a world with keyframes, e.g. quad_room)", file=sys.stderr)
+        return 1
+    for path in teach(mission, args.out, args.seed):
+        print(path)
+    return 0
+
+
 def cmd_plot(args: argparse.Namespace) -> int:
     from .plots import plot_run
 
@@ -145,6 +157,13 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--max-time", type=float, default=None)
     b.add_argument("--keep-runs", action="store_true", help="also write every trial's run directory")
     b.set_defaults(fn=cmd_batch)
+
+    t = sub.add_parser("teach", help="render and store a visual path's keyframe images (teach by showing)")
+    t.add_argument("mission")
+    t.add_argument("--out", default=None, help="directory for the images and keyframes.json")
+    t.add_argument("--seed", type=int, default=None)
+    t.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    t.set_defaults(fn=cmd_teach)
 
     p = sub.add_parser("plot", help="write the figures of a run directory as PNG")
     p.add_argument("run_dir")

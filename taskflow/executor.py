@@ -19,13 +19,13 @@ Semantics in brief (docs/missions.md has the long form):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from transitions.extensions.nesting import HierarchicalMachine, NestedState
 
 from .api import Command, Observation, Robot, Task, TaskContext, World
+from .shaping import activation
 from .loader import CompiledMission, CompiledTransition, StateNode, resolve_refs
 
 START = "__start__"
@@ -39,14 +39,8 @@ class _Machine(HierarchicalMachine):
     state_cls = _DotState
 
 
-def blend_weight(tau: float, duration: float) -> float:
-    """The papers' activation ``h(t) = ½(1 − cos(π (t − t0)/(tf − t0)))`` clipped to [0, 1]
-    (quadcopter paper eq. 20)."""
-    if duration <= 0.0 or tau >= duration:
-        return 1.0
-    if tau <= 0.0:
-        return 0.0
-    return 0.5 * (1.0 - math.cos(math.pi * tau / duration))
+blend_weight = activation
+"""The papers' activation ``h(t)`` (quadcopter paper eq. 20), used by ``blend:``."""
 
 
 @dataclass

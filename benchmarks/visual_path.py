@@ -1,0 +1,221 @@
+"""Visual path following (Toro-Arcila et al.): the paper's experiments on PyBullet, beside its numbers.
+
+    python benchmarks/visual_path.py                 # all four missions (~4-6 min on 2 cores)
+    python benchmarks/visual_path.py --only pose_regulation obstacles
+    python benchmarks/visual_path.py --plots figures/   # also the figures of each run
+
+Each mission runs with the rendered pipeline (320x240 TinyRenderer frames → ORB/LK/RANSAC →
+hierarchical homography servoing).  Printed per experiment: completion, final ε (task and ground
+truth), final position and yaw error against the last taught pose, minimum obstacle clearance,
+collisions, path time, control loop frequency (simulated) and the cost per frame of perception +
+control (excluding rendering) with the real-time factor of the whole run.  The last line is JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import robots.quadcopter  # noqa: F401 - registration
+import sim.room_world  # noqa: F401
+import tasks.visual_path  # noqa: F401
+from taskflow.loader import load_mission
+from taskflow.records import read_trace
+from taskflow.runtime import run_mission
+
+EXPERIMENTS = {
+    "pose_regulation": ("visual_path_pose_regulation.yaml",
+                        {"completed": True, "path_time_s": 12.0, "loop_hz": 24.7, "collisions": 0}),
+    "obstacles": ("visual_path_obstacles.yaml", {"completed": True, "path_time_s": 30.0, "loop_hz": 55.0,
+                                                  "collisions": 0}),
+    "oval": ("visual_path_oval.yaml", {"completed": True, "path_time_s": 205.0, "loop_hz": 24.0,
+                                       "path_length_m": 7.7}),
+    "oval_feedforward": ("visual_path_oval_feedforward.yaml",
+                         {"completed": True, "path_time_s": 51.32, "loop_hz": 23.0, "path_length_m": 7.71}),
+}
+# the paper's times are read from its text: §5.1 "converged at t = 12 s", §5.2 last switch at t = 26 s
+# and the end a few seconds later (Fig. 14), §5.3 "about 205 s" and "51.32 s".
+
+
+def _float(v: str) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def frame_costs(run_dir: Path) -> dict[str, float]:
+    """Perception + control time per camera frame (ms) from the trace, excluding rendering."""
+    tr = read_trace(run_dir)
+    pc = np.array([_float(a) + _float(b) for a, b in zip(tr.get("m.perception_time", []), tr.get("m.control_time", []))])
+    pc = pc[np.isfinite(pc)] * 1000.0
+    if len(pc) == 0:
+        return {"frame_ms_mean": math.nan, "frame_ms_median": math.nan, "frame_ms_p95": math.nan}
+    return {"frame_ms_mean": float(pc.mean()), "frame_ms_median": float(np.median(pc)),
+            "frame_ms_p95": float(np.percentile(pc, 95))}
+
+
+def run_experiment(name: str, out: Path) -> dict:
+    file, paper = EXPERIMENTS[name]
+    m = load_mission(ROOT / "missions" / file)
+    t0 = time.perf_counter()
+    r = run_mission(m, out_dir=out / name)
+    wall = time.perf_counter() - t0
+    s = r.summary
+    mt = s["metrics"]
+    res = {
+        "experiment": name,
+        "completed": r.outcome == "succeeded",
+        "outcome": r.outcome,
+        "path_time_s": s["sim_time_s"],
+        "keyframes": len(s["iterations"]),
+        "final_epsilon_px": mt.get("epsilon"),
+        "final_epsilon_gt_px": mt.get("final_epsilon_px"),
+        "final_position_error_m": mt.get("final_position_error_m"),
+        "final_yaw_error_deg": mt.get("final_yaw_error_deg"),
+        "min_obstacle_clearance_m": mt.get("min_obstacle_clearance_m"),
+        "min_clearance_m": mt.get("min_clearance_m"),
+        "collisions": mt.get("collisions"),
+        "path_length_m": mt.get("path_length_m"),
+        "loop_hz": m.spec.rate_hz,
+        "real_time_factor": s["real_time_factor"],
+        "wall_s": wall,
+        **frame_costs(out / name),
+        "paper": paper,
+    }
+    return res
+
+
+def fmt(v, nd=3):
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else f"{v:.{nd}f}"
+    return str(v)
+
+
+def print_table(results: list[dict]) -> None:
+    rows = [("completed", "completed"), ("path time (s)", "path_time_s"), ("final ε task (px)", "final_epsilon_px"),
+            ("final ε ground truth (px)", "final_epsilon_gt_px"), ("final position error (m)", "final_position_error_m"),
+            ("final yaw error (deg)", "final_yaw_error_deg"), ("min obstacle clearance (m)", "min_obstacle_clearance_m"),
+            ("collisions", "collisions"), ("path length (m)", "path_length_m"), ("control loop (Hz, sim)", "loop_hz"),
+            ("perception+control mean (ms)", "frame_ms_mean"), ("perception+control p95 (ms)", "frame_ms_p95"),
+            ("real-time factor (with rendering)", "real_time_factor")]
+    for r in results:
+        print(f"\n== {r['experiment']} ({r['outcome']}) — ours | paper")
+        for label, key in rows:
+            print(f"  {label:36s} {fmt(r.get(key)):>10s} | {fmt(r['paper'].get(key)):>8s}")
+    ff = {r["experiment"]: r for r in results}
+    if "oval" in ff and "oval_feedforward" in ff:
+        ratio = ff["oval_feedforward"]["path_time_s"] / ff["oval"]["path_time_s"]
+        print(f"\noval with feed-forward takes {100 * ratio:.1f} % of the time without (paper: 25 %, target <= 30 %)")
+
+
+def plots(results: list[dict], out: Path, fig_dir: Path) -> list[Path]:
+    """Top view against the taught poses and obstacles; velocities with avoidance shaded; h_a, h_m;
+    ε and the task error with keyframe switches marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for r in results:
+        name = r["experiment"]
+        tr = read_trace(out / name)
+        mfile = out / name / "mission.yaml"
+        mission = yaml.safe_load(mfile.read_text()) if mfile.exists() else None
+        t = np.array([_float(v) for v in tr["t"]])
+        g = {k: np.array([_float(v) for v in tr[f"gt.{k}"]]) for k in ("x", "y")}
+        nu = np.array([[_float(v) for v in tr[f"cmd.nu.{i}"]] for i in range(4)])
+
+        def col(k: str, tr: dict = tr, n: int = len(t)) -> np.ndarray:
+            return np.array([_float(v) for v in tr.get(f"m.{k}", [math.nan] * n)])
+
+        kf = col("keyframe")
+        switches = t[1:][np.diff(np.nan_to_num(kf, nan=-1)) != 0]
+        fig, ax = plt.subplots(2, 2, figsize=(12, 8))
+        a = ax[0, 0]
+        a.plot(g["x"], g["y"], label="flown (ground truth)")
+        params = (mission or {}).get("world", {}).get("params", {}) if mission else {}
+        kfs = params.get("keyframes", [])
+        if kfs:
+            a.plot([k["pose"][0] for k in kfs], [k["pose"][1] for k in kfs], "o", ms=4, label="taught poses")
+        for o in params.get("obstacles", []):
+            a.add_patch(plt.Circle((o["x"], o["y"]), max(o["width"], o.get("depth", 0)) / 2, color="g"))
+        a.set_aspect("equal")
+        a.set_title(f"{name}: top view")
+        a.legend()
+        a = ax[0, 1]
+        for i, lab in enumerate(("vx", "vy", "vz", "wz")):
+            a.plot(t, nu[i], label=lab)
+        ha = col("h_a")
+        on = np.nan_to_num(ha) > 0
+        for i in np.flatnonzero(np.diff(on.astype(int)) == 1):
+            j = i + 1 + (np.argmax(~on[i + 1:]) if np.any(~on[i + 1:]) else len(on) - i - 1)
+            a.axvspan(t[i], t[min(j, len(t) - 1)], color="c", alpha=0.2)
+        for s in switches:
+            a.axvline(s, color="k", ls=":", lw=0.8)
+        a.set_title("velocities (avoidance shaded)")
+        a.legend()
+        a = ax[1, 0]
+        a.plot(t, ha, label="h_a")
+        a.plot(t, col("h_m"), label="h_m")
+        a.plot(t, col("h_t"), label="h_t")
+        a.set_title("activations")
+        a.legend()
+        a = ax[1, 1]
+        a.plot(t, col("epsilon"), label="ε (px)")
+        a2 = a.twinx()
+        a2.plot(t, col("task_error"), "r", label="‖e‖")
+        for s in switches:
+            a.axvline(s, color="k", ls=":", lw=0.8)
+        a.set_title("ε and task error (keyframe switches dotted)")
+        a.legend(loc="upper left")
+        a2.legend(loc="upper right")
+        fig.tight_layout()
+        f = fig_dir / f"visual_path_{name}.png"
+        fig.savefig(f, dpi=90)
+        plt.close(fig)
+        written.append(f)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", nargs="*", choices=sorted(EXPERIMENTS), help="experiments to run (default: all)")
+    ap.add_argument("--out", type=Path, default=None, help="run records (default: a temporary directory)")
+    ap.add_argument("--plots", type=Path, default=None, help="write figures into this directory")
+    args = ap.parse_args(argv)
+    names = args.only or list(EXPERIMENTS)
+    out = args.out or Path(tempfile.mkdtemp(prefix="visual_path_bench_"))
+    results = [run_experiment(n, out) for n in names]
+    print_table(results)
+    if args.plots is not None:
+        for f in plots(results, out, args.plots):
+            print(f"figure: {f}")
+    summary = {"benchmark": "visual_path", "runs": out.as_posix(),
+               "results": [{k: v for k, v in r.items() if k != "paper"} for r in results]}
+    ff = {r["experiment"]: r for r in results}
+    if "oval" in ff and "oval_feedforward" in ff:
+        summary["feedforward_time_ratio"] = ff["oval_feedforward"]["path_time_s"] / ff["oval"]["path_time_s"]
+    print(json.dumps(summary, default=lambda o: None if isinstance(o, float) and math.isnan(o) else o))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,116 @@
+"""The quadcopter of the visual-path-following paper (Toro-Arcila et al.), as a velocity-controlled body.
+
+The paper commands ``nu = [vx, vy, vz, wz]`` (body frame) to the Bebop 2's on-board velocity
+controller and models the flat outputs ``[x, y, z, yaw]`` as single integrators (eq. 1).  Here the
+on-board controller tracks the command with a first-order lag of time constant ``tau`` (a robot
+parameter; ``tau = 0`` is the paper's ideal integrator); ``sim/`` moves the body kinematically.
+
+Body frame: x forward, y left, z up (FLU); yaw about z.  Looks and collision shapes are the ``iris``
+quadrotor of example-robot-data, scaled by ``scale`` (default 0.75: 0.39 m x 0.52 m rotor tips, about
+a Bebop 2 with its hull).  A forward monocular camera (OpenCV optical frame) sits at ``eT_c``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field, model_validator
+
+from taskflow.api import Robot, StrictModel
+from taskflow.registry import register_robot
+
+# Rotation body (FLU) ← optical (x right, y down, z forward): the paper's eR_c written for FLU axes.
+FLU_R_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+
+def _rz(yaw: float) -> NDArray[np.float64]:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _ry(pitch: float) -> NDArray[np.float64]:
+    c, s = math.cos(pitch), math.sin(pitch)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+class QuadCamera(StrictModel):
+    """Forward camera: resolution, vertical field of view (rad), frame rate and its mount ``eT_c``.
+
+    ``xyz`` is ``et_c`` (m, body frame); ``pitch`` tilts the optical axis down (rad, 0 = horizontal).
+    Intrinsics follow PyBullet's TinyRenderer: ``fx = fy = H / (2 tan(fovy/2))``, principal point
+    ``(W/2, H/2 - 1)`` (SIMULATOR_NOTES.md).  The paper's Bebop 2 streams 856x480; 320x240 is the
+    default here for speed (rendering ~20–35 ms per frame).
+    """
+
+    width: int = Field(default=320, gt=15, le=4096)
+    height: int = Field(default=240, gt=15, le=4096)
+    fovy: float = Field(default=math.radians(60.0), gt=0.05, lt=math.pi - 0.05)
+    rate_hz: float = Field(default=25.0, gt=0.0, le=1000.0)
+    xyz: tuple[float, float, float] = (0.17, 0.0, -0.03)
+    pitch: float = Field(default=0.0, ge=-math.pi / 2, le=math.pi / 2)
+    near: float = Field(default=0.03, gt=0.0)
+    far: float = Field(default=30.0, gt=0.0)
+
+    @model_validator(mode="after")
+    def _range(self) -> QuadCamera:
+        if not self.near < self.far:
+            raise ValueError(f"camera near ({self.near}) must be < far ({self.far})")
+        return self
+
+    def K(self) -> NDArray[np.float64]:
+        """3x3 intrinsic matrix in pixels."""
+        f = self.height / (2.0 * math.tan(0.5 * self.fovy))
+        return np.array([[f, 0.0, self.width / 2.0], [0.0, f, self.height / 2.0 - 1.0], [0.0, 0.0, 1.0]])
+
+    def R(self) -> NDArray[np.float64]:
+        """``eR_c``: rotation body ← optical frame."""
+        return _ry(self.pitch) @ FLU_R_OPTICAL
+
+    def t(self) -> NDArray[np.float64]:
+        """``et_c``: camera origin in the body frame (m)."""
+        return np.asarray(self.xyz, dtype=np.float64)
+
+
+class QuadcopterParams(StrictModel):
+    """Velocity-loop lag, limits, look and camera of the quadcopter."""
+
+    tau: float = Field(default=0.15, ge=0.0, le=5.0, description="first-order lag of the velocity loop (s)")
+    v_max: float = Field(default=1.0, gt=0.0, description="|vx|, |vy|, |vz| limit (m/s)")
+    wz_max: float = Field(default=math.radians(100.0), gt=0.0, description="|wz| limit (rad/s)")
+    scale: float = Field(default=0.75, gt=0.05, le=3.0, description="scale of the iris mesh and shapes")
+    camera: QuadCamera = QuadCamera()
+
+
+@register_robot("quadcopter")
+class Quadcopter(Robot):
+    """Quadcopter commanded with ``nu = [vx, vy, vz, wz]`` (m/s, rad/s) in its body frame."""
+
+    Params: ClassVar[type[QuadcopterParams]] = QuadcopterParams
+    command_keys: ClassVar[dict[str, int]] = {"nu": 4}
+
+    params: QuadcopterParams
+
+    def __init__(self, params: QuadcopterParams) -> None:
+        if not isinstance(params, QuadcopterParams):
+            raise TypeError(f"Quadcopter needs Quadcopter.Params, got {type(params).__name__}")
+        super().__init__(params)
+
+    def saturate(self, nu: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Clip a command to the velocity limits (each axis separately)."""
+        p = self.params
+        lim = np.array([p.v_max, p.v_max, p.v_max, p.wz_max])
+        return np.clip(np.asarray(nu, dtype=np.float64).reshape(4), -lim, lim)
+
+    def eTc(self) -> NDArray[np.float64]:
+        """Eq. (5): the 6x6 twist transform body ← camera."""
+        R, t = self.params.camera.R(), self.params.camera.t()
+        x, y, z = t
+        S = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+        T = np.zeros((6, 6))
+        T[:3, :3] = R
+        T[:3, 3:] = S @ R
+        T[3:, 3:] = R
+        return T

@@ -1,0 +1,429 @@
+"""``quad_room``: the quadcopter in an indoor room with textured walls and column obstacles.
+
+The world of the visual-path-following paper (Toro-Arcila et al., section 5): a forward camera is the
+only sensor.  Each observation carries the latest rendered frame (at the camera's rate) and the
+keyframe images of the visual path; no pose ever enters an observation.
+
+* **Dynamics.**  The body ``[x, y, z, yaw]`` tracks the commanded body-frame ``[vx, vy, vz, wz]``
+  through a first-order lag (robot ``tau``), integrated at ``physics_hz`` and moved kinematically
+  (``resetBasePositionAndOrientation``); no rigid-body dynamics, no gravity.
+* **Keyframes (teach-by-showing).**  ``keyframes`` lists the taught poses ``{id, pose: [x, y, z,
+  yaw]}``; on :meth:`reset` the world renders the camera image at each pose, or loads the images
+  :func:`teach` stored in ``keyframe_dir``.  The poses serve only the ground-truth summary.
+* **Collisions.**  The iris body's collision shapes against the obstacles and the room's slabs
+  (walls, floor, ceiling) with ``getClosestPoints`` after every control step: a ``collision`` event
+  when a contact starts, and ``collisions``, ``min_clearance_m`` … in the summary.
+* **Camera faults.**  ``blackout`` intervals return black frames (lost video or occlusion) so missions
+  can exercise their lost-features handling.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, ClassVar
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field, field_validator, model_validator
+
+from robots.quadcopter import Quadcopter, QuadcopterParams
+from sim.quad_scene import Column, QuadScene, Room
+from taskflow.api import Command, Observation, Robot, StrictModel, World
+from taskflow.registry import register_world
+
+Pose = tuple[float, float, float, float]
+
+
+class KeyframeSpec(StrictModel):
+    """One keyframe of a visual path: its index and the pose ``[x, y, z, yaw]`` (m, rad) it was
+    taught at.  The pose is ground truth for the summary; the task sees only the image."""
+
+    id: int = Field(ge=0)
+    pose: tuple[float, float, float, float]
+    sigma: float | None = Field(default=None, description="used by the control law, not by the world")
+
+
+class RoomSpec(StrictModel):
+    x0: float = -1.5
+    x1: float = 6.0
+    y0: float = -3.0
+    y1: float = 3.0
+    height: float = Field(default=3.0, gt=0.5)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> RoomSpec:
+        if not (self.x1 - self.x0 > 1.0 and self.y1 - self.y0 > 1.0):
+            raise ValueError("room must be at least 1 m in x and y (x0 < x1, y0 < y1)")
+        return self
+
+
+class ObstacleSpec(StrictModel):
+    """A column: a box ``width`` x ``depth`` (m), or a cylinder of diameter ``width`` if ``depth`` = 0."""
+
+    x: float
+    y: float
+    width: float = Field(gt=0.0, le=2.0)
+    depth: float = Field(default=0.0, ge=0.0, le=2.0)
+    yaw: float = 0.0
+
+
+def load_keyframe_dir(path: str | Path) -> tuple[list[NDArray[np.uint8]], dict[str, Any]]:
+    """Read the images and ``keyframes.json`` that :func:`teach` wrote; clear errors when missing or
+    unreadable."""
+    d = Path(path)
+    meta_file = d / "keyframes.json"
+    if not meta_file.is_file():
+        raise ValueError(f"keyframe_dir {str(d)!r}: no keyframes.json (run `taskflow teach` first)")
+    try:
+        meta = json.loads(meta_file.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{meta_file}: unreadable ({exc})") from exc
+    images = []
+    for k in meta.get("keyframes", []):
+        f = d / k["image"]
+        if not f.is_file():
+            raise ValueError(f"keyframe image {str(f)!r} is missing")
+        img = cv2.imread(str(f), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ValueError(f"keyframe image {str(f)!r} is unreadable (not an image OpenCV can decode)")
+        images.append(img[:, :, ::-1].copy())
+    return images, meta
+
+
+class QuadRoomParams(StrictModel):
+    """Room, obstacles, start pose, visual path and sensor faults of the ``quad_room`` world."""
+
+    room: RoomSpec = RoomSpec()
+    obstacles: list[ObstacleSpec] = Field(default_factory=list)
+    start: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 0.0)
+    keyframes: list[KeyframeSpec] = Field(default_factory=list)
+    keyframe_dir: str | None = Field(default=None, description="images written by teach(); None: render on reset")
+    texture_seed: int = Field(default=0, ge=0, description="seed of the generated textures (fixed by the taught path)")
+    texture_px_per_m: float = Field(default=160.0, gt=10.0, le=1000.0)
+    physics_hz: float = Field(default=240.0, gt=0.0)
+    image_noise: float = Field(default=0.0, ge=0.0, le=50.0, description="std of Gaussian pixel noise (grey levels)")
+    blackout: list[tuple[float, float]] = Field(default=[], description="[t0, t1] intervals of black frames (s)")
+    obstacle_height: float = Field(default=3.0, gt=0.0)
+
+    @field_validator("keyframes")
+    @classmethod
+    def _ids(cls, v: list[KeyframeSpec]) -> list[KeyframeSpec]:
+        if [k.id for k in v] != list(range(len(v))):
+            raise ValueError(f"keyframe ids must be 0, 1, 2, ... in order, got {[k.id for k in v]}")
+        return v
+
+    @field_validator("blackout")
+    @classmethod
+    def _intervals(cls, v: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        for a, b in v:
+            if not (0.0 <= a < b):
+                raise ValueError(f"blackout interval [{a}, {b}] must have 0 <= t0 < t1")
+        return v
+
+    @model_validator(mode="after")
+    def _keyframe_files(self) -> QuadRoomParams:
+        if self.keyframe_dir is not None:
+            _, meta = load_keyframe_dir(self.keyframe_dir)
+            poses = [tuple(k["pose"]) for k in meta.get("keyframes", [])]
+            if self.keyframes and len(poses) != len(self.keyframes):
+                raise ValueError(f"keyframe_dir holds {len(poses)} keyframes but the path has {len(self.keyframes)}")
+            for k, q in zip(self.keyframes, poses):
+                if not np.allclose(k.pose, q, atol=1e-6):
+                    raise ValueError(f"keyframe {k.id}: taught pose {list(q)} in keyframe_dir differs from {list(k.pose)}")
+        return self
+
+
+def camera_pose_matrices(pose: Sequence[float], R_bc: NDArray[np.float64],
+                         t_bc: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """World ← camera rotation and camera position for the body at ``pose = (x, y, z, yaw)``."""
+    x, y, z, yaw = pose
+    c, s = math.cos(yaw), math.sin(yaw)
+    Rb = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return Rb @ R_bc, np.array([x, y, z]) + Rb @ t_bc
+
+
+@register_world("quad_room")
+class QuadRoom(World):
+    """A textured room, green columns and the quadcopter with its forward camera."""
+
+    Params: ClassVar[type[QuadRoomParams]] = QuadRoomParams
+    events: ClassVar[tuple[str, ...]] = ("collision",)
+    ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "z", "yaw", "vx", "vy", "vz", "wz",
+                                                    "obstacle_clearance", "wall_clearance")
+    robots: ClassVar[tuple[str, ...]] = ("quadcopter",)
+
+    params: QuadRoomParams
+    robot: Quadcopter
+
+    def __init__(self, robot: Robot, params: QuadRoomParams, seed: int, gui: bool = False) -> None:
+        if not isinstance(robot, Quadcopter):
+            raise TypeError(f"world quad_room flies a quadcopter, got {type(robot).__name__}")
+        super().__init__(robot, params, seed, gui)
+        self.physics_hz = float(params.physics_hz)
+        self.scene: QuadScene | None = None
+        self._rng = np.random.default_rng(seed)
+        self._init_state()
+
+    def _init_state(self) -> None:
+        self._steps = 0
+        self._carry = 0.0
+        self.pose = np.asarray(self.params.start, dtype=np.float64).copy()
+        self.vel = np.zeros(4)
+        self.cmd = np.zeros(4)
+        self._frame = None
+        self._frame_id = -1
+        self._frame_t = -math.inf
+        self._events: list[str] = []
+        self._in_contact = False
+        self.collisions = 0
+        self.min_obstacle_clearance = math.inf
+        self.min_wall_clearance = math.inf
+        self._clear = (math.inf, math.inf)
+        self.path_length = 0.0
+        self.keyframe_images: tuple[NDArray[np.uint8], ...] = ()
+        self.keyframe_depths: list[NDArray[np.float64] | None] = []
+
+    # --- lifecycle -----------------------------------------------------------------------------
+    def reset(self) -> None:
+        self.close()
+        wp, rp = self.params, self.robot.params
+        room = Room(wp.room.x0, wp.room.x1, wp.room.y0, wp.room.y1, wp.room.height)
+        cols = [Column(o.x, o.y, o.width, o.depth, wp.obstacle_height, o.yaw) for o in wp.obstacles]
+        self.scene = QuadScene.build(room, cols, seed=wp.texture_seed, camera=rp.camera, scale=rp.scale,
+                                     gui=self.gui, texture_px_per_m=wp.texture_px_per_m)
+        self._rng = np.random.default_rng(self.seed)
+        # OpenCV's RANSAC draws from a process-global RNG: seed it so a seed reproduces a run whatever
+        # ran before in the process
+        cv2.setRNGSeed(int(self.seed))
+        self._init_state()
+        self._load_or_teach_keyframes()
+        self.scene.set_drone_pose(*self.pose)
+        self._check_contacts()
+
+    def _load_or_teach_keyframes(self) -> None:
+        wp = self.params
+        scene = self._require_scene()
+        cam = self.robot.params.camera
+        if wp.keyframe_dir is not None:
+            images, _ = load_keyframe_dir(wp.keyframe_dir)
+            for i, img in enumerate(images):
+                if img.shape[:2] != (cam.height, cam.width):
+                    raise ValueError(f"keyframe {i} is {img.shape[1]}x{img.shape[0]}, the camera is {cam.width}x{cam.height}")
+            self.keyframe_images = tuple(images)
+            self.keyframe_depths = [self._depth_at(k.pose) for k in wp.keyframes]
+        else:
+            imgs, depths = [], []
+            for k in wp.keyframes:
+                rgb, depth = scene.render_with_depth(k.pose)
+                imgs.append(rgb)
+                depths.append(depth)
+            self.keyframe_images = tuple(imgs)
+            self.keyframe_depths = depths
+        for img in self.keyframe_images:
+            img.setflags(write=False)
+
+    def _depth_at(self, pose: Sequence[float]) -> NDArray[np.float64]:
+        return self._require_scene().render_with_depth(tuple(pose))[1]
+
+    def close(self) -> None:
+        if self.scene is not None:
+            self.scene.close()
+            self.scene = None
+
+    def _require_scene(self) -> QuadScene:
+        if self.scene is None:
+            raise RuntimeError("quad_room: call reset() before using the world")
+        return self.scene
+
+    @property
+    def t(self) -> float:
+        return self._steps / self.physics_hz
+
+    # --- the loop ------------------------------------------------------------------------------
+    def _capture(self) -> None:
+        cam = self.robot.params.camera
+        t = self.t
+        if any(a <= t < b for a, b in self.params.blackout):
+            img = np.zeros((cam.height, cam.width, 3), dtype=np.uint8)
+        else:
+            img = self._require_scene().render(tuple(self.pose))
+            if self.params.image_noise > 0.0:
+                noisy = img.astype(np.float32) + self._rng.normal(0.0, self.params.image_noise, img.shape)
+                img = np.clip(noisy, 0, 255).astype(np.uint8)
+        img.setflags(write=False)
+        self._frame = img
+        self._frame_id += 1
+        self._frame_t = t
+
+    def observe(self) -> Observation:
+        cam = self.robot.params.camera
+        period = 1.0 / cam.rate_hz
+        if self._frame is None or self.t - self._frame_t >= period - 0.5 / self.physics_hz:
+            self._capture()
+        events = tuple(self._events)
+        self._events.clear()
+        sensors: dict[str, Any] = {
+            "image": self._frame,
+            "frame_id": self._frame_id,
+            "frame_t": self._frame_t,
+            "keyframes": self.keyframe_images,
+        }
+        return Observation(t=self.t, state={"nu": self.vel.copy()}, sensors=sensors, events=events)
+
+    def apply(self, command: Command) -> None:
+        if set(command) != {"nu"}:
+            raise ValueError(f"quadcopter command needs the key 'nu', got {sorted(command)}")
+        nu = np.asarray(command["nu"], dtype=np.float64).reshape(-1)
+        if nu.shape != (4,) or not np.all(np.isfinite(nu)):
+            raise ValueError(f"quadcopter command 'nu' must be 4 finite values [vx, vy, vz, wz], got {nu}")
+        self.cmd = self.robot.saturate(nu)
+
+    def advance(self, dt: float) -> None:
+        if not (math.isfinite(dt) and dt >= 0.0):
+            raise ValueError(f"advance(dt) needs a finite dt >= 0, got {dt!r}")
+        self._carry += dt * self.physics_hz
+        n = round(self._carry)
+        self._carry -= n
+        h = 1.0 / self.physics_hz
+        tau = self.robot.params.tau
+        a = 1.0 - math.exp(-h / tau) if tau > 0.0 else 1.0
+        x, y, z, yaw = self.pose
+        vel, cmd = self.vel, self.cmd
+        x0, y0, z0 = x, y, z
+        for _ in range(n):
+            vel += a * (cmd - vel)
+            c, s = math.cos(yaw), math.sin(yaw)
+            x += h * (c * vel[0] - s * vel[1])
+            y += h * (s * vel[0] + c * vel[1])
+            z += h * vel[2]
+            yaw = math.remainder(yaw + h * vel[3], 2.0 * math.pi)
+        self.path_length += math.dist((x0, y0, z0), (x, y, z))
+        self.pose[:] = (x, y, z, yaw)
+        self._steps += n
+        self._require_scene().set_drone_pose(x, y, z, yaw)
+        self._check_contacts()
+
+    def _check_contacts(self) -> None:
+        obst, wall = self._require_scene().clearances()
+        self._clear = (obst, wall)
+        self.min_obstacle_clearance = min(self.min_obstacle_clearance, obst)
+        self.min_wall_clearance = min(self.min_wall_clearance, wall)
+        contact = min(obst, wall) <= 0.0
+        if contact and not self._in_contact:
+            self.collisions += 1
+            self._events.append("collision")
+        self._in_contact = contact
+
+    def safe_stop(self) -> None:
+        """Hover: command zero velocity (the on-board loop brakes with its lag)."""
+        self.apply(self.robot.stop_command())
+
+    # --- ground truth --------------------------------------------------------------------------
+    def ground_truth(self) -> dict[str, float]:
+        x, y, z, yaw = self.pose
+        vx, vy, vz, wz = self.vel
+        return {"x": float(x), "y": float(y), "z": float(z), "yaw": float(yaw), "vx": float(vx), "vy": float(vy),
+                "vz": float(vz), "wz": float(wz), "obstacle_clearance": float(self._clear[0]),
+                "wall_clearance": float(self._clear[1])}
+
+    def epsilon_to_keyframe(self, index: int, pose: Sequence[float] | None = None, grid: int = 16) -> float:
+        """Ground-truth ``ε`` (eq. 7, px) between the view at ``pose`` (default: now) and keyframe
+        ``index``: a grid of keyframe pixels is back-projected with the keyframe's depth buffer and
+        projected into the current camera; the mean displacement of those in front of the camera."""
+        kf = self.params.keyframes[index]
+        depth = self.keyframe_depths[index] if index < len(self.keyframe_depths) else None
+        if depth is None:
+            return math.nan
+        cam = self.robot.params.camera
+        K = cam.K()
+        us = np.linspace(0.05, 0.95, grid) * cam.width
+        vs = np.linspace(0.05, 0.95, grid) * cam.height
+        uu, vv = np.meshgrid(us, vs)
+        uv = np.column_stack((uu.ravel(), vv.ravel()))
+        Z = depth[np.clip(uv[:, 1].astype(int), 0, cam.height - 1), np.clip(uv[:, 0].astype(int), 0, cam.width - 1)]
+        ok = Z < 0.99 * cam.far
+        uv, Z = uv[ok], Z[ok]
+        Xc = np.column_stack(((uv[:, 0] - K[0, 2]) / K[0, 0] * Z, (uv[:, 1] - K[1, 2]) / K[1, 1] * Z, Z))
+        Rk, tk = camera_pose_matrices(kf.pose, cam.R(), cam.t())
+        Xw = Xc @ Rk.T + tk
+        R, t = camera_pose_matrices(self.pose if pose is None else pose, cam.R(), cam.t())
+        Xn = (Xw - t) @ R
+        front = Xn[:, 2] > 0.05
+        if not np.any(front):
+            return math.nan
+        proj = Xn[front, :2] / Xn[front, 2:3] * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
+        return float(np.mean(np.linalg.norm(proj - uv[front], axis=1)))
+
+    @classmethod
+    def teach(cls, mission: Any, out_dir: str | Path | None = None, seed: int | None = None) -> list[Path]:
+        """Hook for a ``taskflow teach MISSION`` command: see :func:`teach`."""
+        return teach(mission, out_dir, seed)
+
+    def summary_metrics(self) -> dict[str, Any]:
+        """Collisions and clearances over the run; final errors against the last taught pose."""
+        x, y, z, yaw = (float(v) for v in self.pose)
+        out: dict[str, Any] = {
+            "collisions": self.collisions,
+            "min_clearance_m": float(min(self.min_obstacle_clearance, self.min_wall_clearance)),
+            "min_obstacle_clearance_m": float(self.min_obstacle_clearance) if self.params.obstacles else None,
+            "min_wall_clearance_m": float(self.min_wall_clearance),
+            "path_length_m": self.path_length,
+            "gt_x_m": x, "gt_y_m": y, "gt_z_m": z, "gt_yaw_rad": yaw,
+        }
+        if self.params.keyframes:
+            last = self.params.keyframes[-1].pose
+            out["final_position_error_m"] = float(math.dist((x, y, z), last[:3]))
+            out["final_yaw_error_deg"] = math.degrees(abs(math.remainder(yaw - last[3], 2.0 * math.pi)))
+            out["final_epsilon_px"] = self.epsilon_to_keyframe(len(self.params.keyframes) - 1)
+        return out
+
+
+def teach(mission: Any, out_dir: str | Path | None = None, seed: int | None = None) -> list[Path]:
+    """Teach-by-showing: render the keyframes of ``mission`` (a path or a loaded mission) at their taught
+    poses and store them as PNG files plus ``keyframes.json`` (poses, camera, texture seed).
+
+    Returns the written paths (images first, then the JSON).  Default ``out_dir``:
+    ``<mission dir>/keyframes/<mission name>``.  Point the mission at them with
+    ``--set world.params.keyframe_dir=DIR``.
+    """
+    from taskflow.loader import CompiledMission, load_mission
+
+    m = mission if isinstance(mission, CompiledMission) else load_mission(mission)
+    if m.world_cls is not QuadRoom:
+        raise ValueError(f"teach needs a quad_room mission, {m.name!r} uses world {m.world_cls.name!r}")
+    seed = m.spec.seed if seed is None else seed
+    params = m.world_params(seed)
+    assert isinstance(params, QuadRoomParams)
+    if not params.keyframes:
+        raise ValueError(f"mission {m.name!r} has no keyframes to teach")
+    params = params.model_copy(update={"keyframe_dir": None})
+    robot = m.build_robot()
+    world = QuadRoom(robot, params, seed)
+    out = Path(out_dir) if out_dir is not None else Path(m.file).resolve().parent / "keyframes" / m.name
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    try:
+        world.reset()
+        entries = []
+        for k, img in zip(params.keyframes, world.keyframe_images):
+            f = out / f"kf_{k.id:03d}.png"
+            if not cv2.imwrite(str(f), np.ascontiguousarray(img[:, :, ::-1])):
+                raise OSError(f"could not write {f}")
+            written.append(f)
+            entries.append({"id": k.id, "pose": list(k.pose), "image": f.name})
+        cam = robot.params.camera
+        meta = {"mission": m.name, "texture_seed": params.texture_seed, "keyframes": entries,
+                "camera": {"width": cam.width, "height": cam.height, "fovy": cam.fovy, "K": cam.K().tolist()}}
+        jf = out / "keyframes.json"
+        jf.write_text(json.dumps(meta, indent=1))
+        written.append(jf)
+    finally:
+        world.close()
+    return written
+
+
+__all__ = ["KeyframeSpec", "QuadRoom", "QuadRoomParams", "QuadcopterParams", "load_keyframe_dir", "teach"]

@@ -1,0 +1,534 @@
+"""Visual path following for a quadcopter: one keyframe of the path per state (Toro-Arcila et al.).
+
+``visual_path_servo`` drives the robot toward one keyframe image with the hierarchical homography-based
+visual servoing of Alg. 1 (collision avoidance > visibility > visual task, eqs. 2–20), the keyframe
+transition ``h_t`` (eqs. 28–30) and, optionally, the feed-forward term of Alg. 2 (eqs. 31–32).  A
+mission iterates it over the path with ``foreach`` and switches keyframes on its metrics:
+
+* ``epsilon`` (px): eq. (7), mean distance between the tracked points and their keyframe partners;
+* ``epsilon_margin`` (px): ``ε − T_ε`` with ``T_ε = t_eps_px`` for intermediate keyframes and
+  ``t_eps_final_px`` for the last one (``imgChVerif``: switch when ``epsilon_margin < 0 px``);
+* ``epsilon_rising``: consecutive frames over which ε increased — counted only with feed-forward and
+  not on the last keyframe (Alg. 2's second switching rule: ``epsilon_rising >= 5``).
+
+Fewer than ``min_points`` matched or tracked points (the paper needs ≥ 16 for a well-conditioned
+homography) raise the ``features_lost`` event and command a hover; ``visual_path_rematch`` hovers and
+re-matches until it raises ``features_found``.
+
+Only images are used: the current frame (``obs.sensors["image"]``) and the keyframe images
+(``obs.sensors["keyframes"]``); the keyframe poses in the parameters are ground truth for the world's
+summary and are never read here.
+
+Feed-forward (Alg. 2, lines 2–15): the velocity ``nu_p`` of each segment ``k → k+1`` is computed once
+per run from the keyframe images (kept in the mission memory) and applied while servoing toward
+keyframe ``k`` (Alg. 2's ``vVec`` = ``k``); the last keyframe has no segment, so it is reached with
+feedback alone.
+
+Choices where the paper is silent or its reading would not work (each marked in the code):
+
+* **Obstacle at the image border.**  Eq. (8) needs both edges (§3.1); a blob touching the left or
+  right border is treated as leaving the field of view: ``e_a`` goes to its reference (0) and
+  ``h_a`` decays with the last ``J_a`` kept, so the null-space projector changes continuously.
+* **Safety area.**  ``checkPoints`` only considers points whose keyframe location is inside the
+  safety rectangle; otherwise a keyframe with features near its border keeps the visibility task
+  active at the goal, where it fights the visual task.
+* **Plane of H.**  Matching keeps the RANSAC inliers of one plane; every frame H is RANSAC + least
+  squares on the tracked points and the points that stop fitting (parallax grows, mistracking) are
+  dropped for good, so H does not jump between inlier subsets.
+* **Sub-pixel anchoring.**  Once ε < ``refine_below_px`` the tracked points are re-anchored on the
+  keyframe texture with LK (keyframe image → current image): detector keypoints (ORB pyramid levels)
+  carry ~1 px biases that otherwise leave a steady-state pose offset of several cm.
+* ``sigma`` may be set per keyframe (§5.2 uses 0.13 then 0.06 for its two obstacles).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, Field, model_validator
+
+from robots.quadcopter import QuadcopterParams
+from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
+from taskflow.registry import register_task
+from tasks.hierarchy import (
+    Activation,
+    collision_error,
+    collision_jacobian,
+    hierarchical_control,
+    points_outside,
+    transition_weight,
+    visibility_error,
+    visibility_jacobian,
+)
+from tasks.homography import (
+    HomographyGains,
+    adaptive_gain,
+    feedforward_blend,
+    feedforward_velocity,
+    gain_matrix,
+    mean_pixel_error,
+    normalize_pixels,
+    robot_velocity,
+    task_error,
+)
+from tasks.visual_path_perception import (
+    Features,
+    ObstacleDetection,
+    PointTracker,
+    detect,
+    estimate_homography,
+    make_detector,
+    match_keyframe,
+    obstacle_edges,
+    to_grey,
+)
+
+Vec3 = tuple[float, float, float]
+
+
+# ---------------------------------------------------------------------------------------------
+# profiles
+
+
+class VisualGains(StrictModel):
+    """Adaptive gain of eq. (4) and its spread over the axes of eq. (3).
+
+    ``λ_v = v_scale λ + v_offset`` per camera axis (x right, y down, z forward),
+    ``λ_w = w_scale λ + w_offset``.  Paper §5.1: ``λ0 = 2.8, λ∞ = 0.1, λ0' = 5``, ``λ_vy = λ + 2.5``,
+    ``λ_w = 0.5 λ``.
+    """
+
+    lambda_0: float = Field(default=2.8, gt=0.0, le=100.0, description="gain at zero error")
+    lambda_inf: float = Field(default=0.1, gt=0.0, le=100.0, description="gain at large error")
+    lambda_0_slope: float = Field(default=5.0, gt=0.0, le=1000.0, description="|dλ/d‖e‖| at zero error")
+    v_scale: Vec3 = (1.0, 1.0, 1.0)
+    v_offset: Vec3 = (0.0, 2.5, 0.0)
+    w_scale: float = Field(default=0.5, gt=0.0, le=100.0)
+    w_offset: float = Field(default=0.0, ge=0.0, le=100.0)
+
+    @model_validator(mode="after")
+    def _valid(self) -> VisualGains:
+        if self.lambda_0 < self.lambda_inf:
+            raise ValueError(f"lambda_0 ({self.lambda_0}) must be >= lambda_inf ({self.lambda_inf}): eq. 4's gain "
+                             "grows as the error shrinks")
+        if not all(0.0 <= s <= 100.0 for s in self.v_scale) or not any(s > 0.0 for s in self.v_scale):
+            raise ValueError(f"v_scale entries must be in [0, 100] and not all zero, got {self.v_scale}")
+        if not all(0.0 <= s <= 100.0 for s in self.v_offset):
+            raise ValueError(f"v_offset entries must be in [0, 100], got {self.v_offset}")
+        return self
+
+    def homography_gains(self) -> HomographyGains:
+        return HomographyGains(self.v_scale, self.v_offset, self.w_scale, self.w_offset)
+
+
+class HierarchyGains(StrictModel):
+    """The two upper tasks of the hierarchy (§3.1–3.2) and their activation (eq. 20).
+
+    Paper §5.1: ``σ = 0.05``, ``λ_a = 0.01``, ``λ_m = 0.2``, ``c*_m`` = the image centre; activation of
+    the collision task takes ~3 s (Fig. 10).  ``z_obstacle`` and ``z_scene`` are the constant depth
+    estimates the monocular Jacobians (9) and (12) need.
+    """
+
+    collision: bool = True
+    visibility: bool = True
+    sigma: float = Field(default=0.05, gt=0.0, le=2.0, description="reference obstacle width (normalised)")
+    lambda_a: float = Field(default=0.01, gt=0.0, le=100.0)
+    lambda_m: float = Field(default=0.2, gt=0.0, le=100.0)
+    activation_s: float = Field(default=3.0, gt=0.0, le=60.0, description="h_a rise/fall time (s)")
+    visibility_activation_s: float = Field(default=3.0, gt=0.0, le=60.0, description="h_m rise/fall time (s)")
+    z_obstacle: float = Field(default=1.0, gt=0.0, le=100.0, description="depth estimate of the obstacle (m)")
+    z_scene: float = Field(default=3.0, gt=0.0, le=100.0, description="depth estimate of the scene (m)")
+    safety_margin_px: float = Field(default=12.0, ge=0.0, le=1000.0, description="safety rectangle inset (px)")
+    hsv_low: Vec3 = (48.0, 120.0, 60.0)
+    hsv_high: Vec3 = (75.0, 255.0, 255.0)
+    min_obstacle_px: int = Field(default=80, ge=1)
+
+
+class PathGains(StrictModel):
+    """Keyframe transition (eq. 29: ``h0``, duration) and feed-forward (eqs. 31–32: ``γ``, ``p``).
+    Paper §5.2: ``h0 = 0.2`` over 1.6 s; §5.3: ``γ = 0.75``, ``p = 0.5``."""
+
+    h0: float = Field(default=0.2, ge=0.0, le=1.0)
+    transition_s: float = Field(default=1.6, gt=0.0, le=60.0)
+    gamma: float = Field(default=0.75, ge=0.0, le=1.0)
+    p: float = Field(default=0.5, ge=0.0, le=1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# parameters
+
+
+class KeyframeRef(StrictModel):
+    """A keyframe of the path: its index (into the world's keyframe images) and its taught pose
+    (ground truth, unused by the control law)."""
+
+    id: int = Field(ge=0)
+    pose: tuple[float, float, float, float] | None = None
+    sigma: float | None = Field(default=None, gt=0.0, le=2.0,
+                                description="collision reference σ while servoing to this keyframe (§5.2 changes it per obstacle)")
+
+
+class VisualPathParams(StrictModel):
+    """One keyframe to servo to, the path it belongs to, the switching thresholds and the perception."""
+
+    keyframe: KeyframeRef
+    path: list[KeyframeRef] = Field(default_factory=list)
+    t_eps_px: float = Field(default=12.0, gt=0.0, le=1000.0, description="T_ε of intermediate keyframes (px)")
+    t_eps_final_px: float = Field(default=7.0, gt=0.0, le=1000.0, description="T_ε of the last keyframe (px)")
+    feedforward: bool = False
+    rise_iterations: int = Field(default=5, ge=1, le=1000)
+    transition: bool | None = Field(default=None, description="apply h_t (eq. 28); default: when the path has > 1 keyframe")
+    features: Literal["orb", "sift"] = "orb"
+    n_features: int = Field(default=1000, ge=50, le=20000)
+    min_points: int = Field(default=16, ge=8, le=10000)
+    homography: Literal["ransac", "virtual_plane"] = "ransac"
+    plane_px: float = Field(default=3.0, gt=0.0, le=100.0,
+                            description="transfer error beyond which a tracked point leaves the plane of H (px)")
+    refine_below_px: float = Field(default=20.0, ge=0.0, le=1000.0,
+                                   description="re-anchor tracked points on the keyframe texture when ε is below this (px); 0: never")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> VisualPathParams:
+        n = len(self.path)
+        if n and (self.keyframe.id >= n or self.path[self.keyframe.id] != self.keyframe):
+            raise ValueError(f"keyframe {self.keyframe.id} is not entry {self.keyframe.id} of the path")
+        if self.feedforward and n < 2:
+            raise ValueError(f"feed-forward (eq. 32) needs a path of at least two keyframes, this one has {n}")
+        return self
+
+    @property
+    def n_keyframes(self) -> int:
+        return max(len(self.path), self.keyframe.id + 1)
+
+    @property
+    def is_last(self) -> bool:
+        return self.keyframe.id == self.n_keyframes - 1
+
+
+class RematchParams(StrictModel):
+    """Keyframe to re-match while hovering, and the matcher settings."""
+
+    keyframe: KeyframeRef
+    path: list[KeyframeRef] = Field(default_factory=list)
+    features: Literal["orb", "sift"] = "orb"
+    n_features: int = Field(default=1000, ge=50, le=20000)
+    min_points: int = Field(default=16, ge=8, le=10000)
+
+
+# ---------------------------------------------------------------------------------------------
+# shared, per-run caches (mission memory)
+
+
+def _keyframe_features(memory: dict[str, Any], image: NDArray[np.uint8], kf_id: int, kind: str, n: int) -> Features:
+    cache = memory.setdefault("visual_path.keyframe_features", {})
+    key = (kf_id, kind, n)
+    if key not in cache:
+        cache[key] = detect(make_detector(kind, n), to_grey(image), kind)
+    return cache[key]
+
+
+def segment_velocities(keyframes: tuple[NDArray[np.uint8], ...], K: NDArray[np.float64], eTc: NDArray[np.float64],
+                       gains: VisualGains, gamma: float, kind: str = "orb", n_features: int = 1000,
+                       memory: dict[str, Any] | None = None) -> list[NDArray[np.float64]]:
+    """Alg. 2 lines 2–15: ``nu_p`` (eq. 32) of every segment ``k → k+1`` from the keyframe images.
+
+    Keyframe ``k``'s image plays the current image and ``k+1``'s the target: ``H`` maps ``k`` to ``k+1``,
+    ``e`` is eq. (2), the gain eq. (4), the law eq. (3), scaled by ``γ`` and taken to the body frame.
+    A segment whose images do not match gets ``nu_p = 0``.
+    """
+    mem = memory if memory is not None else {}
+    out = []
+    hg = gains.homography_gains()
+    for k in range(len(keyframes) - 1):
+        fa = _keyframe_features(mem, keyframes[k], k, kind, n_features)
+        fb = _keyframe_features(mem, keyframes[k + 1], k + 1, kind, n_features)
+        cur, kf = match_keyframe(fb, fa)  # (points in k, points in k+1)
+        if len(cur) < 8:
+            out.append(np.zeros(4))
+            continue
+        H, _ = estimate_homography(cur, kf, K)
+        m_star = normalize_pixels(kf[:3], K).mean(axis=0)
+        e = task_error(H, m_star)
+        lam = adaptive_gain(float(np.linalg.norm(e)), gains.lambda_0, gains.lambda_inf, gains.lambda_0_slope)
+        out.append(feedforward_velocity(e, gain_matrix(lam, hg), gamma, eTc))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# the tasks
+
+_METRICS = {
+    "epsilon": "px",
+    "epsilon_margin": "px",
+    "epsilon_rising": "",
+    "task_error": "",
+    "e_a": "",
+    "e_m": "",
+    "h_a": "",
+    "h_m": "",
+    "h_t": "",
+    "n_points": "",
+    "keyframe": "",
+    "last_keyframe": "",
+    "obstacle": "",
+    "perception_time": "s",
+    "control_time": "s",
+}
+
+
+def _robot_params(ctx: TaskContext) -> QuadcopterParams:
+    rp = ctx.robot.params
+    if not isinstance(rp, QuadcopterParams):
+        raise TypeError(f"visual path tasks fly a quadcopter, got robot parameters {type(rp).__name__}")
+    return rp
+
+
+def _keyframe_image(obs: Observation, kf_id: int) -> NDArray[np.uint8]:
+    kfs = obs.sensors.get("keyframes", ())
+    if kf_id >= len(kfs):
+        raise RuntimeError(f"keyframe {kf_id} has no image: the world provides {len(kfs)} keyframe images")
+    return kfs[kf_id]
+
+
+class ServoLaw:
+    """The control part of ``visual_path_servo`` for one keyframe: tracked points (and the obstacle's
+    edge points) in, body velocity and metrics out — Alg. 1 lines 19–45, Alg. 2 lines 32–48.
+
+    Pure apart from its activation state (``h_a``, ``h_m``) and the ε history; no image processing, so
+    it also runs on geometric (projected) points.
+    """
+
+    def __init__(self, K: NDArray[np.float64], eTc: NDArray[np.float64], size: tuple[int, int], params: VisualPathParams,
+                 visual: VisualGains, hier: HierarchyGains, path_gains: PathGains, t_enter: float,
+                 nu_p: NDArray[np.float64] | None = None) -> None:
+        self.K, self.eTc, self.p = K, eTc, params
+        if params.keyframe.sigma is not None:
+            hier = hier.model_copy(update={"sigma": params.keyframe.sigma})
+        self.visual, self.hier, self.path_gains = visual, hier, path_gains
+        w, h = size
+        m = hier.safety_margin_px
+        self.rect = (m, m, w - 1 - m, h - 1 - m)
+        self.c_star = normalize_pixels([[w / 2.0, h / 2.0 - 1.0]], K)[0]
+        self.t_enter = t_enter
+        self.transition = params.transition if params.transition is not None else params.n_keyframes > 1
+        self.act_a = Activation(hier.activation_s, t=t_enter)
+        self.act_m = Activation(hier.visibility_activation_s, t=t_enter)
+        self.gains = visual.homography_gains()
+        self.nu_p = np.zeros(4) if nu_p is None else np.asarray(nu_p, dtype=np.float64)
+        self.last_eps: float | None = None
+        self.rising = 0
+        self.J_a_last: NDArray[np.float64] | None = None
+
+    def __call__(self, t: float, cur_px: NDArray, kf_px: NDArray, obstacle: ObstacleDetection | None,
+                 H: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], dict[str, float]]:
+        p, hier, K = self.p, self.hier, self.K
+        if H is None:
+            H, _ = estimate_homography(cur_px, kf_px, K, p.homography)
+        m_star = normalize_pixels(kf_px[:3], K).mean(axis=0)
+        e = task_error(H, m_star)
+        eps = mean_pixel_error(cur_px, kf_px)
+        norm_e = float(np.linalg.norm(e))
+        lam = adaptive_gain(norm_e, self.visual.lambda_0, self.visual.lambda_inf, self.visual.lambda_0_slope)
+        lam_v = gain_matrix(lam, self.gains)
+        # collision avoidance, eqs. (8)-(9); h_a by eq. (20)
+        e_a = 0.0
+        J_a = np.zeros((1, 6))
+        active_a = False
+        if obstacle is not None and obstacle.touches_border:
+            obstacle = None  # both edges must be visible (§3.1): it is leaving the field of view
+        if obstacle is not None and hier.collision:
+            p1n, p2n = normalize_pixels([obstacle.p1, obstacle.p2], K)
+            e_a = collision_error(p1n, p2n, hier.sigma)
+            J_a = collision_jacobian(p1n, p2n, hier.z_obstacle, hier.z_obstacle)
+            active_a = e_a > 0.0
+            self.J_a_last = J_a
+        elif self.J_a_last is not None:
+            J_a = self.J_a_last  # out of view: e_a at its reference (0) while h_a decays
+        h_a = self.act_a.update(active_a, t)
+        if (obstacle is None or not hier.collision) and h_a <= 0.0:
+            self.J_a_last = None
+            J_a = np.zeros((1, 6))
+        # visibility, eqs. (10)-(12)
+        m_cur = normalize_pixels(cur_px, K)
+        e_m = visibility_error(m_cur, self.c_star)
+        J_m = visibility_jacobian(m_cur.mean(axis=0), hier.z_scene)
+        # checkPoints: only points the keyframe itself has inside the safety area count (a point the
+        # keyframe shows outside it would keep the task active at the goal, against the visual task)
+        u0, v0, u1, v1 = self.rect
+        kf_in = (kf_px[:, 0] >= u0) & (kf_px[:, 0] <= u1) & (kf_px[:, 1] >= v0) & (kf_px[:, 1] <= v1)
+        h_m = self.act_m.update(hier.visibility and points_outside(cur_px[kf_in], self.rect), t)
+        # hierarchy (13)-(19), transition (28)-(29), robot velocities (6), feed-forward (31)
+        res = hierarchical_control(J_a, [e_a], J_m, e_m, np.eye(6), e, hier.lambda_a, hier.lambda_m, lam_v, h_a, h_m)
+        h_t = transition_weight(t - self.t_enter, self.path_gains.transition_s, self.path_gains.h0) if self.transition else 1.0
+        nu_e = robot_velocity(h_t * res.nu, self.eTc)
+        if p.feedforward and not p.is_last:
+            nu_e = feedforward_blend(nu_e, self.nu_p, self.path_gains.p)
+        # imgChVerif inputs
+        if self.last_eps is not None and eps > self.last_eps:
+            self.rising += 1
+        else:
+            self.rising = 0
+        self.last_eps = eps
+        t_eps = p.t_eps_final_px if p.is_last else p.t_eps_px
+        metrics = {
+            "epsilon": eps,
+            "epsilon_margin": eps - t_eps,
+            "epsilon_rising": float(self.rising if (p.feedforward and not p.is_last) else 0),
+            "task_error": norm_e,
+            "e_a": e_a,
+            "e_m": float(np.linalg.norm(e_m)),
+            "h_a": h_a,
+            "h_m": h_m,
+            "h_t": h_t,
+            "n_points": float(len(cur_px)),
+            "keyframe": float(p.keyframe.id),
+            "last_keyframe": 1.0 if p.is_last else 0.0,
+            "obstacle": 1.0 if obstacle is not None else 0.0,
+        }
+        return nu_e, metrics
+
+
+@register_task("visual_path_servo")
+class VisualPathServo(Task):
+    """Hierarchical homography-based servoing toward one keyframe (Alg. 1; Alg. 2 with feed-forward)."""
+
+    Params: ClassVar[type[VisualPathParams]] = VisualPathParams
+    slots: ClassVar[dict[str, type[BaseModel]]] = {"visual": VisualGains, "hierarchy": HierarchyGains,
+                                                   "path": PathGains}
+    metrics: ClassVar[dict[str, str]] = _METRICS
+    events: ClassVar[tuple[str, ...]] = ("features_lost",)
+    robots: ClassVar[tuple[str, ...]] = ("quadcopter",)
+
+    def __init__(self, ctx: TaskContext) -> None:
+        super().__init__(ctx)
+        p = ctx.params
+        if not isinstance(p, VisualPathParams):
+            raise TypeError(f"visual_path_servo needs VisualPathParams, got {type(p).__name__}")
+        self.p = p
+        self.visual = ctx.profiles.get("visual") or VisualGains()
+        self.hier = ctx.profiles.get("hierarchy") or HierarchyGains()
+        self.path_gains = ctx.profiles.get("path") or PathGains()
+        cam = _robot_params(ctx).camera
+        self.K = cam.K()
+        self.eTc = ctx.robot.eTc()  # type: ignore[attr-defined]
+        self.size = (cam.width, cam.height)
+        self.t_enter = ctx.t
+        self.detector = make_detector(p.features, p.n_features)
+        self.tracker: PointTracker | None = None
+        self.law: ServoLaw | None = None
+        self.last_frame = -1
+        self.command = np.zeros(4)
+        self.metrics_out: dict[str, float] = {}
+
+    def _kf_grey(self, obs: Observation) -> NDArray[np.uint8]:
+        cache = self.ctx.memory.setdefault("visual_path.keyframe_grey", {})
+        k = self.p.keyframe.id
+        if k not in cache:
+            cache[k] = to_grey(_keyframe_image(obs, k))
+        return cache[k]
+
+    def _hover(self, events: tuple[str, ...] = ()) -> StepResult:
+        self.command = np.zeros(4)
+        return StepResult({"nu": self.command.copy()}, dict(self.metrics_out), events)
+
+    def _feedforward(self, obs: Observation) -> NDArray[np.float64]:
+        if not self.p.feedforward or self.p.is_last:
+            return np.zeros(4)
+        mem = self.ctx.memory
+        key = ("visual_path.feedforward", self.p.features, self.p.n_features, self.path_gains.gamma, self.visual)
+        table = mem.get(key)
+        if table is None:
+            kfs = tuple(obs.sensors.get("keyframes", ()))
+            table = segment_velocities(kfs, self.K, self.eTc, self.visual, self.path_gains.gamma, self.p.features,
+                                       self.p.n_features, mem)
+            mem[key] = table
+        k = self.p.keyframe.id
+        return table[k] if k < len(table) else np.zeros(4)
+
+    def step(self, obs: Observation) -> StepResult:
+        fid = int(obs.sensors.get("frame_id", -1))
+        if fid == self.last_frame:  # no new image: hold the command (zero-order hold)
+            return StepResult({"nu": self.command.copy()}, dict(self.metrics_out))
+        self.last_frame = fid
+        tic = time.perf_counter()
+        image = obs.sensors["image"]
+        grey = to_grey(image)
+        p = self.p
+        if self.tracker is None:
+            kf = _keyframe_features(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, p.features,
+                                    p.n_features)
+            cur, kfp = match_keyframe(kf, detect(self.detector, grey, p.features),
+                                      model="homography" if p.homography == "ransac" else "fundamental")
+            if len(cur) < p.min_points:
+                self.metrics_out = {"n_points": float(len(cur)), "keyframe": float(p.keyframe.id)}
+                return self._hover(("features_lost",))
+            self.tracker = PointTracker(grey, cur, kfp)
+            self.law = ServoLaw(self.K, self.eTc, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
+                                self._feedforward(obs))
+        elif self.tracker.track(grey) < p.min_points:
+            self.metrics_out.update(n_points=float(len(self.tracker)))
+            return self._hover(("features_lost",))
+        tr = self.tracker
+        if self.law is None:
+            raise RuntimeError("visual_path_servo: tracker without a law (internal error)")
+        if p.refine_below_px > 0.0 and self.metrics_out.get("epsilon", np.inf) < p.refine_below_px:
+            tr.refine(self._kf_grey(obs), grey)
+        try:
+            # RANSAC + least-squares refit; points that stop fitting the plane (off-plane as parallax
+            # grows, or mistracked) are dropped for good, so the set settles on one plane and H does not
+            # jump between inlier subsets from frame to frame
+            H, fits = estimate_homography(tr.cur, tr.kf, self.K, p.homography, p.plane_px)
+            if not fits.all() and fits.sum() >= p.min_points:
+                tr.prune(fits)
+        except ValueError:
+            return self._hover(("features_lost",))
+        hier = self.hier
+        obstacle = obstacle_edges(image, hier.hsv_low, hier.hsv_high, hier.min_obstacle_px) if hier.collision else None
+        tic2 = time.perf_counter()
+        nu_e, metrics = self.law(obs.t, tr.cur, tr.kf, obstacle, H)
+        toc = time.perf_counter()
+        self.command = nu_e
+        metrics["perception_time"] = tic2 - tic
+        metrics["control_time"] = toc - tic2
+        self.metrics_out = metrics
+        return StepResult({"nu": nu_e.copy()}, dict(metrics))
+
+
+@register_task("visual_path_rematch")
+class VisualPathRematch(Task):
+    """Hover and try to match the keyframe on every new frame; ``features_found`` once at least
+    ``min_points`` RANSAC-consistent matches are back."""
+
+    Params: ClassVar[type[RematchParams]] = RematchParams
+    metrics: ClassVar[dict[str, str]] = {"n_points": "", "keyframe": ""}
+    events: ClassVar[tuple[str, ...]] = ("features_found",)
+    robots: ClassVar[tuple[str, ...]] = ("quadcopter",)
+
+    def __init__(self, ctx: TaskContext) -> None:
+        super().__init__(ctx)
+        p = ctx.params
+        if not isinstance(p, RematchParams):
+            raise TypeError(f"visual_path_rematch needs RematchParams, got {type(p).__name__}")
+        _robot_params(ctx)
+        self.p = p
+        self.detector = make_detector(p.features, p.n_features)
+        self.last_frame = -1
+        self.n = 0
+
+    def step(self, obs: Observation) -> StepResult:
+        fid = int(obs.sensors.get("frame_id", -1))
+        events: tuple[str, ...] = ()
+        if fid != self.last_frame:
+            self.last_frame = fid
+            p = self.p
+            kf = _keyframe_features(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, p.features,
+                                    p.n_features)
+            cur, _ = match_keyframe(kf, detect(self.detector, to_grey(obs.sensors["image"]), p.features))
+            self.n = len(cur)
+            if self.n >= p.min_points:
+                events = ("features_found",)
+        return StepResult({"nu": np.zeros(4)}, {"n_points": float(self.n), "keyframe": float(self.p.keyframe.id)},
+                          events)

@@ -1,0 +1,130 @@
+"""The quad_room world on PyBullet: lag dynamics, camera frames, keyframes (teach), collisions."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+import tasks.visual_path  # noqa: F401 - registers the tasks the missions use
+from robots.quadcopter import Quadcopter, QuadcopterParams
+from sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir, teach
+from taskflow.errors import MissionError
+from taskflow.loader import load_mission
+
+ROOT = Path(__file__).resolve().parents[2]
+POSE_REG = ROOT / "missions" / "visual_path_pose_regulation.yaml"
+KF = [{"id": 0, "pose": [1.0, 0.0, 1.0, 0.0]}, {"id": 1, "pose": [1.5, 0.3, 0.8, 0.3]}]
+
+
+def make_world(**params) -> QuadRoom:
+    p = QuadRoomParams(room={"x0": -1, "x1": 3.5, "y0": -2, "y1": 2}, keyframes=KF, **params)
+    w = QuadRoom(Quadcopter(QuadcopterParams(tau=0.2)), p, seed=0)
+    w.reset()
+    return w
+
+
+@pytest.fixture(scope="module")
+def world():
+    w = make_world(obstacles=[{"x": 1.0, "y": 1.0, "width": 0.1}])
+    yield w
+    w.close()
+
+
+def test_first_order_lag_and_body_frame(world):
+    world.pose[:] = (0.0, 0.0, 1.0, math.pi / 2)
+    world.vel[:] = 0.0
+    world.apply({"nu": np.array([0.4, 0.0, 0.0, 0.0])})
+    world.advance(0.2)  # one time constant
+    assert world.vel[0] == pytest.approx(0.4 * (1 - math.exp(-1)), rel=0.02)
+    world.advance(2.0)
+    gt = world.ground_truth()
+    assert gt["vx"] == pytest.approx(0.4, rel=1e-3)
+    # body x points along +y of the world at yaw = 90 deg
+    assert abs(gt["x"]) < 1e-9 and gt["y"] > 0.7
+    with pytest.raises(ValueError):
+        world.apply({"nu": np.array([0.1, 0.2])})
+    world.apply({"nu": np.zeros(4)})
+    world.advance(2.0)
+
+
+def test_camera_frames_at_the_camera_rate(world):
+    o1 = world.observe()
+    o2 = world.observe()
+    assert o1.sensors["frame_id"] == o2.sensors["frame_id"]  # no time passed: same frame
+    world.advance(0.04)
+    o3 = world.observe()
+    assert o3.sensors["frame_id"] == o1.sensors["frame_id"] + 1
+    img = o3.sensors["image"]
+    assert img.shape == (240, 320, 3) and img.dtype == np.uint8 and img.std() > 20
+    assert len(o3.sensors["keyframes"]) == 2
+    assert "x" not in o3.state and "pose" not in o3.state  # no ground truth in observations
+
+
+def test_ground_truth_epsilon_vanishes_at_the_keyframe_pose(world):
+    assert world.epsilon_to_keyframe(1, pose=KF[1]["pose"]) == pytest.approx(0.0, abs=1e-6)
+    assert world.epsilon_to_keyframe(1, pose=[1.4, 0.3, 0.8, 0.3]) > 2.0
+
+
+def test_collision_events_and_clearance(world):
+    world.pose[:] = (0.4, 1.0, 1.0, 0.0)
+    world.vel[:] = 0.0
+    world.apply({"nu": np.array([0.5, 0.0, 0.0, 0.0])})
+    n0 = world.collisions
+    seen = []
+    for _ in range(50):
+        world.advance(0.04)
+        seen += list(world.observe().events)
+    assert world.collisions == n0 + 1 and seen.count("collision") == 1
+    s = world.summary_metrics()
+    assert s["min_obstacle_clearance_m"] < 0 and s["collisions"] >= 1
+    assert {"final_position_error_m", "final_yaw_error_deg", "final_epsilon_px", "min_clearance_m"} <= set(s)
+
+
+def test_blackout_frames():
+    w = make_world(blackout=[(0.0, 0.1)])
+    try:
+        assert w.observe().sensors["image"].max() == 0
+        w.advance(0.12)
+        assert w.observe().sensors["image"].max() > 0
+    finally:
+        w.close()
+
+
+def test_teach_writes_keyframes_that_a_run_can_load(tmp_path):
+    paths = teach(POSE_REG, out_dir=tmp_path / "kf")
+    assert [p.name for p in paths] == ["kf_000.png", "keyframes.json"]
+    meta = json.loads(paths[-1].read_text())
+    assert meta["keyframes"][0]["pose"] == [1.5, 0.0, 0.5, 0.0]
+    images, _ = load_keyframe_dir(tmp_path / "kf")
+    m = load_mission(POSE_REG,
+                     overrides=[f"world.params.keyframe_dir={tmp_path / 'kf'}"])
+    w = m.world_cls(m.build_robot(), m.world_params(0), 0)
+    w.reset()
+    try:
+        assert np.array_equal(w.keyframe_images[0], images[0])
+        # the taught image is what the camera sees at that pose
+        assert np.array_equal(w._require_scene().render((1.5, 0.0, 0.5, 0.0)), images[0])
+    finally:
+        w.close()
+
+
+def test_missing_or_unreadable_keyframes_fail_at_load_time(tmp_path):
+    teach(POSE_REG, out_dir=tmp_path / "kf")
+    (tmp_path / "kf" / "kf_000.png").write_bytes(b"not a png")
+    with pytest.raises(MissionError, match="unreadable"):
+        load_mission(POSE_REG,
+                     overrides=[f"world.params.keyframe_dir={tmp_path / 'kf'}"])
+    (tmp_path / "kf" / "kf_000.png").unlink()
+    with pytest.raises(MissionError, match="missing"):
+        load_mission(POSE_REG,
+                     overrides=[f"world.params.keyframe_dir={tmp_path / 'kf'}"])
+    with pytest.raises(MissionError, match="keyframes.json"):
+        load_mission(POSE_REG,
+                     overrides=[f"world.params.keyframe_dir={tmp_path / 'nowhere'}"])
+    with pytest.raises(ValidationError, match="ids"):
+        QuadRoomParams(keyframes=[{"id": 1, "pose": [0, 0, 1, 0]}])

@@ -1,0 +1,216 @@
+"""Perception (ORB/SIFT + RANSAC, largest triangle, LK, colour segmentation) on synthetic images,
+the servo law on exact projections, and the load-time checks of the visual-path tasks."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from robots.quadcopter import Quadcopter, QuadcopterParams
+from sim.quad_scene import generate_texture
+from tasks.homography import (
+    intrinsic_matrix,
+    largest_triangle,
+    normalize_homography,
+    normalize_pixels,
+    task_error,
+)
+from tasks.visual_path import (
+    HierarchyGains,
+    KeyframeRef,
+    PathGains,
+    ServoLaw,
+    VisualGains,
+    VisualPathParams,
+    segment_velocities,
+)
+from tasks.visual_path_perception import (
+    PointTracker,
+    detect,
+    estimate_homography,
+    make_detector,
+    match_keyframe,
+    obstacle_edges,
+    to_grey,
+)
+
+K = intrinsic_matrix(207.8, 207.8, 160.0, 119.0)
+
+
+@pytest.fixture(scope="module")
+def texture() -> np.ndarray:
+    bgr = generate_texture(np.random.default_rng(5), 480, 360, 160.0)
+    return np.ascontiguousarray(bgr[:, :, ::-1])
+
+
+def view(texture: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """A 320x240 view of the textured plane through the projective map G (texture px → image px)."""
+    return cv2.warpPerspective(texture, G, (320, 240), flags=cv2.INTER_LINEAR)
+
+
+def plane_map(yaw: float, tx: float, tz: float) -> np.ndarray:
+    """Texture (a wall 2 m ahead, 160 px/m, centred) seen by a camera yawed by ``yaw`` and moved by
+    (tx, tz) (camera x right, z forward): projective map texture px → image px."""
+    d = 2.0
+    # texture px (u, v) → wall point (X, Y, d) in the reference camera
+    A = np.array([[1 / 160.0, 0, -240 / 160.0], [0, 1 / 160.0, -180 / 160.0], [0, 0, 1.0]])
+    c, s = math.cos(yaw), math.sin(yaw)
+    R = np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])  # world → camera
+    t = -R @ np.array([tx, 0.0, tz])
+    P = K @ np.column_stack((R[:, 0], R[:, 1], R[:, 2] * d + t))  # [X, Y, 1] → image
+    return P @ A
+
+
+@pytest.mark.parametrize("kind", ["orb", "sift"])
+def test_matching_recovers_the_homography(texture, kind):
+    G0, G1 = plane_map(0.0, 0.0, 0.0), plane_map(0.08, 0.15, 0.3)
+    kf, cur = view(texture, G0), view(texture, G1)
+    det = make_detector(kind, 800)
+    fk, fc = detect(det, to_grey(kf), kind), detect(det, to_grey(cur), kind)
+    c, k = match_keyframe(fk, fc)
+    assert len(c) >= 40
+    tri = largest_triangle(k)
+    assert tuple(tri) == (0, 1, 2)  # sorted: the largest triangle first
+    H, inl = estimate_homography(c, k, K)
+    G_true = G0 @ np.linalg.inv(G1)  # current image → keyframe image
+    H_true = normalize_homography(G_true, K)
+    assert np.allclose(H, H_true, atol=0.02)
+    assert inl.mean() > 0.9
+    m_star = normalize_pixels(k[:3], K).mean(axis=0)
+    assert np.linalg.norm(task_error(H, m_star) - task_error(H_true, m_star)) < 0.02
+
+
+def test_matching_rejects_unrelated_images(texture):
+    other = np.ascontiguousarray(generate_texture(np.random.default_rng(99), 320, 240, 160.0)[:, :, ::-1])
+    det = make_detector("orb", 800)
+    c, _ = match_keyframe(detect(det, to_grey(view(texture, plane_map(0, 0, 0))), "orb"),
+                          detect(det, to_grey(other), "orb"))
+    assert len(c) < 16
+    black = np.zeros((240, 320), np.uint8)
+    c, _ = match_keyframe(detect(det, to_grey(view(texture, plane_map(0, 0, 0))), "orb"), detect(det, black, "orb"))
+    assert len(c) == 0
+    with pytest.raises(ValueError):
+        make_detector("surf", 100)
+
+
+def test_lk_tracking_follows_a_small_motion_and_refine_removes_offsets(texture):
+    G0, G1, G2 = plane_map(0, 0, 0), plane_map(0.01, 0.02, 0.05), plane_map(0.015, 0.03, 0.08)
+    kf, f1, f2 = (to_grey(view(texture, G)) for G in (G0, G1, G2))
+    det = make_detector("orb", 800)
+    c, k = match_keyframe(detect(det, kf, "orb"), detect(det, f1, "orb"))
+    tr = PointTracker(f1, c + 0.7, k)  # a constant 0.7 px offset, like detector quantisation
+    assert tr.track(f2) > 0.8 * len(c)
+    truth = cv2.perspectiveTransform(tr.kf.reshape(-1, 1, 2).astype(np.float64), G2 @ np.linalg.inv(G0)).reshape(-1, 2)
+    before = np.median(np.linalg.norm(tr.cur - truth, axis=1))
+    moved = tr.refine(kf, f2)
+    after = np.median(np.linalg.norm(tr.cur - truth, axis=1))
+    assert moved > 0.5 * len(tr) and before > 0.5 and after < 0.2
+    assert tr.track(np.zeros_like(f2)) < 16  # a black frame loses the points
+
+
+def test_obstacle_segmentation_edges(texture):
+    img = view(texture, plane_map(0, 0, 0)).copy()
+    assert obstacle_edges(img) is None  # textures carry no obstacle green
+    cv2.rectangle(img, (100, 0), (119, 239), (25, 204, 38), -1)
+    det = obstacle_edges(img)
+    assert det is not None and det.bbox == (100, 0, 119, 239) and not det.touches_border
+    assert det.p1 == (99.5, 119.5) and det.p2 == (119.5, 119.5)
+    img2 = img.copy()
+    cv2.rectangle(img2, (0, 0), (12, 239), (25, 204, 38), -1)
+    cv2.rectangle(img2, (100, 0), (119, 239), (0, 0, 0), -1)
+    assert obstacle_edges(img2).touches_border
+    blob = view(texture, plane_map(0, 0, 0)).copy()
+    cv2.rectangle(blob, (100, 100), (140, 120), (25, 204, 38), -1)  # wide, short: not a column
+    assert obstacle_edges(blob) is None
+
+
+def test_segment_velocities_match_the_scaled_law(texture):
+    """Feed-forward (eq. 32) from keyframe images: segment k → k+1 moves forward/right like the
+    displacement between the two views."""
+    rob = Quadcopter(QuadcopterParams())
+    imgs = tuple(view(texture, plane_map(0.0, 0.1 * k, 0.25 * k)) for k in range(3))
+    nus = segment_velocities(imgs, K, rob.eTc(), VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
+    assert len(nus) == 2
+    for nu in nus:
+        assert nu[0] > 0.0 and nu[1] < 0.0  # forward, and to the right (body y is left)
+        assert abs(nu[3]) < 0.05
+    assert np.allclose(nus[0], nus[1], atol=0.05)
+
+
+# ---------------------------------------------------------------------------------------------
+# the servo law on exact projections
+
+
+def test_servo_law_regulates_a_quadcopter_with_exact_points():
+    rob = Quadcopter(QuadcopterParams(tau=0.1))
+    cam = rob.params.camera
+    Kc, eTc = cam.K(), rob.eTc()
+    rng = np.random.default_rng(0)
+    X = np.column_stack((np.full(300, 4.0), rng.uniform(-2.5, 2.5, 300), rng.uniform(0, 3, 300)))
+
+    def project(pose):
+        x, y, z, yaw = pose
+        Rb = np.array([[math.cos(yaw), -math.sin(yaw), 0], [math.sin(yaw), math.cos(yaw), 0], [0, 0, 1.0]])
+        R, t = Rb @ cam.R(), np.array([x, y, z]) + Rb @ cam.t()
+        Xc = (X - t) @ R
+        uv = Xc[:, :2] / Xc[:, 2:3] * [Kc[0, 0], Kc[1, 1]] + [Kc[0, 2], Kc[1, 2]]
+        return uv, (uv[:, 0] > 0) & (uv[:, 0] < 319) & (uv[:, 1] > 0) & (uv[:, 1] < 239)
+
+    key = (1.5, 0.0, 0.5, 0.0)
+    kf, ok_k = project(key)
+    pose = np.array([0.0, 0.2, 1.0, 0.1])
+    params = VisualPathParams(keyframe=KeyframeRef(id=0))
+    law = ServoLaw(Kc, eTc, (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
+    vel, dt = np.zeros(4), 0.04
+    for i in range(300):
+        cur, ok = project(pose)
+        sel = ok & ok_k
+        nu, metrics = law(i * dt, cur[sel], kf[sel], None)
+        vel += (1 - math.exp(-dt / 0.1)) * (rob.saturate(nu) - vel)
+        c, s = math.cos(pose[3]), math.sin(pose[3])
+        pose += dt * np.array([c * vel[0] - s * vel[1], s * vel[0] + c * vel[1], vel[2], vel[3]])
+    assert metrics["epsilon"] < 0.5
+    assert np.linalg.norm(pose[:3] - key[:3]) < 0.01 and abs(pose[3]) < math.radians(0.5)
+    assert metrics["h_a"] == 0.0 and metrics["h_t"] == 1.0  # a single keyframe: no h_t (Alg. 1, n = 1)
+
+
+# ---------------------------------------------------------------------------------------------
+# load-time checks
+
+
+def test_feedforward_needs_two_keyframes():
+    path = [{"id": 0, "pose": [1, 0, 1, 0]}]
+    with pytest.raises(ValidationError, match="at least two keyframes"):
+        VisualPathParams(keyframe=path[0], path=path, feedforward=True)
+    VisualPathParams(keyframe=path[0], path=path + [{"id": 1, "pose": [2, 0, 1, 0]}], feedforward=True)
+
+
+def test_keyframe_must_belong_to_its_path():
+    path = [{"id": 0, "pose": [1, 0, 1, 0]}, {"id": 1, "pose": [2, 0, 1, 0]}]
+    with pytest.raises(ValidationError, match="not entry 1"):
+        VisualPathParams(keyframe={"id": 1, "pose": [3, 0, 1, 0]}, path=path)
+    p = VisualPathParams(keyframe=path[1], path=path)
+    assert p.is_last and p.n_keyframes == 2
+
+
+@pytest.mark.parametrize(
+    "model, values, message",
+    [
+        (VisualGains, {"lambda_0": 0.1, "lambda_inf": 2.8}, "lambda_0"),
+        (VisualGains, {"lambda_0": -1.0}, "greater than 0"),
+        (VisualGains, {"lambda_0_slope": 0.0}, "greater than 0"),
+        (VisualGains, {"v_offset": [0, -1, 0]}, "v_offset"),
+        (HierarchyGains, {"sigma": 0.0}, "greater than 0"),
+        (HierarchyGains, {"lambda_a": -0.01}, "greater than 0"),
+        (PathGains, {"h0": 1.5}, "less than or equal to 1"),
+        (PathGains, {"gamma": -0.1}, "greater than or equal to 0"),
+        (PathGains, {"p": 2.0}, "less than or equal to 1"),
+    ],
+)
+def test_gains_outside_their_range_are_refused(model, values, message):
+    with pytest.raises(ValidationError, match=message):
+        model(**values)
