@@ -20,7 +20,7 @@ Semantics in brief (docs/missions.md has the long form):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Collection
 
 from transitions.extensions.nesting import HierarchicalMachine, NestedState
 
@@ -281,17 +281,17 @@ class Executor:
         self.reason = f"{node.path!r} finished {outcome} and no `done` transition handles it"
 
     # -- one tick -------------------------------------------------------------------------------------
-    def tick(self, obs: Observation) -> tuple[Command, dict[str, float], set[str]]:
+    def tick(self, obs: Observation) -> tuple[Command, dict[str, float], Collection[str]]:
         """Step the active task, apply nothing, check guards; returns (command, metrics, events)."""
         t = self.t = obs.t
-        events = set(obs.events)
+        events: Collection[str] = obs.events
         task = self.task
         if task is not None:
             res = task.step(obs)
             command = res.command
             metrics = {**obs.metrics, **res.metrics} if obs.metrics else res.metrics
             if res.events:
-                events.update(res.events)
+                events = (*events, *res.events)
         else:
             command = self._stop
             metrics = obs.metrics
@@ -310,7 +310,7 @@ class Executor:
             return command
         return {k: h * v + (1.0 - h) * b.old[k] if k in b.old else v for k, v in command.items()}
 
-    def check(self, t: float, metrics: dict[str, float], events: set[str]) -> CompiledTransition | None:
+    def check(self, t: float, metrics: dict[str, float], events: Collection[str]) -> CompiledTransition | None:
         """Evaluate the active leaf's table; fire the first transition that holds."""
         if self.leaf is None or self.outcome is not None:
             return None
