@@ -33,7 +33,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 import pytest
 
-from .api import Observation, Robot, Task, TaskContext, World
+from .api import Observation, Robot, StepResult, Task, TaskContext, World
 from .loader import CompiledMission, load_mission as _load
 from .runtime import RunResult, run_mission
 
@@ -131,9 +131,7 @@ class _IdleTask(Task):
         super().__init__(ctx)
         self._stop = ctx.robot.stop_command()
 
-    def step(self, obs: Observation) -> Any:
-        from .api import StepResult
-
+    def step(self, obs: Observation) -> StepResult:
         return StepResult(self._stop)
 
 
