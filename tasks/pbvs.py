@@ -1,0 +1,289 @@
+"""Position-based visual servoing of a mobile manipulator — the pure laws of the screw-fastening paper
+(González Huarte & Iburguren 2024, ``papers/002_60116b0236aed3a6.txt``).
+
+Frames (paper section 4): ``b`` platform base, ``a`` arm base, ``c`` camera (OpenCV optical frame),
+``e`` end effector (screwdriver tip), ``o`` object (the ArUco marker), ``t`` operation pose on the
+object.  ``H_xy`` is the 4x4 pose of frame ``y`` in frame ``x``.  A twist or error vector is
+``[ω; v]`` (angular first, section 4), expressed in the platform base frame unless said otherwise.
+
+Functions take and return numpy arrays; nothing here keeps state or imports a simulator.
+
+Equations and how they are read where the paper is ambiguous or misprinted (REFERENCE.md §2):
+
+* (9)–(14) transition tests: translation norm ``< ε_t`` and angle ``arccos((tr R − 1)/2) ≤ ε_r``
+  (:func:`pose_error_norms`).  Eq. (10) ``H_cc* = H*_co H_co⁻¹`` and eq. (13) ``H_be* = H*_be H_be⁻¹``:
+  the norms of a transform and of its inverse agree, so the tests do not depend on the order.
+* (10) as used by the control law: the camera must move to where it sees the object at ``H*_co``;
+  the desired camera pose in the current camera frame is ``H_cc* = H_co H*_co⁻¹`` (the printed
+  product is its inverse, which would drive the platform away).
+* (13) as used by the control law: the error of the tool point is ``p*_be − p_be`` and its rotation
+  ``log(R*_be R_beᵀ)``, both in the base frame — the printed product's translation would also
+  contain the rotation error times the tool's lever arm.
+* (25) ``H_bEo = diag(R_bc, 1) · E_co`` as printed multiplies the error's rotation by ``R_bc``, which
+  changes its angle; as meant the error is *expressed* in the base frame: the rotation vector and
+  the translation are each rotated by ``R_bc`` (= conjugating the rotation, ``R_bc R_E R_bcᵀ``).
+* (27)–(31) angle-axis; implemented robustly near 0 and π (the printed formulas divide by sin θ).
+* (34) ``V_be = [ω_b; v_b + r × ω_b]``: the velocity the platform twist gives the tool point, with
+  ``r`` pointing from the tool to the base (``r = −p_be``), i.e. ``v_b + ω_b × p_be``
+  (:func:`platform_induced_twist`; checked against a finite difference in the tests).
+* (35) ``E' = E − V_be dt`` in vector form (:func:`compensate_error`).
+* (37), (40): ``J⁺`` is a damped least-squares inverse ``Jᵀ (J Jᵀ + λ² I)⁻¹`` (:func:`dls_solve`),
+  cheaper than ``numpy.linalg.pinv`` and bounded near singularities.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg.lapack import dposv as _dposv
+
+Array = NDArray[np.float64]
+
+_EYE3 = np.eye(3)
+_EYE6 = np.eye(6)
+
+
+# -- small SE(3) helpers ------------------------------------------------------------------------------
+
+
+def hom(R: Array, p: Array) -> Array:
+    """4x4 homogeneous transform from a rotation and a translation (eq. 1)."""
+    H = np.eye(4)
+    H[:3, :3] = R
+    H[:3, 3] = p
+    return H
+
+
+def inv_h(H: Array) -> Array:
+    """Inverse of a rigid transform."""
+    Rt = H[:3, :3].T
+    out = np.empty((4, 4))
+    out[:3, :3] = Rt
+    out[:3, 3] = -(Rt @ H[:3, 3])
+    out[3] = (0.0, 0.0, 0.0, 1.0)
+    return out
+
+
+def cross(a: Array, b: Array) -> Array:
+    """3-vector cross product (``numpy.cross`` costs ~10x more for one pair)."""
+    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
+    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
+def skew(w: Array) -> Array:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def so3_exp(w: Array) -> Array:
+    """Rodrigues: the rotation of the rotation vector ``w``."""
+    th = math.sqrt(float(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]))
+    K = skew(w)
+    if th < 1e-9:
+        return _EYE3 + K
+    return _EYE3 + (math.sin(th) / th) * K + ((1.0 - math.cos(th)) / (th * th)) * (K @ K)
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> Array:
+    """URDF / fixed-axis convention ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def pose_matrix(xyz: Array, rpy: Array) -> Array:
+    return hom(rpy_matrix(*rpy), np.asarray(xyz, dtype=np.float64))
+
+
+# -- eqs. (11), (14), (27)–(31) -----------------------------------------------------------------------------
+
+
+def rotation_angle(R: Array) -> float:
+    """Eqs. (11)/(14)/(27): ``θ = arccos((tr R − 1) / 2)`` in [0, π] (argument clipped to [−1, 1])."""
+    c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
+    return math.acos(min(1.0, max(-1.0, c)))
+
+
+def angle_axis(R: Array) -> Array:
+    """Eqs. (27)–(31): the rotation vector ``θ a`` of ``R``.
+
+    ``a = (r32 − r23, r13 − r31, r21 − r12) / (2 sin θ)``; near θ = 0 the ratio ``θ / (2 sin θ)``
+    tends to ½, and near θ = π (where the antisymmetric part vanishes) the axis is taken from the
+    symmetric part ``(R + Rᵀ)/2 = cos θ I + (1 − cos θ) a aᵀ`` with its sign from the antisymmetric part.
+    """
+    th = rotation_angle(R)
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if th < 1e-6:
+        return 0.5 * v  # θ/(2 sin θ) → 1/2
+    if th < math.pi - 1e-4:
+        return (th / (2.0 * math.sin(th))) * v
+    # θ ≈ π: the symmetric part is cos θ I + (1 − cos θ) a aᵀ; take the largest diagonal of a aᵀ
+    c = math.cos(th)
+    S = (0.5 * (R + R.T) - c * _EYE3) / (1.0 - c)
+    i = int(np.argmax(np.diag(S)))
+    a = S[:, i] / math.sqrt(max(S[i, i], 1e-300))
+    a /= np.linalg.norm(a)
+    if float(a @ v) < 0.0:
+        a = -a
+    return th * a
+
+
+def pose_error_norms(E: Array) -> tuple[float, float]:
+    """Eqs. (9)–(14): translation norm ``|p|`` (m) and rotation angle ``|θ|`` (rad) of an error transform."""
+    p = E[:3, 3]
+    return math.sqrt(float(p @ p)), rotation_angle(E[:3, :3])
+
+
+def within(E: Array, eps_t: float, eps_r: float) -> bool:
+    """Eqs. (9)/(12): advance when ``|p| < ε_t`` and ``|θ| ≤ ε_r``."""
+    t, r = pose_error_norms(E)
+    return t < eps_t and r <= eps_r
+
+
+# -- camera error and platform twist, eqs. (10), (25)–(33) ---------------------------------------------------
+
+
+def camera_error(H_co: Array, H_co_star: Array) -> Array:
+    """Eq. (10) as meant: ``E_co = H_cc* = H_co · H*_co⁻¹`` — the desired camera pose in the current
+    camera frame (its translation is where the camera must go, its rotation how it must turn)."""
+    return H_co @ inv_h(H_co_star)
+
+
+def camera_error_vector(E_co: Array, R_bc: Array) -> Array:
+    """Eqs. (25)–(32): ``L_Eo = [ω; v]`` of the camera error expressed in the base frame.
+
+    ``ω = R_bc · θa(R_E)`` (eqs. 27–31) and ``v = R_bc p_E`` (eq. 32): eq. (25) read as a change of
+    frame (see the module docstring).
+    """
+    out = np.empty(6)
+    out[:3] = R_bc @ angle_axis(E_co[:3, :3])
+    out[3:] = R_bc @ E_co[:3, 3]
+    return out
+
+
+def platform_twist_controller(V_b: Array, v_max: float, w_max: float) -> Array:
+    """Section 7.3 for an omnidirectional platform: keep the planar part ``(v_x, v_y, ω_z)`` of the
+    6-D twist and saturate it (speed norm ≤ ``v_max``, |ω_z| ≤ ``w_max``) keeping its direction."""
+    vx, vy, wz = float(V_b[3]), float(V_b[4]), float(V_b[2])
+    s = math.hypot(vx, vy)
+    if s > v_max:
+        vx, vy = vx * v_max / s, vy * v_max / s
+    wz = max(-w_max, min(w_max, wz))
+    return np.array([vx, vy, wz])
+
+
+def planar_twist(cmd: Array) -> Array:
+    """A platform command ``(v_x, v_y, ω_z)`` as a 6-D twist ``[ω; v]`` in the base frame."""
+    return np.array([0.0, 0.0, float(cmd[2]), float(cmd[0]), float(cmd[1]), 0.0])
+
+
+# -- end-effector error, compensation and arm twist, eqs. (13), (21)–(23), (34)–(37), (40) ----------------------
+
+
+def ee_setpoint(H_bc: Array, H_co: Array, H_ot: Array, H_tp: Array | None = None) -> Array:
+    """Eqs. (21)–(23): ``H*_be = H_bc · H_co · H*_ot_i [· H_tp]``."""
+    H = H_bc @ H_co @ H_ot
+    return H @ H_tp if H_tp is not None else H
+
+
+def ee_error_vector(H_be: Array, H_be_star: Array) -> Array:
+    """Eq. (13) as meant: ``L_Ee = [log(R* Rᵀ); p* − p]`` in the base frame (the tool point's error)."""
+    out = np.empty(6)
+    out[:3] = angle_axis(H_be_star[:3, :3] @ H_be[:3, :3].T)
+    out[3:] = H_be_star[:3, 3] - H_be[:3, 3]
+    return out
+
+
+def error_norms(L: Array) -> tuple[float, float]:
+    """Translation norm and rotation angle of an error vector ``[θa; p]`` (eqs. 12–14)."""
+    return math.sqrt(float(L[3] ** 2 + L[4] ** 2 + L[5] ** 2)), math.sqrt(float(L[0] ** 2 + L[1] ** 2 + L[2] ** 2))
+
+
+def platform_induced_twist(V_b: Array, p_be: Array) -> Array:
+    """Eq. (34): the twist the platform's motion ``V_b = [ω_b; v_b]`` gives the tool point at ``p_be``:
+    ``V_be = [ω_b; v_b + ω_b × p_be]`` (the paper's ``r × ω_b`` with ``r = −p_be``)."""
+    w = V_b[:3]
+    out = np.empty(6)
+    out[:3] = w
+    out[3:] = V_b[3:] + cross(w, p_be)
+    return out
+
+
+def compensate_error(L_E: Array, V_be: Array, dt: float) -> Array:
+    """Eq. (35): ``E' = E − V_be dt`` — the part of the tool error the platform removes this tick."""
+    return L_E - V_be * dt
+
+
+def dls_solve(J: Array, V: Array, damping: float) -> Array:
+    """``J⁺ V`` with the damped least-squares inverse ``Jᵀ (J Jᵀ + λ² I)⁻¹`` (λ = ``damping``)."""
+    A = J @ J.T
+    if damping > 0.0:
+        A = A + (damping * damping) * _EYE6
+    _, x, info = _dposv(A, V)  # Cholesky solve: J Jᵀ + λ² I is symmetric positive definite
+    if info != 0:  # singular without damping: fall back to least squares
+        return J.T @ np.linalg.lstsq(A, V, rcond=None)[0]
+    return J.T @ x
+
+
+def arm_twist_step(q: Array, J: Array, V_a: Array, dt: float, damping: float) -> Array:
+    """Eq. (37): ``q* = q + J⁺(q) V_a dt`` (``J`` in the same ``[ω; v]`` order as ``V_a``)."""
+    return q + dls_solve(J, V_a * dt, damping)
+
+
+def impedance_joint_offset(J_star: Array, dX: Array, damping: float) -> Array:
+    """Eq. (40) without the nominal: ``J⁺(q*) ΔX`` (``ΔX`` a 6-D displacement ``[δθ; δp]``)."""
+    return dls_solve(J_star, dX, damping)
+
+
+# -- velocity feed-forward (beyond the paper) ------------------------------------------------------------------
+
+
+def fit_velocity(t: Array, x: Array) -> tuple[Array, Array]:
+    """Least-squares line through samples ``x[k]`` (rows) at times ``t[k]``: ``(value at t[-1], slope)``.
+
+    The paper names prediction as the fix for its irregular-motion failures; the part's velocity
+    estimated this way is fed forward into both twists when the ``prediction`` profile enables it.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64)
+    if len(t) < 2:
+        return (x[-1].copy() if len(x) else np.zeros(x.shape[1:])), np.zeros(x.shape[1:])
+    tc = t - t.mean()
+    den = float(tc @ tc)
+    if den <= 0.0:
+        return x[-1].copy(), np.zeros(x.shape[1:])
+    slope = tc @ (x - x.mean(axis=0)) / den
+    return x.mean(axis=0) + slope * (t[-1] - t.mean()), slope
+
+
+def platform_feedforward(v_o: Array, w_o: Array, p_bo: Array) -> Array:
+    """The platform twist that moves the base rigidly with the part (world velocity ``v_o`` of its
+    origin and angular velocity ``w_o``, both in the base frame; ``p_bo`` its origin in the base
+    frame): ``[w_o; v_o − w_o × p_bo]``."""
+    ff = np.empty(6)
+    ff[:3] = w_o
+    ff[3:] = v_o - cross(w_o, p_bo)
+    return ff
+
+
+def arm_feedforward(v_o: Array, w_o: Array, p_bo: Array, p_bt: Array, V_b: Array) -> Array:
+    """The extra arm twist for the target's motion relative to the moving base: the target point
+    ``p_bt`` moves with the part, ``[w_o; v_o + w_o × (p_bt − p_bo)]``, minus what the platform twist
+    ``V_b`` already gives it (eq. 34)."""
+    v_t = np.empty(6)
+    v_t[:3] = w_o
+    v_t[3:] = v_o + cross(w_o, p_bt - p_bo)
+    return v_t - platform_induced_twist(V_b, p_bt)
+
+
+def object_feedforward(v_o: Array, w_o: Array, p_bo: Array, p_bt: Array, V_b: Array) -> tuple[Array, Array]:
+    """Both feed-forward twists: ``(platform_feedforward, arm_feedforward)`` (beyond the paper: the
+    prediction it names as the fix for its irregular-motion failures)."""
+    return platform_feedforward(v_o, w_o, p_bo), arm_feedforward(v_o, w_o, p_bo, p_bt, V_b)

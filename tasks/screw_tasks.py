@@ -1,0 +1,372 @@
+"""The screw-fastening tasks: the paper's control loop (section 7) bound to its states (section 6).
+
+One control tick (``MobilePbvs.step``), with the equation numbers of ``papers/002``:
+
+1. camera error ``E_co`` (eq. 10 as meant) → ``L_Eo`` in the base frame (25–32) → platform PID (33)
+   [+ the part's velocity fed forward] → omnidirectional platform command (7.3);
+2. end-effector set-point ``H*_be = H_bc H_co H*_ot [H_tp]`` (21–23), error ``E_be`` (13 as meant) of
+   the nominal pose ``FK(q*)``, compensated for the platform's motion (34–35) → arm PID (36)
+   [+ feed-forward].  The PID works on the nominal pose so that it does not fight the compliance:
+   with the measured pose it would integrate the admittance's displacement away and press the tool
+   into the part with far more than the commanded force; the transition metrics ``ee_error.*``
+   use the measured pose (joint sensors), as eq. (12) does;
+3. arm twist controller ``q* = q + J⁺ V_a dt`` (37) with Pinocchio's Jacobian and a damped
+   least-squares ``J⁺``;
+4. admittance from the measured contact force, integrated every tick (38–39 as meant), mapped to
+   joints with ``J⁺(q*)`` (40);
+5. the transition metrics of eqs. (9)–(14): ``camera_error.t`` / ``camera_error.r`` and
+   ``ee_error.t`` / ``ee_error.r`` (m, rad).
+
+The PID and admittance states, the nominal joint trajectory ``q*`` and the part-motion history live
+in the mission's shared ``memory``: a state change switches gains and set-points, not the
+controllers' memory (the platform keeps the integral that carries it along with the part).
+
+Profile slots: ``platform`` and ``arm`` take ``pid`` profiles (:class:`tasks.pid.PidProfile`),
+``impedance`` takes ``impedance`` profiles (:class:`tasks.impedance.ImpedanceProfile`),
+``prediction`` takes a ``prediction`` profile (:class:`Prediction`, default: off — the paper's plain
+PID).  With prediction on, the part's velocity is estimated by a least-squares fit of its pose in the
+odometry frame over a short window, the stale marker pose is propagated to the current time (the
+latency), and the estimated motion is fed forward into both twists — the fix the paper names for its
+irregular-motion failures.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, Field, field_validator
+
+from robots.mobile_iiwa import MobileIiwaParams, Pose
+from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
+from taskflow.registry import register_task
+from tasks import pbvs
+from tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step
+from tasks.pid import PidProfile, PidState, pid_step
+
+MEM = "screw."  # prefix of this mission's keys in the shared memory
+_ZERO3 = np.zeros(3)
+
+
+class Prediction(StrictModel):
+    """Velocity feed-forward (beyond the paper): ``enabled``, fit ``window`` (s), ``gain`` on the
+    fed-forward twists, and ``max_age`` (s) beyond which a marker pose is not propagated."""
+
+    kind: ClassVar[str] = "prediction"
+
+    enabled: bool = False
+    window: float = Field(default=0.4, gt=0.0, le=5.0)
+    gain: float = Field(default=1.0, ge=0.0, le=2.0)
+    max_age: float = Field(default=0.3, gt=0.0)
+
+
+class PlatformParams(StrictModel):
+    """``camera_target``: the camera–object pose ``H*_co`` to servo to (eq. 5 / eq. 24).
+
+    ``screws`` (optional): the mission's whole list of operation poses ``H*_T`` (eq. 6).  Given here it
+    is validated at load time in full — a ``foreach`` item is checked only with its first element."""
+
+    camera_target: Pose
+    screws: list[Pose] | None = None
+
+    @field_validator("screws")
+    @classmethod
+    def _non_empty(cls, v: list[Pose] | None) -> list[Pose] | None:
+        if v is not None and not v:
+            raise ValueError("screws must list at least one operation pose")
+        return v
+
+
+class ArmParams(StrictModel):
+    """``camera_target`` (``H*_co``, the platform keeps servoing it), ``target``: the operation pose
+    ``H*_ot`` in the object frame, ``approach``: ``H_tp`` (eq. 21; omit for eqs. 22/23)."""
+
+    camera_target: Pose
+    target: Pose
+    approach: Pose | None = None
+
+
+def _planar_from_odom(odom: NDArray[np.float64]) -> NDArray[np.float64]:
+    x, y, th = (float(v) for v in odom)
+    H = np.eye(4)
+    c, s = math.cos(th), math.sin(th)
+    H[0, 0], H[0, 1], H[1, 0], H[1, 1] = c, -s, s, c
+    H[0, 3], H[1, 3] = x, y
+    return H
+
+
+def _interp_odom(times: list[float], poses: list[tuple[float, float, float]], t: float) -> tuple[float, float, float]:
+    """Platform pose at time ``t`` from the odometry history (linear; clamped to its ends)."""
+    i = bisect.bisect_left(times, t)
+    if i <= 0:
+        return poses[0]
+    if i >= len(times):
+        return poses[-1]
+    t0, t1 = times[i - 1], times[i]
+    a, b = poses[i - 1], poses[i]
+    w = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
+    return (a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1]), a[2] + w * math.remainder(b[2] - a[2], 2 * math.pi))
+
+
+class MobilePbvs(Task):
+    """Platform PBVS + arm PBVS + admittance; subclasses choose the set-points and the slots."""
+
+    Params: ClassVar[type[BaseModel]] = PlatformParams
+    slots: ClassVar[dict[str, type[BaseModel]]] = {
+        "platform": PidProfile, "arm": PidProfile, "impedance": ImpedanceProfile, "prediction": Prediction}
+    metrics: ClassVar[dict[str, str]] = {"camera_error.t": "m", "camera_error.r": "rad", "contact_force": "N"}
+    robots: ClassVar[tuple[str, ...]] = ("mobile_iiwa",)
+
+    def __init__(self, ctx: TaskContext) -> None:
+        super().__init__(ctx)
+        rp = ctx.robot.params
+        if not isinstance(rp, MobileIiwaParams):
+            raise TypeError(f"{self.name} drives a mobile_iiwa, got robot parameters {type(rp).__name__}")
+        self.kin = ctx.robot.kinematics  # type: ignore[attr-defined]
+        self.H_bc = rp.H_bc()
+        self.R_bc = self.H_bc[:3, :3].copy()
+        self.v_max, self.w_max, self.qd_max = rp.v_max, rp.w_max, rp.qd_max
+        self.lam = rp.dls_damping
+        prof = ctx.profiles
+        self.g_b = self._profile(prof, "platform", PidProfile).arrays()
+        self.g_a = self._profile(prof, "arm", PidProfile).arrays()
+        imp = prof.get("impedance")
+        self.g_i = imp.arrays() if isinstance(imp, ImpedanceProfile) else None
+        pred = prof.get("prediction")
+        self.pred = pred if isinstance(pred, Prediction) else Prediction()
+        self.H_co_star = ctx.params.camera_target.matrix()  # type: ignore[attr-defined]
+        self.H_co_star_inv = pbvs.inv_h(self.H_co_star)
+        self.H_cb = pbvs.inv_h(self.H_bc)
+        self.H_ot, self.H_tp = self._arm_target(ctx.params)
+        m = ctx.memory
+        self.mem = m
+        for key in ("pid_b", "pid_a"):
+            st = m.get(MEM + key)
+            if isinstance(st, PidState):
+                st.reset_derivative()  # a new set-point or gain set: no derivative kick
+        self.arm_gains_zero = not (np.any(self.g_a.kp) or np.any(self.g_a.ki) or np.any(self.g_a.kd))
+
+    @staticmethod
+    def _profile(prof: Any, slot: str, model: type[BaseModel]) -> Any:
+        v = prof.get(slot)
+        if not isinstance(v, model):
+            raise TypeError(f"slot {slot!r} needs a {model.__name__}, got {type(v).__name__}")
+        return v
+
+    def _arm_target(self, params: Any) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        return None, None
+
+    # -- the part's pose: latest marker, optionally propagated with the estimated motion ---------
+    def _object_pose(self, obs: Observation, t: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64], NDArray[np.float64]]:
+        """``(H_co now, v_o, w_o)``: the object seen from the camera and its world velocity expressed
+        in the base frame (zeros without prediction).
+
+        With prediction, every new marker pose is placed in the odometry frame with the platform pose
+        interpolated at its capture time; a least-squares line over the last ``window`` seconds gives
+        the part's planar velocity and yaw rate (once per marker), and each tick the latest pose is
+        propagated over its age and brought back into the current base frame.
+        """
+        marker = obs.sensors.get("marker")
+        if not self.pred.enabled:
+            return (None if marker is None else marker["H_co"]), _ZERO3, _ZERO3
+        m = self.mem
+        odom = obs.state["odom"]
+        times: list[float] = m.setdefault(MEM + "odom_t", [])
+        poses: list[tuple[float, float, float]] = m.setdefault(MEM + "odom_p", [])
+        times.append(t)
+        poses.append((float(odom[0]), float(odom[1]), float(odom[2])))
+        if len(times) > 64:  # over half a second at 100 Hz: enough to reach back over the latency
+            del times[:16], poses[:16]
+        if marker is None:
+            return None, _ZERO3, _ZERO3
+        if marker["seq"] != m.get(MEM + "obj_seq"):
+            m[MEM + "obj_seq"] = marker["seq"]
+            H_wo = _planar_from_odom(_interp_odom(times, poses, marker["t"])) @ self.H_bc @ marker["H_co"]
+            objs: list[tuple[float, float, float, float]] = m.setdefault(MEM + "obj_hist", [])
+            yaw = math.atan2(H_wo[1, 0], H_wo[0, 0])
+            if objs:
+                yaw = objs[-1][3] + math.remainder(yaw - objs[-1][3], 2 * math.pi)  # unwrapped
+            objs.append((marker["t"], H_wo[0, 3], H_wo[1, 3], yaw))
+            while len(objs) > 2 and objs[0][0] < marker["t"] - self.pred.window:
+                objs.pop(0)
+            slope = np.zeros(3)
+            if len(objs) >= 3:
+                arr = np.array(objs)
+                _, slope = pbvs.fit_velocity(arr[:, 0], arr[:, 1:])
+            m[MEM + "obj_fit"] = (marker["t"], H_wo, slope)
+        t_cap, H_wo, slope = m[MEM + "obj_fit"]
+        if not slope.any():
+            return marker["H_co"], _ZERO3, _ZERO3
+        # propagate the latest measurement over its age with the fitted motion (latency compensation)
+        age = min(self.pred.max_age, max(0.0, t - t_cap))
+        vx, vy, wz = float(slope[0]), float(slope[1]), float(slope[2])
+        dyaw = wz * age
+        c, s = math.cos(dyaw), math.sin(dyaw)
+        H_now = H_wo.copy()
+        H_now[0, :3] = c * H_wo[0, :3] - s * H_wo[1, :3]
+        H_now[1, :3] = s * H_wo[0, :3] + c * H_wo[1, :3]
+        H_now[0, 3] += vx * age
+        H_now[1, 3] += vy * age
+        # back into the current base frame: H_bw = (odom)⁻¹, planar
+        bx, by, bth = float(odom[0]), float(odom[1]), float(odom[2])
+        cb, sb = math.cos(bth), math.sin(bth)
+        H_bw = np.array([[cb, sb, 0.0, -cb * bx - sb * by], [-sb, cb, 0.0, sb * bx - cb * by],
+                         [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+        g = self.pred.gain
+        v_o = np.array([g * (cb * vx + sb * vy), g * (-sb * vx + cb * vy), 0.0])
+        return self.H_cb @ (H_bw @ H_now), v_o, np.array([0.0, 0.0, g * wz])
+
+    # -- one tick -------------------------------------------------------------------------------------
+    def step(self, obs: Observation) -> StepResult:
+        m = self.mem
+        t = obs.t
+        t_prev = m.get(MEM + "t")
+        # a gap (a state without a task: searching) does not count as one long tick
+        dt = 0.0 if t_prev is None else min(0.02, max(0.0, t - t_prev))
+        m[MEM + "t"] = t
+        q = np.asarray(obs.state["q"], dtype=np.float64)
+        q_ref = np.asarray(obs.state["q_ref"], dtype=np.float64)
+        q_nom = m.get(MEM + "q_nom")
+        if q_nom is None:
+            q_nom = q_ref.copy()
+        H_co, v_o, w_o = self._object_pose(obs, t)
+        predicting = self.pred.enabled and bool(v_o.any() or w_o.any())
+        metrics: dict[str, float] = {}
+        wrench = obs.sensors.get("wrench")
+        force = np.asarray(wrench[:3], dtype=np.float64) if wrench is not None else _ZERO3
+        metrics["contact_force"] = float(math.sqrt(force @ force))
+        if H_co is None:  # the target was never seen: hold still
+            m[MEM + "q_nom"] = q_nom
+            return StepResult({"base_twist": np.zeros(3), "arm_dq": q_nom - q_ref}, metrics)
+        H_bo = self.H_bc @ H_co
+        # 1. platform (eqs. 10, 25-33)
+        E_co = H_co @ self.H_co_star_inv  # eq. 10 as meant (pbvs.camera_error)
+        et, er = pbvs.pose_error_norms(E_co)
+        metrics["camera_error.t"], metrics["camera_error.r"] = et, er
+        L_Eo = pbvs.camera_error_vector(E_co, self.R_bc)
+        st_b = m.get(MEM + "pid_b") or PidState()
+        V_b, st_b = pid_step(L_Eo, st_b, self.g_b, dt)
+        m[MEM + "pid_b"] = st_b
+        # the PID acts on the nominal pose q* (the twist controller's own trajectory); the measured
+        # pose (with the compliance displacement and servo lag) gives the transition metrics of eq. 12
+        H_be, J = self.kin.fk_jacobian(q_nom)
+        p_be = H_be[:3, 3]
+        H_be_star = None
+        if self.H_ot is not None:
+            H_be_star = pbvs.ee_setpoint(self.H_bc, H_co, self.H_ot, self.H_tp)
+        if predicting:
+            V_b = V_b + pbvs.platform_feedforward(v_o, w_o, H_bo[:3, 3])
+        cmd_b = pbvs.platform_twist_controller(V_b, self.v_max, self.w_max)
+        V_b_eff = pbvs.planar_twist(cmd_b)
+        # 2. arm (eqs. 21-23, 13, 34-36)
+        V_a = np.zeros(6)
+        if H_be_star is not None:
+            L_Ee = pbvs.ee_error_vector(H_be, H_be_star)
+            H_meas = self.kin.fk(q)
+            metrics["ee_error.t"], metrics["ee_error.r"] = pbvs.error_norms(pbvs.ee_error_vector(H_meas, H_be_star))
+            if not self.arm_gains_zero:
+                V_be = pbvs.platform_induced_twist(V_b_eff, p_be)
+                L_c = pbvs.compensate_error(L_Ee, V_be, dt)
+                st_a = m.get(MEM + "pid_a") or PidState()
+                V_a, st_a = pid_step(L_c, st_a, self.g_a, dt)
+                m[MEM + "pid_a"] = st_a
+                if predicting:
+                    V_a = V_a + pbvs.arm_feedforward(v_o, w_o, H_bo[:3, 3], H_be_star[:3, 3], V_b_eff)
+        # 3. arm twist controller (eq. 37), joint speed limited
+        if dt > 0.0 and not self.arm_gains_zero:
+            dq = pbvs.dls_solve(J, V_a * dt, self.lam)
+            lim = self.qd_max * dt
+            peak = float(np.max(np.abs(dq)))
+            if peak > lim:
+                dq *= lim / peak
+            q_nom = np.clip(q_nom + dq, self.kin.lower, self.kin.upper)
+        m[MEM + "q_nom"] = q_nom
+        # 4. admittance (eqs. 38-40)
+        q_cmd = q_nom
+        adm = m.get(MEM + "adm") or AdmittanceState()
+        if self.g_i is not None:
+            adm = admittance_step(force, adm, self.g_i, dt)
+        else:  # no compliance in this state: let the offset decay
+            adm = AdmittanceState(adm.x * 0.9, adm.v * 0.0)
+        m[MEM + "adm"] = adm
+        if float(adm.x @ adm.x) > 1e-12:  # displacements under a micrometre (stiff set) are not worth a Jacobian
+            dX = np.zeros(6)
+            dX[3:] = H_be[:3, :3] @ adm.x  # tool-frame displacement in the base frame (at q*)
+            J_star = self.kin.jacobian(q_nom)
+            q_cmd = q_nom + pbvs.impedance_joint_offset(J_star, dX, self.lam)
+        metrics["tool_force_z"] = float(force[2])
+        return StepResult({"base_twist": cmd_b, "arm_dq": q_cmd - q_ref}, metrics)
+
+
+@register_task("pbvs_platform")
+class PbvsPlatform(MobilePbvs):
+    """s1 initial platform approach: the platform servoes the camera to ``H*_co`` (eq. 9 ends it);
+    the arm's PID is bound to ``zero`` and it holds."""
+
+    Params = PlatformParams
+
+
+@register_task("pbvs_arm")
+class PbvsArm(MobilePbvs):
+    """s2–s7: the platform keeps ``H*_co`` while the arm servoes the tool to
+    ``H_bc H_co H*_ot [H_tp]`` (eqs. 21–23; eq. 12 ends it)."""
+
+    Params = ArmParams
+    metrics: ClassVar[dict[str, str]] = {**MobilePbvs.metrics, "ee_error.t": "m", "ee_error.r": "rad", "tool_force_z": "N"}
+
+    def _arm_target(self, params: Any) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        return params.target.matrix(), (params.approach.matrix() if params.approach is not None else None)
+
+
+@register_task("pbvs_platform_retract")
+class PbvsPlatformRetract(MobilePbvs):
+    """s8 final platform retract to ``H⊗_co`` (eq. 24): no impedance set is bound (the tool is clear
+    of the part), so this task has no ``impedance`` slot."""
+
+    Params = PlatformParams
+    slots: ClassVar[dict[str, type[BaseModel]]] = {"platform": PidProfile, "arm": PidProfile, "prediction": Prediction}
+
+
+class HomeParams(StrictModel):
+    """Joint-space move to the robot's ``q_home`` at ``speed`` (rad/s)."""
+
+    speed: float = Field(default=0.5, gt=0.0, le=2.0)
+
+
+@register_task("arm_home")
+class ArmHome(Task):
+    """Error handling: the platform stops and the arm retracts to ``q_home`` in joint space (no
+    camera needed, so it works when the target is lost).  ``joint_error`` (rad) is the largest joint
+    distance to home."""
+
+    Params: ClassVar[type[BaseModel]] = HomeParams
+    metrics: ClassVar[dict[str, str]] = {"joint_error": "rad"}
+    robots: ClassVar[tuple[str, ...]] = ("mobile_iiwa",)
+
+    def __init__(self, ctx: TaskContext) -> None:
+        super().__init__(ctx)
+        self.home = np.array(ctx.robot.params.q_home)  # type: ignore[attr-defined]
+        self.speed = float(ctx.params.speed)  # type: ignore[attr-defined]
+        self.mem = ctx.memory
+
+    def step(self, obs: Observation) -> StepResult:
+        m = self.mem
+        t = obs.t
+        t_prev = m.get(MEM + "t")
+        dt = 0.0 if t_prev is None else min(0.02, max(0.0, t - t_prev))
+        m[MEM + "t"] = t
+        q_ref = np.asarray(obs.state["q_ref"], dtype=np.float64)
+        q_nom = m.get(MEM + "q_nom")
+        q_nom = q_ref.copy() if q_nom is None else q_nom
+        d = self.home - q_nom
+        peak = float(np.max(np.abs(d)))
+        step = self.speed * dt
+        q_nom = self.home.copy() if peak <= step else q_nom + d * (step / peak)
+        m[MEM + "q_nom"] = q_nom
+        m[MEM + "adm"] = AdmittanceState()
+        q = np.asarray(obs.state["q"], dtype=np.float64)
+        return StepResult({"base_twist": np.zeros(3), "arm_dq": q_nom - q_ref},
+                          {"joint_error": float(np.max(np.abs(self.home - q)))})

@@ -1,0 +1,185 @@
+"""The screw-fastening machine (REFERENCE.md §2) driven by taskflow.testing scripts: exact paths,
+resume after a lost marker, timeouts, coupling failures, profiles per state, load-time errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
+import sim.screw_world  # noqa: F401 - registers screw_conveyor
+import tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
+from taskflow.errors import MissionError
+from taskflow.loader import load_mission
+from taskflow.testing import Script, assert_outcome, assert_path, drive, time_in
+
+ROOT = Path(__file__).resolve().parents[2]
+CONVEYOR = ROOT / "missions" / "screw_fastening.yaml"
+TROLLEY = ROOT / "missions" / "screw_fastening_trolley.yaml"
+
+S = "operate.screws."
+PER_SCREW = [S + "s2_arm_approach", S + "s3_arm_destination_approach", S + "s4_tool_activation",
+             S + "s5_operation", S + "s6_arm_retract", S + "screw_fastened"]
+FULL_PATH = (["initial_search", "operate.s1_platform_approach"] + PER_SCREW * 4
+             + ["operate.s7_final_arm_retract", "operate.s8_final_platform_retract", "operate.done", "success"])
+
+
+def converging(s) -> dict[str, float]:  # type: ignore[no-untyped-def]
+    """Every error falls linearly to zero in one second after its state is entered."""
+    k = max(0.0, 1.0 - s.time_in_state)
+    return {"camera_error.t": 0.1 * k, "camera_error.r": 0.05 * k, "ee_error.t": 0.05 * k, "ee_error.r": 0.02 * k,
+            "joint_error": 0.5 * k}
+
+
+def screwdriver(fail_on: set[int] | None = None):  # type: ignore[no-untyped-def]
+    """Activation 1 s (coupling fails on the given activations, counted from 1), fastening its duration."""
+    count = {"activate": 0}
+
+    def action(params):  # type: ignore[no-untyped-def]
+        if params.get("phase") == "fasten":
+            return float(params["duration"]), "screw_done"
+        count["activate"] += 1
+        return 1.0, "tool_failed" if fail_on and count["activate"] in fail_on else "tool_activated"
+
+    return action
+
+
+@pytest.fixture(scope="module")
+def mission():
+    return load_mission(CONVEYOR)
+
+
+def test_exact_path_for_four_screws(mission):
+    r = drive(mission, Script(metrics=converging, events=[(0.1, "target_found")],
+                              actions={"screwdriver": screwdriver()}), max_time=120)
+    assert_outcome(r, "succeeded")
+    assert_path(r, FULL_PATH)
+    its = r.summary["iterations"]
+    assert [it["outcome"] for it in its] == ["succeeded"] * 4
+    assert [it["item"] for it in its] == mission.spec.parameters["screws"]
+    # s5 lasts the fastening duration the action was given (t of the paper's table)
+    assert time_in(r, S + "s5_operation") == pytest.approx(4 * 3.0, abs=0.05)
+
+
+def test_each_state_binds_the_profiles_of_the_table(mission):
+    table = {  # state: (platform, arm, impedance) — REFERENCE.md §2
+        "operate.s1_platform_approach": ("platform_boost", "arm_zero", "stiff"),
+        S + "s2_arm_approach": ("platform_operate", "arm_boost", "stiff"),
+        S + "s3_arm_destination_approach": ("platform_operate", "arm_operate", "compliant"),
+        S + "s4_tool_activation": ("platform_operate", "arm_operate", "compliant"),
+        S + "s5_operation": ("platform_operate", "arm_operate", "compliant"),
+        S + "s6_arm_retract": ("platform_operate", "arm_boost", "compliant"),
+        "operate.s7_final_arm_retract": ("platform_boost", "arm_operate", "stiff"),
+        "operate.s8_final_platform_retract": ("platform_boost", "arm_zero", None),
+    }
+    prof = mission.spec.profiles
+    for path, (pb, pa, imp) in table.items():
+        node = mission.states[path]
+        assert node.profiles["platform"].model_dump() == type(node.profiles["platform"]).model_validate(prof["pid"][pb]).model_dump(), path
+        assert node.profiles["arm"].model_dump() == type(node.profiles["arm"]).model_validate(prof["pid"][pa]).model_dump(), path
+        if imp is None:
+            assert "impedance" not in node.profiles, path
+        else:
+            assert node.profiles["impedance"].model_dump() == type(node.profiles["impedance"]).model_validate(prof["impedance"][imp]).model_dump(), path
+    assert mission.states["operate"].history
+    assert mission.states["searching"].task_cls is None  # no task: the robot's stop command
+
+
+def test_marker_lost_in_s3_for_one_second_resumes_s3_of_the_same_screw(mission):
+    base = Script(metrics=converging, events=[(0.1, "target_found")], actions={"screwdriver": screwdriver()})
+    dry = drive(mission, base, max_time=120)
+    s3_second = [tr.t for tr in dry.executor.transitions_fired if tr.target == S + "s3_arm_destination_approach"][1]
+    lost = s3_second + 0.5
+    seen: list[tuple[float, object]] = []  # (time, screw item) on every s3 tick
+
+    def metrics(s):  # type: ignore[no-untyped-def]
+        m = converging(s)
+        if s.state.endswith("s3_arm_destination_approach"):
+            seen.append((s.t, s.items.get("screw")))
+            if s3_second <= s.t < lost + 1.0:
+                m["ee_error.t"] = 0.01  # the second screw's s3 has not converged before the loss
+        return m
+
+    r = drive(mission, Script(metrics=metrics, events=[(0.1, "target_found"), (lost, "target_lost"), (lost + 1.0, "target_found")],
+                              actions={"screwdriver": screwdriver()}), max_time=120)
+    assert_outcome(r, "succeeded")
+    path = r.summary["states_visited"]
+    i = path.index("searching")
+    assert path[i - 1] == path[i + 1] == S + "s3_arm_destination_approach"
+    assert path.count(S + "s2_arm_approach") == 4  # the screw was not restarted from its approach
+    assert time_in(r, "searching") == pytest.approx(1.0, abs=0.02)
+    second = mission.spec.parameters["screws"][1]
+    before = [it for t, it in seen if s3_second <= t < lost]
+    after = [it for t, it in seen if lost + 1.0 <= t < lost + 1.5]
+    assert before and after and all(it == second for it in before + after)
+    assert [it["outcome"] for it in r.summary["iterations"]] == ["succeeded"] * 4
+
+
+def test_marker_lost_beyond_the_timeout_ends_in_error_through_the_controlled_stop(mission):
+    lost = 5.0
+    script = Script(metrics=converging, events=[(0.1, "target_found"), (lost, "target_lost")],
+                    actions={"screwdriver": screwdriver()})
+    worlds = []
+    r = drive(mission, script, max_time=120, on_world=worlds.append)
+    assert_outcome(r, "failed")
+    path = r.summary["states_visited"]
+    assert path[-3:] == ["searching", "error_stop", "error"]
+    assert time_in(r, "searching") == pytest.approx(3.0, abs=0.02)  # the searching timeout
+    # from the loss on, the platform is commanded to stand still
+    world = worlds[0]
+    k = round(lost * mission.spec.rate_hz)
+    assert all(not np.any(c["base_twist"]) for c in world.applied[k:])
+
+
+def test_initial_search_times_out_into_error(mission):
+    r = drive(mission, Script(metrics=converging), max_time=60)
+    assert_outcome(r, "failed")
+    assert r.summary["states_visited"] == ["initial_search", "error_stop", "error"]
+    assert time_in(r, "initial_search") == pytest.approx(10.0, abs=0.02)
+
+
+def test_tool_coupling_failure_records_the_screw_failed_and_goes_on(mission):
+    worlds = []
+    r = drive(mission, Script(metrics=converging, events=[(0.1, "target_found")],
+                              actions={"screwdriver": screwdriver(fail_on={2})}), max_time=120, on_world=worlds.append)
+    assert_outcome(r, "succeeded")
+    its = r.summary["iterations"]
+    assert [it["outcome"] for it in its] == ["succeeded", "failed", "succeeded", "succeeded"]
+    path = r.summary["states_visited"]
+    failed = [S + "s2_arm_approach", S + "s3_arm_destination_approach", S + "s4_tool_activation",
+              S + "retract_after_failure", S + "screw_failed"]
+    assert path[2 + 6:2 + 6 + 5] == failed  # the second screw: activation failed, tool retracted
+    assert path.count(S + "s5_operation") == 3
+    # the screwdriver was started 4 times for activation and 3 times for fastening
+    phases = [p["phase"] for _, name, p in worlds[0].started if name == "screwdriver"]
+    assert phases.count("activate") == 4 and phases.count("fasten") == 3
+
+
+def test_trolley_mission_has_the_same_machine():
+    a, b = load_mission(CONVEYOR), load_mission(TROLLEY)
+    assert set(a.states) == set(b.states)
+    assert b.spec.world.params["motion"] == "trolley"
+    r = drive(b, Script(metrics=converging, events=[(0.1, "target_found")], actions={"screwdriver": screwdriver()}),
+              max_time=120)
+    assert_path(r, FULL_PATH)
+
+
+@pytest.mark.parametrize("override, expect", [
+    ("profiles.pid.arm_boost.kp=[1, 2, 3]", "6 values"),
+    ("profiles.pid.platform_operate.ki=[0, 0, 1, 1, 1, 0, 0]", "6 values"),
+    ("parameters.screws=[]", "non-empty list"),
+    ("parameters.screws=[[0.14, 0.06, 0.0075, 3.14, 0, -1.57], bolt]", "pose"),
+    ("parameters.screws=[[0.14, 0.06, 0.0075, 3.14, 0, -1.57], [0.1, 0.2]]", "6 numbers"),
+    ("profiles.impedance.compliant.K=[0.0, 300.0, 600.0]", "stiffness"),
+    ("profiles.impedance.stiff.K=-5", "stiffness"),
+    ("parameters.eps_t=1 deg", "eps_t"),
+    ("parameters.eps_r_platform=2 mm", "eps_r_platform"),
+])
+def test_bad_input_is_a_clear_load_time_error(override, expect):
+    with pytest.raises(MissionError) as exc:
+        load_mission(CONVEYOR, [override])
+    text = str(exc.value)
+    assert expect in text, text
+    assert "screw_fastening.yaml:" in text  # located in the file

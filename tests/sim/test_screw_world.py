@@ -1,0 +1,172 @@
+"""The screw_conveyor world on PyBullet, judged from its ground truth: part motion, platform, marker
+events and perception (both modes), the F/T sensor, and the screwdriver's coupling rule."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pybullet as p
+import pytest
+
+from robots.mobile_iiwa import MobileIiwa
+from sim.screw_world import ScrewConveyor
+from tasks import pbvs
+from taskflow.registry import WORLDS
+
+ROBOT = MobileIiwa(MobileIiwa.Params())
+DT = 1.0 / 100.0  # the missions' control rate
+HOLD = {"base_twist": np.zeros(3), "arm_dq": np.zeros(7)}
+
+
+def make(seed: int = 0, **params) -> ScrewConveyor:
+    w = ScrewConveyor(ROBOT, ScrewConveyor.Params(**params), seed=seed)
+    w.reset()
+    return w
+
+
+def run(w: ScrewConveyor, seconds: float, command=HOLD) -> list[tuple[float, str]]:
+    events = []
+    for _ in range(round(seconds / DT)):
+        o = w.observe()
+        events += [(o.t, e) for e in o.events]
+        w.apply(command)
+        w.advance(DT)
+    return events + [(w.t, e) for e in w.observe().events]
+
+
+def ik(q0: np.ndarray, H_target: np.ndarray) -> np.ndarray:
+    k = ROBOT.kinematics
+    q = q0.copy()
+    for _ in range(200):
+        H, J = k.fk_jacobian(q)
+        q = q + pbvs.dls_solve(J, pbvs.ee_error_vector(H, H_target), 0.01)
+    return q
+
+
+def test_registered():
+    assert WORLDS.get("screw_conveyor") is ScrewConveyor
+    assert ScrewConveyor.actions == {"screwdriver": ("tool_activated", "tool_failed", "screw_done")}
+
+
+def test_conveyor_moves_the_part_at_50_mm_per_s_and_the_platform_follows_its_twist():
+    w = make()
+    try:
+        x0 = w.ground_truth()["part_x"]
+        b0 = w.ground_truth()
+        run(w, 2.0, {"base_twist": np.array([0.2, 0.0, 0.0]), "arm_dq": np.zeros(7)})
+        gt = w.ground_truth()
+        assert gt["part_x"] - x0 == pytest.approx(0.10, abs=1e-6)
+        # first-order lag (0.1 s) then 0.2 m/s along the platform's heading
+        moved = math.hypot(gt["base_x"] - b0["base_x"], gt["base_y"] - b0["base_y"])
+        assert moved == pytest.approx(0.2 * (2.0 - 0.1), abs=0.01)
+        assert math.atan2(gt["base_y"] - b0["base_y"], gt["base_x"] - b0["base_x"]) == pytest.approx(b0["base_yaw"], abs=1e-3)
+        # the speed limit is the paper's 1 m/s
+        w.apply({"base_twist": np.array([3.0, 4.0, 0.0]), "arm_dq": np.zeros(7)})
+        for _ in range(200):
+            w.advance(DT)
+        speed = float(np.hypot(*w.body.platform.twist[:2]))
+        assert 0.999 < speed <= 1.0 + 1e-12
+    finally:
+        w.close()
+
+
+def test_pose_mode_marker_latency_noise_and_lost_found_events():
+    w = make(occlusions=[(1.0, 1.6)], dropout=0.0)
+    try:
+        events = run(w, 2.2)
+        names = [e for _, e in events]
+        assert names == ["target_found", "target_lost", "target_found"]
+        t_found0, t_lost, t_found1 = (t for t, _ in events)
+        lat, lost_after = w.params.latency, w.params.lost_after
+        # events reach the robot at the next control tick after the physics step they happen in
+        late = 2 * DT + 1e-9
+        assert lat <= t_found0 <= lat + late
+        # the last frame before the occlusion is taken at 0.975 s; lost once lost_after has passed since
+        assert 0.975 + lost_after + lat <= t_lost <= 0.975 + lost_after + lat + late
+        assert 1.6 + lat <= t_found1 <= 1.6 + lat + late  # the first frame after the occlusion
+        o = w.observe()
+        m = o.sensors["marker"]
+        assert o.t - m["t"] >= lat - 1e-9
+        err = pbvs.inv_h(m["H_co"]) @ w.true_H_co()
+        # the measurement is stale by its age: the part moved 50 mm/s x age relative to the camera
+        assert np.linalg.norm(err[:3, 3]) < 0.05 * (o.t - m["t"]) + 0.002
+    finally:
+        w.close()
+
+
+def test_rendered_mode_finds_the_marker_to_a_fraction_of_a_millimetre():
+    w = make(perception="rendered", speed=0.0)
+    try:
+        run(w, 0.1)
+        m = w.observe().sensors["marker"]
+        assert m is not None
+        truth = w.true_H_co()  # nothing moves: the truth at capture is the truth now
+        H = m["H_co"]
+        assert np.linalg.norm(truth[:3, 3] - H[:3, 3]) < 0.001
+        assert pbvs.rotation_angle(H[:3, :3] @ truth[:3, :3].T) < math.radians(0.2)
+        assert w.detector.frames >= 4
+        s = w.summary_metrics()
+        assert s["perception_rms_xy_mm"] < 0.3 and s["perception_rms_z_mm"] < 1.0 and s["perception_rms_r_deg"] < 0.2
+    finally:
+        w.close()
+
+
+def test_force_torque_sensor_reads_the_contact_force_without_the_tool_weight():
+    w = make(speed=0.0)
+    try:
+        run(w, 0.2)
+        assert np.linalg.norm(w.observe().sensors["wrench"][:3]) < 0.3  # weight compensated
+        H_wb = w.body.base_pose()
+        bolt = pbvs.inv_h(H_wb) @ w.bolt_poses()[0]
+        q = ik(np.array(ROBOT.params.q_home), bolt @ pbvs.hom(np.eye(3), np.array([0.0, 0.0, 0.001])))
+        w.body.set_joints(ik(np.array(ROBOT.params.q_home), bolt @ pbvs.hom(np.eye(3), np.array([0.0, 0.0, -0.01]))))
+        w.apply({"base_twist": np.zeros(3), "arm_dq": q - w.body.q_ref_target})
+        w.advance(0.5)
+        run(w, 0.5)
+        f = w.observe().sensors["wrench"][:3]
+        contacts = p.getContactPoints(w.body.id, w.part.part, physicsClientId=w.client)
+        normal = sum(c[9] for c in contacts)
+        assert normal > 1.0
+        assert -f[2] == pytest.approx(normal, rel=0.05)  # the part pushes the tool back along −z_tool
+    finally:
+        w.close()
+
+
+@pytest.mark.parametrize("offset, expected", [(0.0, "tool_activated"), (0.006, "tool_failed")])
+def test_screwdriver_couples_only_when_the_bit_sits_on_the_bolt(offset, expected):
+    w = make(speed=0.0)
+    try:
+        H_wb = w.body.base_pose()
+        bolt = pbvs.inv_h(H_wb) @ w.bolt_poses()[2]
+        target = bolt @ pbvs.hom(np.eye(3), np.array([offset, 0.0, 0.0005]))
+        w.body.set_joints(ik(np.array(ROBOT.params.q_home), target))
+        run(w, 0.2)
+        w.start_action("screwdriver", {"phase": "activate"})
+        events = run(w, 1.2)
+        assert [e for _, e in events] == [expected]
+        assert events[0][0] == pytest.approx(0.2 + ROBOT.params.tool.activation_s, abs=0.02)
+        if expected == "tool_activated":
+            w.start_action("screwdriver", {"phase": "fasten", "duration": 0.5})
+            assert [e for _, e in run(w, 0.7)] == ["screw_done"]
+        s = w.summary_metrics()
+        assert s["screws_total"] == 4
+        assert s["screws_succeeded"] == (1 if expected == "tool_activated" else 0)
+        assert s["screws_failed"] == (0 if expected == "tool_activated" else 1)
+        assert s["err_t_mean_mm"] == pytest.approx(math.hypot(offset, 0.0005) * 1e3, abs=0.6)
+    finally:
+        w.close()
+
+
+def test_same_seed_same_trolley_and_noise():
+    def trace(seed: int) -> list[float]:
+        w = make(seed, motion="trolley")
+        try:
+            run(w, 1.0)
+            m = w.observe().sensors["marker"]
+            return [w.ground_truth()["part_x"], w.ground_truth()["part_yaw"], float(m["H_co"][0, 3])]
+        finally:
+            w.close()
+
+    assert trace(3) == trace(3)
+    assert trace(3) != trace(4)
