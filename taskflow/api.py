@@ -70,7 +70,8 @@ class TaskContext:
     ``params`` is the task's validated parameter model (``$name`` references already resolved
     against mission parameters and ``foreach`` items), ``profiles`` maps each profile slot to its
     validated model, ``memory`` is a mission-wide blackboard shared by all tasks of one run (e.g. a
-    target fixed by the first detection and used by later states), ``robot`` the robot model.
+    target fixed by the first detection and used by later states), ``robot`` the robot model,
+    ``items`` the current ``foreach`` items and ``dt`` the control period.
     """
 
     t: float
@@ -79,6 +80,7 @@ class TaskContext:
     memory: dict[str, Any]
     robot: "Robot"
     items: Mapping[str, Any] = field(default_factory=dict)
+    dt: float = 0.0  # the control period (1 / rate_hz), s
 
 
 class Task:

@@ -86,6 +86,7 @@ class Executor:
                  on_transition: Callable[[TransitionRecord], None] | None = None) -> None:
         self.mission, self.world, self.robot = mission, world, robot
         self.params = mission.spec.parameters
+        self._dt = 1.0 / mission.spec.rate_hz
         self.task_factory = task_factory or (lambda cls, ctx: cls(ctx))
         self.on_transition = on_transition
         self.memory: dict[str, Any] = {}
@@ -183,7 +184,7 @@ class Executor:
                     if not _has_refs(node.task_params):
                         self._static_params[node.path] = params
                 ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self.memory,
-                                  robot=self.robot, items=items)
+                                  robot=self.robot, items=items, dt=self._dt)
                 self.task = self.task_factory(node.task_cls, ctx)
 
     def _exit(self, node: StateNode) -> None:

@@ -181,6 +181,8 @@ def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap 
                     raise MissionError([Problem(file, 0, 0, f"--set {key}: {part!r} is not an index of a list of {len(node)}")]) from None
             if not isinstance(node, dict):
                 raise MissionError([Problem(file, 0, 0, f"--set {key}: {'.'.join(parts[:i])} is not a mapping")])
+            if not last and isinstance(node.get(part), str) and part in ("robot", "world", "task"):
+                node[part] = {"name": node[part]}  # `robot: racecar` → `{name: racecar}` so params can be set
             ypath.append(part)
             if last:
                 node[part] = value
@@ -558,7 +560,23 @@ class _Compiler:
                 self.err(n.task_ypath + ("params",) + exc.path, f"unknown reference ${exc.name}",
                          describe_choices("$" + exc.name, valid))
                 continue
-            self._validate_model(n.task_cls.Params, resolved, n.task_ypath + ("params",))
+            if self._validate_model(n.task_cls.Params, resolved, n.task_ypath + ("params",)) is None:
+                continue
+            # every other item of every enclosing foreach must fit too (the others at their first item)
+            for item, lst in n.scope_items():
+                values = params.get(lst)
+                for idx, value in enumerate(values if isinstance(values, list) else []):
+                    if idx == 0:
+                        continue
+                    try:
+                        n.task_cls.Params.model_validate(resolve_refs(n.task_params, params, {**sample_scope, item: value}))
+                    except ValidationError as exc:
+                        first = exc.errors()[0]
+                        where = ".".join(str(x) for x in _clean_loc(tuple(first["loc"])))
+                        self.err(("parameters", lst, idx), f"item {idx} of {lst!r} does not fit task "
+                                 f"{n.task_cls.name!r} (state {n.path!r}): {where}: {first['msg']}",
+                                 "make every item the same shape as the first")
+                        break
 
     # -- transitions ---------------------------------------------------------------------------
     def _resolve_target(self, source: StateNode, name: str) -> StateNode | None:

@@ -32,6 +32,10 @@ MissionLoader.yaml_implicit_resolvers = {
 }
 MissionLoader.add_implicit_resolver(
     "tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF"))
+# YAML 1.2 floats too: `1e5` and `1.0e5` are numbers (YAML 1.1 wants a dot and a signed exponent)
+MissionLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)[eE][-+]?\d+$"), list("-+0123456789."))
 
 
 def _construct_bool(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> bool:
@@ -66,7 +70,8 @@ class SourceMap:
     def problem(self, path: Path_, message: str, hint: str = "") -> Problem:
         p = tuple(path)
         for opath, item in self.overrides.items():
-            if p[: len(opath)] == opath:
+            # inside the overridden value, or the mapping it was written into (e.g. a missing key there)
+            if p[: len(opath)] == opath or (len(p) == len(opath) - 1 and opath[: len(p)] == p and p):
                 return Problem(self.file, 0, 0, f"--set {item}: {message}", hint)
         line, col = self.where(path)
         return Problem(self.file, line, col, message, hint)
