@@ -30,20 +30,9 @@ from pydantic import Field, field_validator, model_validator
 from robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
+from robots.geometry import rpy_matrix
 
 Vec3 = tuple[float, float, float]
-
-
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> NDArray[np.float64]:
-    """URDF convention ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
 
 
 def matrix_rpy(R: NDArray[np.float64]) -> Vec3:

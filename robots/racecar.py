@@ -19,23 +19,13 @@ from pydantic import Field, field_validator
 
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
+from robots.geometry import rpy_matrix
 
 Vec3 = tuple[float, float, float]
 
 # Rotation camera body frame (x forward, y left, z up) ← optical frame (x right, y down, z forward):
 # its columns are the optical axes in the body frame.
 _BODY_TO_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-
-
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> NDArray[np.float64]:
-    """URDF convention: ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (fixed-axis roll, then pitch, then yaw)."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
-    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-    return rz @ ry @ rx
 
 
 class Mount(StrictModel):

@@ -19,7 +19,7 @@ Semantics in brief (docs/missions.md has the long form):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Collection
 
 from transitions.extensions.nesting import HierarchicalMachine, NestedState

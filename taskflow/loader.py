@@ -273,7 +273,6 @@ def _dedupe(problems: list[Problem]) -> list[Problem]:
 
 def _allowed_keys(model: type[BaseModel], loc: tuple[Any, ...]) -> list[str]:
     """Field names (aliases) of the model found at ``loc`` inside ``model``."""
-    import typing
 
     current: Any = model
     for part in loc:

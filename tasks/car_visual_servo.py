@@ -52,6 +52,7 @@ from tasks.image_features import (
     as_intrinsics,
     point_interaction_matrix,
 )
+from robots.geometry import skew
 
 __all__ = [
     "skew",
@@ -63,15 +64,6 @@ __all__ = [
     "camera_vs_velocity",
     "car_gains",
 ]
-
-
-def skew(t: ArrayLike) -> NDArray[np.float64]:
-    """Skew-symmetric matrix of eq. 23: ``skew(t) @ x == cross(t, x)``."""
-    a = np.asarray(t, dtype=float)
-    if a.shape != (3,):
-        raise ValueError(f"t must be a 3-vector, got shape {a.shape}")
-    x, y, z = a
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def camera_mount_rotation(yaw: float = 0.0, pitch: float = 0.0) -> NDArray[np.float64]:

@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from robots.geometry import skew
 
 Array = NDArray[np.float64]
 
@@ -72,12 +73,6 @@ SELECT_4DOF: Array = np.array(
 
 # ---------------------------------------------------------------------------------------------
 # small helpers
-
-
-def skew(w: ArrayLike) -> Array:
-    """``[w]x``: the skew-symmetric matrix with ``[w]x u = w × u``."""
-    x, y, z = np.asarray(w, dtype=np.float64).reshape(3)
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def vee(S: ArrayLike) -> Array:

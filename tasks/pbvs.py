@@ -38,6 +38,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dposv as _dposv
+from robots.geometry import rpy_matrix, skew
 
 Array = NDArray[np.float64]
 
@@ -73,10 +74,6 @@ def cross(a: Array, b: Array) -> Array:
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
-def skew(w: Array) -> Array:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
 def so3_exp(w: Array) -> Array:
     """Rodrigues: the rotation of the rotation vector ``w``."""
     th = math.sqrt(float(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]))
@@ -84,18 +81,6 @@ def so3_exp(w: Array) -> Array:
     if th < 1e-9:
         return _EYE3 + K
     return _EYE3 + (math.sin(th) / th) * K + ((1.0 - math.cos(th)) / (th * th)) * (K @ K)
-
-
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> Array:
-    """URDF / fixed-axis convention ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
 
 
 def pose_matrix(xyz: Array, rpy: Array) -> Array:
