@@ -27,6 +27,26 @@ def _bands(ax, t: np.ndarray, states: np.ndarray, colours: dict[str, tuple]) -> 
             start = i
 
 
+def _stacked(plt, tr: dict[str, np.ndarray], cols: list[str], prefix: int, colours: dict[str, tuple],  # type: ignore[no-untyped-def]
+             title: str, path: Path, legend: bool = False) -> Path:
+    """One panel per column over time, the states as coloured bands; saved to ``path``."""
+    t, states = tr["t"], tr["state"]
+    fig, axes = plt.subplots(len(cols), 1, figsize=(8, 1.7 * len(cols) + 0.6), sharex=True, squeeze=False)
+    for ax, c in zip(axes[:, 0], cols):
+        _bands(ax, t, states, colours)
+        ax.plot(t, tr[c], lw=1.2)
+        ax.set_ylabel(c[prefix:], fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("t [s]")
+    axes[0, 0].set_title(title)
+    if legend:
+        handles = [plt.Rectangle((0, 0), 1, 1, color=colours[s], alpha=0.3) for s in colours]
+        fig.legend(handles, list(colours), loc="lower center", ncol=min(4, len(colours)), fontsize=7)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
 def _target_of(run_dir: Path) -> tuple[float, float] | None:
     """The world position of the run's object, when the world reports one in the summary
     (``object_world_x_m`` / ``object_world_y_m``)."""
@@ -77,17 +97,7 @@ def plot_run(run_dir: str | Path) -> list[Path]:
     # commands
     cmd_cols = [c for c in tr if c.startswith("cmd.")]
     if cmd_cols:
-        fig, axes = plt.subplots(len(cmd_cols), 1, figsize=(8, 1.8 * len(cmd_cols) + 0.6), sharex=True, squeeze=False)
-        for ax, c in zip(axes[:, 0], cmd_cols):
-            _bands(ax, t, states, colours)
-            ax.plot(t, tr[c], lw=1.2)
-            ax.set_ylabel(c[4:], fontsize=8)
-            ax.grid(alpha=0.3)
-        axes[-1, 0].set_xlabel("t [s]")
-        axes[0, 0].set_title("commands (state bands)")
-        out.append(run_dir / "commands.png")
-        fig.savefig(out[-1], dpi=110, bbox_inches="tight")
-        plt.close(fig)
+        out.append(_stacked(plt, tr, cmd_cols, 4, colours, "commands (state bands)", run_dir / "commands.png"))
 
     # camera velocities (tasks that publish cam_v*/cam_w*), one panel each for linear and angular
     cam = [c for c in tr if c.startswith("m.cam_") and np.isfinite(tr[c]).any()]
@@ -110,17 +120,6 @@ def plot_run(run_dir: str | Path) -> list[Path]:
     # metrics
     m_cols = [c for c in tr if c.startswith("m.") and not c.startswith("m.cam_") and np.isfinite(tr[c]).any()]
     if m_cols:
-        fig, axes = plt.subplots(len(m_cols), 1, figsize=(8, 1.6 * len(m_cols) + 0.6), sharex=True, squeeze=False)
-        for ax, c in zip(axes[:, 0], m_cols):
-            _bands(ax, t, states, colours)
-            ax.plot(t, tr[c], lw=1.2)
-            ax.set_ylabel(c[2:], fontsize=8)
-            ax.grid(alpha=0.3)
-        axes[-1, 0].set_xlabel("t [s]")
-        axes[0, 0].set_title("metrics (state bands)")
-        handles = [plt.Rectangle((0, 0), 1, 1, color=colours[s], alpha=0.3) for s in names]
-        fig.legend(handles, names, loc="lower center", ncol=min(4, len(names)), fontsize=7)
-        out.append(run_dir / "metrics.png")
-        fig.savefig(out[-1], dpi=110, bbox_inches="tight")
-        plt.close(fig)
+        out.append(_stacked(plt, tr, m_cols, 2, colours, "metrics (state bands)", run_dir / "metrics.png",
+                            legend=True))
     return out

@@ -60,6 +60,7 @@ from robots.racecar import RacecarParams
 from robots.sensors import Detection, camera_command
 from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
 from taskflow.registry import register_task
+from tasks.car_goto import CarGains
 from tasks.car_visual_servo import car_jacobian_r, twist_transform
 from tasks.viki_laws import (
     ServoInputs,
@@ -75,7 +76,7 @@ MEM_TARGET = "viki.target"  # the active state's kinematic control-point target 
 MEM_FIRST = "viki.first_detection"  # {"t", "camera"} of the detection that fixed the object
 
 
-class ViKiGains(StrictModel):
+class ViKiGains(CarGains):
     """Gains of one positioning direction (profile kind ``viki_gains``).
 
     ``lam``: the paper's five numbers (section III-A: front ``[0.85, 0.3, 1, 1, 1]``, rear
@@ -88,8 +89,6 @@ class ViKiGains(StrictModel):
     kind: ClassVar[str] = "viki_gains"
 
     lam: tuple[float, ...]
-    k1: tuple[float, float] = (2.0, 1.0)
-    d: float | None = Field(default=None, gt=0.0)
 
     @field_validator("lam")
     @classmethod
@@ -101,13 +100,6 @@ class ViKiGains(StrictModel):
         if not all(math.isfinite(v) and v > 0.0 for v in lam):
             raise ValueError(f"lam gains must be finite and > 0, got {list(lam)}")
         return lam
-
-    @field_validator("k1")
-    @classmethod
-    def _k1(cls, k1: tuple[float, float]) -> tuple[float, float]:
-        if not all(math.isfinite(v) and v > 0.0 for v in k1):
-            raise ValueError(f"k1 gains must be finite and > 0, got {list(k1)}")
-        return k1
 
 
 class ViKiHyCoParams(StrictModel):
