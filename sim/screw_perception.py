@@ -184,6 +184,16 @@ class RenderedDetector:
         proj = list(p.computeProjectionMatrixFOV(math.degrees(c.fov), c.width / c.height, c.near, c.far))
         return self._render(self._view(H_wc), proj, w, h)
 
+    def _roi_corners(self, view: list[float], centre: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """Render the ``roi`` x ``roi`` window around ``centre`` (px) and find the marker corners in it."""
+        c, r = self.cam, self.roi
+        u0 = int(np.clip(round(centre[0] - r / 2), 0, c.width - r))
+        v0 = int(np.clip(round(centre[1] - r / 2), 0, c.height - r))
+        gray = self._render(view, window_projection(c, u0, v0, r, r), r, r)
+        self.last_image = gray
+        pts = self._corners(gray)
+        return None if pts is None else pts + [u0, v0]
+
     def _corners(self, gray: NDArray[np.uint8]) -> NDArray[np.float64] | None:
         corners, ids, _ = self.detector.detectMarkers(gray)
         if ids is None:
@@ -201,14 +211,9 @@ class RenderedDetector:
             pred = self.last_center
             if self.prev_center is not None:
                 pred = pred + (self.last_center - self.prev_center)
-            r = self.roi
-            u0 = int(np.clip(round(pred[0] - r / 2), 0, c.width - r))
-            v0 = int(np.clip(round(pred[1] - r / 2), 0, c.height - r))
-            gray = self._render(view, window_projection(c, u0, v0, r, r), r, r)
-            self.last_image = gray
-            pts = self._corners(gray)
+            pts = self._roi_corners(view, pred)
             if pts is not None:
-                return pts + [u0, v0]
+                return pts
         # coarse search over the whole field of view, then refine in a ROI
         self.searches += 1
         s = self.search_scale
@@ -220,13 +225,7 @@ class RenderedDetector:
         scale = c.width / gray.shape[1]
         centre = (pts.mean(axis=0) + 0.5) * scale - 0.5
         self.last_center, self.prev_center = centre, None
-        r = self.roi
-        u0 = int(np.clip(round(centre[0] - r / 2), 0, c.width - r))
-        v0 = int(np.clip(round(centre[1] - r / 2), 0, c.height - r))
-        gray = self._render(view, window_projection(c, u0, v0, r, r), r, r)
-        self.last_image = gray
-        pts = self._corners(gray)
-        return None if pts is None else pts + [u0, v0]
+        return self._roi_corners(view, centre)
 
     def solve(self, img_pts: NDArray[np.float64]) -> tuple[NDArray[np.float64] | None, float]:
         cv2 = self.cv2

@@ -151,13 +151,19 @@ class PointTracker:
         tri_lost = not bool(np.all(ok[:3])) if len(ok) >= 3 else True
         self.cur, self.kf = p1[ok], self.kf[ok]
         self.prev = grey
-        if tri_lost and len(self.kf) >= 3:
-            try:
-                order = sort_points(self.kf)
-                self.cur, self.kf = self.cur[order], self.kf[order]
-            except ValueError:
-                pass
+        if tri_lost:
+            self._restore_triangle()
         return len(self.cur)
+
+    def _restore_triangle(self) -> None:
+        """Put the largest-triangle points first again after one of them was dropped (Alg. 1)."""
+        if len(self.kf) < 3:
+            return
+        try:
+            order = sort_points(self.kf)
+        except ValueError:
+            return
+        self.cur, self.kf = self.cur[order], self.kf[order]
 
     def prune(self, keep: NDArray[np.bool_]) -> None:
         """Drop the points where ``keep`` is false (e.g. off the tracked plane); the largest-triangle
@@ -165,12 +171,8 @@ class PointTracker:
         keep = np.asarray(keep, dtype=bool)
         tri_lost = not bool(np.all(keep[:3]))
         self.cur, self.kf = self.cur[keep], self.kf[keep]
-        if tri_lost and len(self.kf) >= 3:
-            try:
-                order = sort_points(self.kf)
-                self.cur, self.kf = self.cur[order], self.kf[order]
-            except ValueError:
-                pass
+        if tri_lost:
+            self._restore_triangle()
 
     def refine(self, kf_grey: NDArray[np.uint8], grey: NDArray[np.uint8], max_shift: float = 2.0,
                fb_px: float = 0.3) -> int:
