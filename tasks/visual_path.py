@@ -179,7 +179,6 @@ class VisualPathParams(StrictModel):
     t_eps_px: float = Field(default=12.0, gt=0.0, le=1000.0, description="T_ε of intermediate keyframes (px)")
     t_eps_final_px: float = Field(default=7.0, gt=0.0, le=1000.0, description="T_ε of the last keyframe (px)")
     feedforward: bool = False
-    rise_iterations: int = Field(default=5, ge=1, le=1000)
     transition: bool | None = Field(default=None, description="apply h_t (eq. 28); default: when the path has > 1 keyframe")
     features: Literal["orb", "sift"] = "orb"
     n_features: int = Field(default=1000, ge=50, le=20000)
