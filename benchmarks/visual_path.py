@@ -3,12 +3,17 @@
     python benchmarks/visual_path.py                 # all four missions (~4-6 min on 2 cores)
     python benchmarks/visual_path.py --only pose_regulation obstacles
     python benchmarks/visual_path.py --plots figures/   # also the figures of each run
+    python benchmarks/visual_path.py --perception geometric --seeds 10   # success rates, fast camera
 
 Each mission runs with the rendered pipeline (320x240 TinyRenderer frames → ORB/LK/RANSAC →
 hierarchical homography servoing).  Printed per experiment: completion, final ε (task and ground
 truth), final position and yaw error against the last taught pose, minimum obstacle clearance,
 collisions, path time, control loop frequency (simulated) and the cost per frame of perception +
 control (excluding rendering) with the real-time factor of the whole run.  The last line is JSON.
+
+``--perception geometric`` runs the same missions with the world's geometric camera (landmarks
+projected with pixel noise, no rendering, ~20x real time) over ``--seeds`` seeds (RANSAC draws and
+pixel noise differ) and prints success rates with the mean time and final error of the successes.
 """
 
 from __future__ import annotations
@@ -66,11 +71,11 @@ def frame_costs(run_dir: Path) -> dict[str, float]:
             "frame_ms_p95": float(np.percentile(pc, 95))}
 
 
-def run_experiment(name: str, out: Path) -> dict:
+def run_experiment(name: str, out: Path, overrides: list[str] | None = None, seed: int | None = None) -> dict:
     file, paper = EXPERIMENTS[name]
-    m = load_mission(ROOT / "missions" / file)
+    m = load_mission(ROOT / "missions" / file, overrides=overrides or [])
     t0 = time.perf_counter()
-    r = run_mission(m, out_dir=out / name)
+    r = run_mission(m, out_dir=out / name, seed=seed)
     wall = time.perf_counter() - t0
     s = r.summary
     mt = s["metrics"]
@@ -195,14 +200,51 @@ def plots(results: list[dict], out: Path, fig_dir: Path) -> list[Path]:
     return written
 
 
+def batch(names: list[str], out: Path, perception: str, seeds: int) -> dict:
+    """Every experiment over ``seeds`` seeds: success rate, time and final error of the successes."""
+    rows = {}
+    for name in names:
+        runs = [run_experiment(name, out / f"seed{s}", [f"world.params.perception={perception}"], s) for s in range(seeds)]
+        ok = [r for r in runs if r["completed"]]
+
+        def stat(key: str, rs: list[dict] = ok) -> tuple[float, float]:
+            v = np.array([r[key] for r in rs if r[key] is not None], dtype=float)
+            return (float(v.mean()), float(v.std())) if len(v) else (math.nan, math.nan)
+
+        rows[name] = {"runs": len(runs), "succeeded": len(ok), "path_time_s": stat("path_time_s"),
+                      "final_position_error_m": stat("final_position_error_m"),
+                      "collisions_max": max(int(r["collisions"] or 0) for r in runs),
+                      "wall_s_per_run": float(np.mean([r["wall_s"] for r in runs])),
+                      "failures": [(i, r["outcome"], r["path_time_s"]) for i, r in enumerate(runs) if not r["completed"]],
+                      "paper_time_s": EXPERIMENTS[name][1]["path_time_s"]}
+    print(f"\n{perception} camera, {seeds} seeds — success, path time and final error of the successes (mean ± sd)")
+    for name, r in rows.items():
+        t, e = r["path_time_s"], r["final_position_error_m"]
+        print(f"  {name:18s} {r['succeeded']:2d}/{r['runs']:<2d}  time {t[0]:6.1f} ± {t[1]:4.1f} s (paper {r['paper_time_s']:g})"
+              f"  final error {100 * e[0]:4.1f} ± {100 * e[1]:3.1f} cm  max collisions {r['collisions_max']}"
+              f"  wall {r['wall_s_per_run']:.1f} s/run")
+    if "oval" in rows and "oval_feedforward" in rows:
+        ratio = rows["oval_feedforward"]["path_time_s"][0] / rows["oval"]["path_time_s"][0]
+        print(f"  oval with feed-forward / without (successful runs): {100 * ratio:.1f} % (paper 25 %, target <= 30 %)")
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--only", nargs="*", choices=sorted(EXPERIMENTS), help="experiments to run (default: all)")
     ap.add_argument("--out", type=Path, default=None, help="run records (default: a temporary directory)")
     ap.add_argument("--plots", type=Path, default=None, help="write figures into this directory")
+    ap.add_argument("--perception", choices=("rendered", "geometric"), default="rendered",
+                    help="geometric: the fast camera over --seeds seeds (success rates)")
+    ap.add_argument("--seeds", type=int, default=10, help="seeds per experiment with --perception geometric")
     args = ap.parse_args(argv)
     names = args.only or list(EXPERIMENTS)
     out = args.out or Path(tempfile.mkdtemp(prefix="visual_path_bench_"))
+    if args.perception == "geometric":
+        rows = batch(names, out, args.perception, args.seeds)
+        print(json.dumps({"benchmark": "visual_path", "perception": "geometric", "seeds": args.seeds, "results": rows},
+                         default=lambda o: None if isinstance(o, float) and math.isnan(o) else o))
+        return 0
     results = [run_experiment(n, out) for n in names]
     print_table(results)
     if args.plots is not None:

@@ -15,6 +15,13 @@ keyframe images of the visual path; no pose ever enters an observation.
   when a contact starts, and ``collisions``, ``min_clearance_m`` … in the summary.
 * **Camera faults.**  ``blackout`` intervals return black frames (lost video or occlusion) so missions
   can exercise their lost-features handling.
+* **Perception modes.**  ``perception: rendered`` (default, the faithful pipeline) puts the rendered
+  frame in ``obs.sensors["image"]`` and the keyframe images in ``obs.sensors["keyframes"]``.
+  ``perception: geometric`` (fast, for tests and batches) renders nothing: landmarks on the room's
+  surfaces are projected exactly (:mod:`sim.room_landmarks`) with ``pixel_noise``, so
+  ``obs.sensors["points"]`` and ``obs.sensors["keyframe_points"]`` hold ``PointView``s (landmark ids
+  and pixels) and ``obs.sensors["obstacle"]`` the widest column's ``(u_left, u_right,
+  touches_border)`` at the middle row, or ``None``.
 """
 
 from __future__ import annotations
@@ -23,7 +30,7 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import cv2
 import numpy as np
@@ -32,6 +39,7 @@ from pydantic import Field, field_validator, model_validator
 
 from robots.quadcopter import Quadcopter, QuadcopterParams
 from sim.quad_scene import Column, QuadScene, Room
+from sim.room_landmarks import PointView, column_silhouette, project, sample_landmarks, visible_landmarks
 from taskflow.api import Command, Observation, Robot, StrictModel, World
 from taskflow.registry import register_world
 
@@ -108,6 +116,11 @@ class QuadRoomParams(StrictModel):
     image_noise: float = Field(default=0.0, ge=0.0, le=50.0, description="std of Gaussian pixel noise (grey levels)")
     blackout: list[tuple[float, float]] = Field(default=[], description="[t0, t1] intervals of black frames (s)")
     obstacle_height: float = Field(default=3.0, gt=0.0)
+    perception: Literal["rendered", "geometric"] = Field(
+        default="rendered", description="rendered frames (faithful) or projected landmarks (fast)")
+    landmark_density: float = Field(default=20.0, gt=0.0, le=1000.0,
+                                    description="landmarks per m² of wall, floor and ceiling (geometric mode)")
+    pixel_noise: float = Field(default=0.5, ge=0.0, le=20.0, description="std of each landmark pixel coordinate (geometric mode)")
 
     @field_validator("keyframes")
     @classmethod
@@ -126,6 +139,9 @@ class QuadRoomParams(StrictModel):
 
     @model_validator(mode="after")
     def _keyframe_files(self) -> QuadRoomParams:
+        if self.keyframe_dir is not None and self.perception == "geometric":
+            raise ValueError("keyframe_dir holds images for perception: rendered; perception: geometric projects "
+                             "landmarks at the taught poses — drop one of the two")
         if self.keyframe_dir is not None:
             _, meta = load_keyframe_dir(self.keyframe_dir)
             poses = [tuple(k["pose"]) for k in meta.get("keyframes", [])]
@@ -166,6 +182,8 @@ class QuadRoom(World):
         self.physics_hz = float(params.physics_hz)
         self.scene: QuadScene | None = None
         self._rng = np.random.default_rng(seed)
+        self.columns: list[Column] = []
+        self.landmarks = np.zeros((0, 3))
         self._init_state()
 
     def _init_state(self) -> None:
@@ -186,6 +204,9 @@ class QuadRoom(World):
         self.path_length = 0.0
         self.keyframe_images: tuple[NDArray[np.uint8], ...] = ()
         self.keyframe_depths: list[NDArray[np.float64] | None] = []
+        self.keyframe_points: tuple[PointView, ...] = ()
+        self._points: PointView | None = None
+        self._obstacle: tuple[float, float, bool] | None = None
 
     # --- lifecycle -----------------------------------------------------------------------------
     def reset(self) -> None:
@@ -200,7 +221,12 @@ class QuadRoom(World):
         # ran before in the process
         cv2.setRNGSeed(int(self.seed))
         self._init_state()
-        self._load_or_teach_keyframes()
+        self.columns = cols
+        self.landmarks = sample_landmarks(room, wp.landmark_density, np.random.default_rng(wp.texture_seed))
+        if wp.perception == "geometric":
+            self.keyframe_points = tuple(self._point_view(k.pose) for k in wp.keyframes)
+        else:
+            self._load_or_teach_keyframes()
         self.scene.set_drone_pose(*self.pose)
         self._check_contacts()
 
@@ -244,9 +270,38 @@ class QuadRoom(World):
         return self._steps / self.physics_hz
 
     # --- the loop ------------------------------------------------------------------------------
+    def _point_view(self, pose: Sequence[float]) -> PointView:
+        """Landmarks seen from ``pose`` with this frame's pixel noise (geometric mode)."""
+        cam = self.robot.params.camera
+        R, t = camera_pose_matrices(pose, cam.R(), cam.t())
+        ids, uv = visible_landmarks(self.landmarks, self.columns, R, t, cam.K(), (cam.width, cam.height))
+        if self.params.pixel_noise > 0.0:
+            uv = uv + self._rng.normal(0.0, self.params.pixel_noise, uv.shape)
+        uv.setflags(write=False)
+        ids.setflags(write=False)
+        return PointView(ids, uv)
+
+    def _widest_column(self, pose: Sequence[float]) -> tuple[float, float, bool] | None:
+        cam = self.robot.params.camera
+        R, t = camera_pose_matrices(pose, cam.R(), cam.t())
+        best = None
+        for c in self.columns:
+            s = column_silhouette(c, R, t, cam.K(), (cam.width, cam.height))
+            if s is not None and (best is None or s[1] - s[0] > best[1] - best[0]):
+                best = s
+        return best
+
     def _capture(self) -> None:
         cam = self.robot.params.camera
         t = self.t
+        if self.params.perception == "geometric":
+            dark = any(a <= t < b for a, b in self.params.blackout)
+            empty = PointView(np.zeros(0, dtype=np.int64), np.zeros((0, 2)))
+            self._points = empty if dark else self._point_view(self.pose)
+            self._obstacle = None if dark else self._widest_column(self.pose)
+            self._frame_id += 1
+            self._frame_t = t
+            return
         if any(a <= t < b for a, b in self.params.blackout):
             img = np.zeros((cam.height, cam.width, 3), dtype=np.uint8)
         else:
@@ -262,16 +317,15 @@ class QuadRoom(World):
     def observe(self) -> Observation:
         cam = self.robot.params.camera
         period = 1.0 / cam.rate_hz
-        if self._frame is None or self.t - self._frame_t >= period - 0.5 / self.physics_hz:
+        if self._frame_id < 0 or self.t - self._frame_t >= period - 0.5 / self.physics_hz:
             self._capture()
         events = tuple(self._events)
         self._events.clear()
-        sensors: dict[str, Any] = {
-            "image": self._frame,
-            "frame_id": self._frame_id,
-            "frame_t": self._frame_t,
-            "keyframes": self.keyframe_images,
-        }
+        sensors: dict[str, Any] = {"frame_id": self._frame_id, "frame_t": self._frame_t}
+        if self.params.perception == "geometric":
+            sensors.update(points=self._points, obstacle=self._obstacle, keyframe_points=self.keyframe_points)
+        else:
+            sensors.update(image=self._frame, keyframes=self.keyframe_images)
         return Observation(t=self.t, state={"nu": self.vel.copy()}, sensors=sensors, events=events)
 
     def apply(self, command: Command) -> None:
@@ -335,11 +389,18 @@ class QuadRoom(World):
         ``index``: a grid of keyframe pixels is back-projected with the keyframe's depth buffer and
         projected into the current camera; the mean displacement of those in front of the camera."""
         kf = self.params.keyframes[index]
+        cam = self.robot.params.camera
+        K = cam.K()
+        if self.params.perception == "geometric":  # the landmarks the keyframe sees, exact
+            Rk, tk = camera_pose_matrices(kf.pose, cam.R(), cam.t())
+            ids, uv_k = visible_landmarks(self.landmarks, self.columns, Rk, tk, K, (cam.width, cam.height))
+            R, t = camera_pose_matrices(self.pose if pose is None else pose, cam.R(), cam.t())
+            z, uv = project(self.landmarks[ids], R, t, K)
+            front = z > 0.05
+            return float(np.mean(np.linalg.norm(uv[front] - uv_k[front], axis=1))) if np.any(front) else math.nan
         depth = self.keyframe_depths[index] if index < len(self.keyframe_depths) else None
         if depth is None:
             return math.nan
-        cam = self.robot.params.camera
-        K = cam.K()
         us = np.linspace(0.05, 0.95, grid) * cam.width
         vs = np.linspace(0.05, 0.95, grid) * cam.height
         uu, vv = np.meshgrid(us, vs)
@@ -400,7 +461,7 @@ def teach(mission: Any, out_dir: str | Path | None = None, seed: int | None = No
     assert isinstance(params, QuadRoomParams)
     if not params.keyframes:
         raise ValueError(f"mission {m.name!r} has no keyframes to teach")
-    params = params.model_copy(update={"keyframe_dir": None})
+    params = params.model_copy(update={"keyframe_dir": None, "perception": "rendered"})  # teaching renders
     robot = m.build_robot()
     world = QuadRoom(robot, params, seed)
     out = Path(out_dir) if out_dir is not None else Path(m.file).resolve().parent / "keyframes" / m.name

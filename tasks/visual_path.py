@@ -9,7 +9,13 @@ mission iterates it over the path with ``foreach`` and switches keyframes on its
 * ``epsilon_margin`` (px): ``ε − T_ε`` with ``T_ε = t_eps_px`` for intermediate keyframes and
   ``t_eps_final_px`` for the last one (``imgChVerif``: switch when ``epsilon_margin < 0 px``);
 * ``epsilon_rising``: consecutive frames over which ε increased — counted only with feed-forward and
-  not on the last keyframe (Alg. 2's second switching rule: ``epsilon_rising >= 5``).
+  not on the last keyframe (Alg. 2's second switching rule: ``epsilon_rising >= 5``);
+* ``epsilon_progress`` (px): how much ε fell over the last ``progress_window_s`` (NaN until the
+  keyframe has been servoed that long).  Not in the paper: with feed-forward the blend (31) has an
+  equilibrium where ``p nu_e = −(1 − p) nu_p``, just past the keyframe; when the drone settles there
+  with ε above ``T_ε`` and flat (the along-path error growing as fast as the cross-path error
+  shrinks), neither of Alg. 2's rules fires and the drone hovers there.  A guard such as
+  ``epsilon_progress < 0.5 px`` ends that stall.
 
 Fewer than ``min_points`` matched or tracked points (the paper needs ≥ 16 for a well-conditioned
 homography) raise the ``features_lost`` event and command a hover; ``visual_path_rematch`` hovers and
@@ -43,7 +49,9 @@ Choices where the paper is silent or its reading would not work (each marked in 
 
 from __future__ import annotations
 
+import math
 import time
+from collections import deque
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -72,6 +80,7 @@ from tasks.homography import (
     mean_pixel_error,
     normalize_pixels,
     robot_velocity,
+    sort_points,
     task_error,
 )
 from tasks.visual_path_perception import (
@@ -179,6 +188,8 @@ class VisualPathParams(StrictModel):
     t_eps_px: float = Field(default=12.0, gt=0.0, le=1000.0, description="T_ε of intermediate keyframes (px)")
     t_eps_final_px: float = Field(default=7.0, gt=0.0, le=1000.0, description="T_ε of the last keyframe (px)")
     feedforward: bool = False
+    progress_window_s: float = Field(default=1.0, gt=0.0, le=60.0,
+                                     description="window of the epsilon_progress metric (s)")
     transition: bool | None = Field(default=None, description="apply h_t (eq. 28); default: when the path has > 1 keyframe")
     features: Literal["orb", "sift"] = "orb"
     n_features: int = Field(default=1000, ge=50, le=20000)
@@ -240,20 +251,44 @@ def segment_velocities(keyframes: tuple[NDArray[np.uint8], ...], K: NDArray[np.f
     """
     mem = memory if memory is not None else {}
     out = []
-    hg = gains.homography_gains()
     for k in range(len(keyframes) - 1):
         fa = _keyframe_features(mem, keyframes[k], k, kind, n_features)
         fb = _keyframe_features(mem, keyframes[k + 1], k + 1, kind, n_features)
         cur, kf = match_keyframe(fb, fa)  # (points in k, points in k+1)
-        if len(cur) < 8:
-            out.append(np.zeros(4))
-            continue
-        H, _ = estimate_homography(cur, kf, K)
-        m_star = normalize_pixels(kf[:3], K).mean(axis=0)
-        e = task_error(H, m_star)
-        lam = adaptive_gain(float(np.linalg.norm(e)), gains.lambda_0, gains.lambda_inf, gains.lambda_0_slope)
-        out.append(feedforward_velocity(e, gain_matrix(lam, hg), gamma, eTc))
+        out.append(_segment_velocity(cur, kf, K, eTc, gains, gamma))
     return out
+
+
+def segment_velocities_from_points(views: tuple[Any, ...], K: NDArray[np.float64], eTc: NDArray[np.float64],
+                                   gains: VisualGains, gamma: float) -> list[NDArray[np.float64]]:
+    """:func:`segment_velocities` for the geometric camera: keyframe ``k``'s and ``k+1``'s landmark
+    views (``.ids``, ``.uv``) correspond by id."""
+    out = []
+    for a, b in zip(views[:-1], views[1:]):
+        cur, kf, _ = _by_id(a, b)
+        if len(cur) >= 8:
+            order = sort_points(kf)
+            cur, kf = cur[order], kf[order]
+        out.append(_segment_velocity(cur, kf, K, eTc, gains, gamma))
+    return out
+
+
+def _segment_velocity(cur: NDArray[np.float64], kf: NDArray[np.float64], K: NDArray[np.float64],
+                      eTc: NDArray[np.float64], gains: VisualGains, gamma: float) -> NDArray[np.float64]:
+    """Eq. (32) for one segment from its correspondences (largest triangle first); 0 when < 8."""
+    if len(cur) < 8:
+        return np.zeros(4)
+    H, _ = estimate_homography(cur, kf, K)
+    m_star = normalize_pixels(kf[:3], K).mean(axis=0)
+    e = task_error(H, m_star)
+    lam = adaptive_gain(float(np.linalg.norm(e)), gains.lambda_0, gains.lambda_inf, gains.lambda_0_slope)
+    return feedforward_velocity(e, gain_matrix(lam, gains.homography_gains()), gamma, eTc)
+
+
+def _by_id(view: Any, kf: Any) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """Pixels of the landmarks seen in both ``view`` and ``kf`` (geometric camera), and their ids."""
+    ids, i, j = np.intersect1d(view.ids, kf.ids, assume_unique=True, return_indices=True)
+    return np.asarray(view.uv)[i], np.asarray(kf.uv)[j], ids
 
 
 # ---------------------------------------------------------------------------------------------
@@ -263,6 +298,7 @@ _METRICS = {
     "epsilon": "px",
     "epsilon_margin": "px",
     "epsilon_rising": "",
+    "epsilon_progress": "px",
     "task_error": "",
     "e_a": "",
     "e_m": "",
@@ -319,6 +355,7 @@ class ServoLaw:
         self.nu_p = np.zeros(4) if nu_p is None else np.asarray(nu_p, dtype=np.float64)
         self.last_eps: float | None = None
         self.rising = 0
+        self.eps_history: deque[tuple[float, float]] = deque()
         self.J_a_last: NDArray[np.float64] | None = None
 
     def __call__(self, t: float, cur_px: NDArray, kf_px: NDArray, obstacle: ObstacleDetection | None,
@@ -371,11 +408,13 @@ class ServoLaw:
         else:
             self.rising = 0
         self.last_eps = eps
+        progress = self._progress(t, eps)
         t_eps = p.t_eps_final_px if p.is_last else p.t_eps_px
         metrics = {
             "epsilon": eps,
             "epsilon_margin": eps - t_eps,
             "epsilon_rising": float(self.rising if (p.feedforward and not p.is_last) else 0),
+            "epsilon_progress": progress,
             "task_error": norm_e,
             "e_a": e_a,
             "e_m": float(np.linalg.norm(e_m)),
@@ -388,6 +427,16 @@ class ServoLaw:
             "obstacle": 1.0 if obstacle is not None else 0.0,
         }
         return nu_e, metrics
+
+    def _progress(self, t: float, eps: float) -> float:
+        """ε a window ago minus ε now (px); NaN until the window has been observed."""
+        hist, window = self.eps_history, self.p.progress_window_s
+        hist.append((t, eps))
+        edge = t - window + 1e-9  # sample times are sums of float periods
+        while len(hist) > 1 and hist[1][0] <= edge:
+            hist.popleft()
+        t0, eps0 = hist[0]
+        return eps0 - eps if t0 <= edge else math.nan
 
 
 @register_task("visual_path_servo")
@@ -421,6 +470,8 @@ class VisualPathServo(Task):
         self.last_frame = -1
         self.command = np.zeros(4)
         self.metrics_out: dict[str, float] = {}
+        self.plane_ids: NDArray[np.int64] | None = None  # geometric camera: landmarks of the plane of H
+        self.tri_ids: NDArray[np.int64] | None = None  # … and those of the largest triangle
 
     def _kf_grey(self, obs: Observation) -> NDArray[np.uint8]:
         cache = self.ctx.memory.setdefault("visual_path.keyframe_grey", {})
@@ -437,12 +488,18 @@ class VisualPathServo(Task):
         if not self.p.feedforward or self.p.is_last:
             return np.zeros(4)
         mem = self.ctx.memory
-        key = ("visual_path.feedforward", self.p.features, self.p.n_features, self.path_gains.gamma, self.visual)
+        geometric = "keyframe_points" in obs.sensors
+        key = ("visual_path.feedforward", "points" if geometric else self.p.features, self.p.n_features,
+               self.path_gains.gamma, self.visual)
         table = mem.get(key)
         if table is None:
-            kfs = tuple(obs.sensors.get("keyframes", ()))
-            table = segment_velocities(kfs, self.K, self.eTc, self.visual, self.path_gains.gamma, self.p.features,
-                                       self.p.n_features, mem)
+            if geometric:
+                table = segment_velocities_from_points(tuple(obs.sensors["keyframe_points"]), self.K, self.eTc,
+                                                       self.visual, self.path_gains.gamma)
+            else:
+                kfs = tuple(obs.sensors.get("keyframes", ()))
+                table = segment_velocities(kfs, self.K, self.eTc, self.visual, self.path_gains.gamma, self.p.features,
+                                           self.p.n_features, mem)
             mem[key] = table
         k = self.p.keyframe.id
         return table[k] if k < len(table) else np.zeros(4)
@@ -452,6 +509,8 @@ class VisualPathServo(Task):
         if fid == self.last_frame:  # no new image: hold the command (zero-order hold)
             return StepResult({"nu": self.command.copy()}, dict(self.metrics_out))
         self.last_frame = fid
+        if "points" in obs.sensors:
+            return self._step_points(obs)
         tic = time.perf_counter()
         image = obs.sensors["image"]
         grey = to_grey(image)
@@ -486,14 +545,72 @@ class VisualPathServo(Task):
             return self._hover(("features_lost",))
         hier = self.hier
         obstacle = obstacle_edges(image, hier.hsv_low, hier.hsv_high, hier.min_obstacle_px) if hier.collision else None
+        return self._control(obs, tic, tr.cur, tr.kf, obstacle, H)
+
+    def _step_points(self, obs: Observation) -> StepResult:
+        """One frame of the geometric camera: correspondences by landmark id instead of ORB + LK.
+
+        As with tracked points, the first frame keeps the RANSAC inliers of one plane and later frames
+        drop the points that stop fitting it; the largest triangle's landmarks stay first."""
+        tic = time.perf_counter()
+        p = self.p
+        kf_views = obs.sensors.get("keyframe_points", ())
+        if p.keyframe.id >= len(kf_views):
+            raise RuntimeError(f"keyframe {p.keyframe.id} has no view: the world provides {len(kf_views)}")
+        cur, kfp, ids = _by_id(obs.sensors["points"], kf_views[p.keyframe.id])
+        if self.plane_ids is not None:
+            keep = np.isin(ids, self.plane_ids, assume_unique=True)
+            cur, kfp, ids = cur[keep], kfp[keep], ids[keep]
+        if len(ids) < p.min_points:
+            self.metrics_out.update(n_points=float(len(ids)), keyframe=float(p.keyframe.id))
+            return self._hover(("features_lost",))
+        try:
+            H, fits = estimate_homography(cur, kfp, self.K, p.homography, p.plane_px)
+        except ValueError:
+            return self._hover(("features_lost",))
+        if self.plane_ids is None or (not fits.all() and fits.sum() >= p.min_points):
+            cur, kfp, ids = cur[fits], kfp[fits], ids[fits]
+            self.plane_ids = ids
+        if self.tri_ids is None or not np.isin(self.tri_ids, ids).all():
+            self.tri_ids = ids[sort_points(kfp)[:3]]
+        first = np.concatenate([np.flatnonzero(ids == t) for t in self.tri_ids])
+        order = np.concatenate((first, np.setdiff1d(np.arange(len(ids)), first, assume_unique=True)))
+        cur, kfp = cur[order], kfp[order]
+        if self.law is None:
+            self.law = ServoLaw(self.K, self.eTc, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
+                                self._feedforward(obs))
+        obstacle = _silhouette(obs.sensors.get("obstacle"), self.size, self.hier.min_obstacle_px) \
+            if self.hier.collision else None
+        return self._control(obs, tic, cur, kfp, obstacle, H)
+
+    def _control(self, obs: Observation, tic: float, cur: NDArray[np.float64], kf: NDArray[np.float64],
+                 obstacle: ObstacleDetection | None, H: NDArray[np.float64]) -> StepResult:
+        """The law on this frame's correspondences; perception time counted from ``tic``."""
+        if self.law is None:
+            raise RuntimeError("visual_path_servo: no law before the first match (internal error)")
         tic2 = time.perf_counter()
-        nu_e, metrics = self.law(obs.t, tr.cur, tr.kf, obstacle, H)
+        nu_e, metrics = self.law(obs.t, cur, kf, obstacle, H)
         toc = time.perf_counter()
         self.command = nu_e
         metrics["perception_time"] = tic2 - tic
         metrics["control_time"] = toc - tic2
         self.metrics_out = metrics
         return StepResult({"nu": nu_e.copy()}, dict(metrics))
+
+
+def _silhouette(edges: tuple[float, float, bool] | None, size: tuple[int, int], min_area: int) -> ObstacleDetection | None:
+    """The geometric camera's column silhouette ``(u_left, u_right, touches_border)`` as the
+    detection :func:`obstacle_edges` makes from pixels (a full-height blob)."""
+    if edges is None:
+        return None
+    u0, u1, border = edges
+    w, h = size
+    area = int(round((u1 - u0) * h))
+    if area < min_area:
+        return None
+    vm = 0.5 * (h - 1)
+    bbox = (max(0, int(math.ceil(u0 + 0.5))), 0, min(w - 1, int(math.floor(u1 - 0.5))), h - 1)
+    return ObstacleDetection(bbox, (u0, vm), (u1, vm), area, bool(border))
 
 
 @register_task("visual_path_rematch")
@@ -523,10 +640,15 @@ class VisualPathRematch(Task):
         if fid != self.last_frame:
             self.last_frame = fid
             p = self.p
-            kf = _keyframe_features(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, p.features,
-                                    p.n_features)
-            cur, _ = match_keyframe(kf, detect(self.detector, to_grey(obs.sensors["image"]), p.features))
-            self.n = len(cur)
+            if "points" in obs.sensors:  # geometric camera: the landmarks seen in both
+                cur, kfp, _ = _by_id(obs.sensors["points"], obs.sensors["keyframe_points"][p.keyframe.id])
+                self.n = int(estimate_homography(cur, kfp, _robot_params(self.ctx).camera.K())[1].sum()) \
+                    if len(cur) >= 8 else len(cur)
+            else:
+                kf = _keyframe_features(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id,
+                                        p.features, p.n_features)
+                cur, _ = match_keyframe(kf, detect(self.detector, to_grey(obs.sensors["image"]), p.features))
+                self.n = len(cur)
             if self.n >= p.min_points:
                 events = ("features_found",)
         return StepResult({"nu": np.zeros(4)}, {"n_points": float(self.n), "keyframe": float(self.p.keyframe.id)},

@@ -89,3 +89,37 @@ def test_gains_out_of_range_are_refused_at_load_time():
         load_mission(POSE_REG, overrides=["profiles.visual.paper.lambda_inf=5.0"])
     with pytest.raises(MissionError, match="sigma"):
         load_mission(POSE_REG, overrides=["profiles.hierarchy.paper.sigma=-0.05"])
+
+
+# ---------------------------------------------------------------------------------------------
+# the same missions with the geometric (fast) camera: landmarks projected, no rendering
+
+GEOMETRIC = "world.params.perception=geometric"
+OVAL = MISSIONS / "visual_path_oval.yaml"
+
+
+def test_geometric_pose_regulation_reaches_the_keyframe():
+    r = run(POSE_REG, GEOMETRIC)
+    assert_outcome(r, "succeeded")
+    m = r.summary["metrics"]
+    assert m["final_epsilon_px"] < 6.0 and m["final_position_error_m"] <= 0.05
+    assert m["collisions"] == 0 and m["min_obstacle_clearance_m"] > 0.0
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_geometric_two_obstacle_path_avoids_both_columns_and_needs_the_collision_task(seed):
+    r = run(OBSTACLES, GEOMETRIC, seed=seed)
+    assert_outcome(r, "succeeded")
+    assert r.summary["metrics"]["collisions"] == 0 and r.summary["metrics"]["min_obstacle_clearance_m"] > 0.0
+    off = run(OBSTACLES, GEOMETRIC, "profiles.hierarchy.paper.collision=false", seed=seed)
+    assert off.summary["final_state"] == "crashed" and off.summary["metrics"]["collisions"] >= 1
+
+
+def test_geometric_oval_without_feedforward_closes_the_loop():
+    """§5.3 without feed-forward: 30 keyframes around the oval, back to the start (ground truth)."""
+    r = run(OVAL, GEOMETRIC)
+    assert_outcome(r, "succeeded")
+    m = r.summary["metrics"]
+    assert len(r.summary["iterations"]) == 30
+    assert m["collisions"] == 0 and m["path_length_m"] > 7.0
+    assert m["final_position_error_m"] <= 0.10 and m["final_yaw_error_deg"] < 3.0

@@ -128,3 +128,68 @@ def test_missing_or_unreadable_keyframes_fail_at_load_time(tmp_path):
                      overrides=[f"world.params.keyframe_dir={tmp_path / 'nowhere'}"])
     with pytest.raises(ValidationError, match="ids"):
         QuadRoomParams(keyframes=[{"id": 1, "pose": [0, 0, 1, 0]}])
+
+
+# ---------------------------------------------------------------------------------------------
+# geometric (fast) camera, checked against the rendered one
+
+
+@pytest.fixture(scope="module")
+def geo_world():
+    w = make_world(obstacles=[{"x": 2.0, "y": 0.3, "width": 0.25}, {"x": 2.2, "y": -0.6, "width": 0.3, "depth": 0.2,
+                                                                    "yaw": 0.4}],
+                   perception="geometric", pixel_noise=0.0)
+    yield w
+    w.close()
+
+
+@pytest.mark.parametrize("pose", [(0.0, 0.0, 1.0, 0.0), (0.5, -0.4, 1.2, 0.35), (1.2, 0.2, 0.8, -0.5)])
+def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, pose):
+    """Every landmark the geometric camera reports is on the surface PyBullet renders at its pixel
+    (rendered depth = landmark depth): projection, intrinsics and column occlusion agree."""
+    from sim.room_landmarks import project
+    from sim.room_world import camera_pose_matrices
+
+    cam = geo_world.robot.params.camera
+    geo_world.pose[:] = pose
+    view = geo_world._point_view(pose)
+    assert len(view) > 50
+    _, depth = geo_world._require_scene().render_with_depth(pose)
+    R, t = camera_pose_matrices(pose, cam.R(), cam.t())
+    z, uv = project(geo_world.landmarks[view.ids], R, t, cam.K())
+    assert np.allclose(uv, view.uv)
+    px = np.round(uv).astype(int)
+    rendered = depth[px[:, 1], px[:, 0]]
+    # a pixel's depth is exact up to the texture's slope over half a pixel; occluded ones would be far off
+    assert np.median(np.abs(rendered - z) / z) < 0.01 and np.mean(np.abs(rendered - z) / z < 0.05) > 0.97
+
+
+def test_geometric_column_silhouette_matches_the_segmented_image(geo_world):
+    from tasks.visual_path_perception import obstacle_edges
+
+    for pose in [(0.0, 0.0, 1.0, 0.0), (0.6, 0.2, 1.0, 0.15), (0.8, -0.3, 1.0, -0.25)]:
+        rgb = geo_world._require_scene().render(pose)
+        det = obstacle_edges(rgb)
+        geo = geo_world._widest_column(pose)
+        assert det is not None and geo is not None
+        assert abs(geo[0] - det.p1[0]) <= 1.5 and abs(geo[1] - det.p2[0]) <= 1.5, (pose, geo, det)
+        assert geo[2] == det.touches_border
+    assert geo_world._widest_column((0.0, 0.0, 1.0, math.pi)) is None  # columns behind the camera
+
+
+def test_geometric_observations_carry_points_and_no_image(geo_world):
+    geo_world.pose[:] = (0.0, 0.0, 1.0, 0.0)
+    geo_world.advance(0.04)
+    o = geo_world.observe()
+    assert "image" not in o.sensors and "keyframes" not in o.sensors
+    assert len(o.sensors["points"]) > 50 and len(o.sensors["keyframe_points"]) == 2
+    assert o.sensors["obstacle"] is not None
+    assert geo_world.epsilon_to_keyframe(1, pose=KF[1]["pose"]) == pytest.approx(0.0, abs=1e-9)
+    assert geo_world.epsilon_to_keyframe(1, pose=[1.4, 0.3, 0.8, 0.3]) > 2.0
+
+
+def test_geometric_mode_refuses_keyframe_images(tmp_path):
+    teach(POSE_REG, out_dir=tmp_path / "kf")
+    with pytest.raises(ValidationError, match="geometric"):
+        QuadRoomParams(keyframes=[{"id": 0, "pose": [1.5, 0.0, 0.5, 0.0]}], keyframe_dir=str(tmp_path / "kf"),
+                       perception="geometric")

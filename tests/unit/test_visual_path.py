@@ -27,6 +27,7 @@ from tasks.visual_path import (
     VisualGains,
     VisualPathParams,
     segment_velocities,
+    segment_velocities_from_points,
 )
 from tasks.visual_path_perception import (
     PointTracker,
@@ -176,6 +177,53 @@ def test_servo_law_regulates_a_quadcopter_with_exact_points():
     assert metrics["epsilon"] < 0.5
     assert np.linalg.norm(pose[:3] - key[:3]) < 0.01 and abs(pose[3]) < math.radians(0.5)
     assert metrics["h_a"] == 0.0 and metrics["h_t"] == 1.0  # a single keyframe: no h_t (Alg. 1, n = 1)
+
+
+def test_epsilon_progress_is_the_drop_of_epsilon_over_its_window():
+    """``epsilon_progress``: NaN until a window has passed, then ε a window ago minus ε now; flat ε
+    gives 0 (the feed-forward stall a mission can end with it)."""
+    rob = Quadcopter(QuadcopterParams())
+    kf = np.random.default_rng(1).uniform([20, 20], [300, 220], (40, 2))
+    params = VisualPathParams(keyframe=KeyframeRef(id=0), progress_window_s=1.0)
+    law = ServoLaw(K, rob.eTc(), (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
+    out = []
+    for i in range(100):
+        t = i * 0.04
+        shift = max(10.0 - 4.0 * t, 2.0)  # ε falls 4 px/s for 2 s, then stays at 2 px
+        _, m = law(t, kf + [shift, 0.0], kf, None, H=np.eye(3))
+        out.append((t, m["epsilon"], m["epsilon_progress"]))
+    assert all(math.isnan(p) for t, _, p in out if t < 1.0 - 1e-9)
+    for t, eps, p in out:
+        if 1.0 - 1e-9 <= t <= 2.0 + 1e-9:
+            assert p == pytest.approx(4.0, abs=1e-6)  # 4 px over the last second
+        if t >= 3.0:
+            assert eps == pytest.approx(2.0) and p == pytest.approx(0.0, abs=1e-9)
+
+
+def test_segment_velocities_from_landmark_views_point_along_the_path():
+    """Feed-forward (eq. 32) from the geometric camera's keyframe views (correspondence by id):
+    keyframes 0.3 m apart straight ahead give a forward ``nu_p``; a yawed keyframe a turn."""
+    from types import SimpleNamespace
+
+    rob = Quadcopter(QuadcopterParams())
+    cam = rob.params.camera
+    Kc = cam.K()
+    X = np.column_stack((np.full(400, 3.0), np.random.default_rng(2).uniform(-2, 2, 400),
+                         np.random.default_rng(3).uniform(0, 2.5, 400)))
+
+    def view(x, yaw):
+        c, s = math.cos(yaw), math.sin(yaw)
+        Rb = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+        R, t = Rb @ cam.R(), np.array([x, 0.0, 1.0]) + Rb @ cam.t()
+        Xc = (X - t) @ R
+        uv = Xc[:, :2] / Xc[:, 2:3] * [Kc[0, 0], Kc[1, 1]] + [Kc[0, 2], Kc[1, 2]]
+        ok = np.flatnonzero((uv[:, 0] > 0) & (uv[:, 0] < 319) & (uv[:, 1] > 0) & (uv[:, 1] < 239))
+        return SimpleNamespace(ids=ok, uv=uv[ok])
+
+    nus = segment_velocities_from_points((view(0.0, 0.0), view(0.3, 0.0), view(0.3, 0.25)), Kc, rob.eTc(),
+                                         VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
+    assert nus[0][0] > 0.02 and abs(nus[0][1]) < 0.2 * nus[0][0] and abs(nus[0][3]) < 0.01
+    assert nus[1][3] > 0.02  # yaw left (+z)
 
 
 # ---------------------------------------------------------------------------------------------
