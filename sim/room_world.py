@@ -13,6 +13,9 @@ keyframe images of the visual path; no pose ever enters an observation.
 * **Collisions.**  The iris body's collision shapes against the obstacles and the room's slabs
   (walls, floor, ceiling) with ``getClosestPoints`` after every control step: a ``collision`` event
   when a contact starts, and ``collisions``, ``min_clearance_m`` … in the summary.
+* **Path following accuracy.**  After every step the horizontal distance from the drone to the taught
+  path (the polyline start → keyframe 0 → … → last keyframe) is measured; the summary has its maximum
+  and mean (``path_deviation_max_m``, ``path_deviation_mean_m``) next to the flown ``path_length_m``.
 * **Camera faults.**  ``blackout`` intervals return black frames (lost video or occlusion) so missions
   can exercise their lost-features handling.
 * **Perception modes.**  ``perception: rendered`` (default, the faithful pipeline) puts the rendered
@@ -202,6 +205,7 @@ class QuadRoom(World):
         self.min_wall_clearance = math.inf
         self._clear = (math.inf, math.inf)
         self.path_length = 0.0
+        self._dev_sum, self._dev_n, self.max_path_deviation = 0.0, 0, 0.0
         self.keyframe_images: tuple[NDArray[np.uint8], ...] = ()
         self.keyframe_depths: list[NDArray[np.float64] | None] = []
         self.keyframe_points: tuple[PointView, ...] = ()
@@ -357,9 +361,32 @@ class QuadRoom(World):
             yaw = math.remainder(yaw + h * vel[3], 2.0 * math.pi)
         self.path_length += math.dist((x0, y0, z0), (x, y, z))
         self.pose[:] = (x, y, z, yaw)
+        self._track_path_deviation()
         self._steps += n
         self._require_scene().set_drone_pose(x, y, z, yaw)
         self._check_contacts()
+
+    def _taught_polyline(self) -> NDArray[np.float64]:
+        wp = self.params
+        return np.array([wp.start[:2]] + [k.pose[:2] for k in wp.keyframes], dtype=np.float64)
+
+    def path_deviation(self, xy: Sequence[float] | None = None) -> float:
+        """Horizontal distance (m) from ``xy`` (default: the drone) to the taught path polyline."""
+        poly = self._taught_polyline()
+        q = np.asarray(self.pose[:2] if xy is None else xy, dtype=np.float64)
+        if len(poly) < 2:
+            return float(np.linalg.norm(q - poly[0]))
+        a, ab = poly[:-1], np.diff(poly, axis=0)
+        s = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
+        return float(np.min(np.linalg.norm(a + s[:, None] * ab - q, axis=1)))
+
+    def _track_path_deviation(self) -> None:
+        if not self.params.keyframes:
+            return
+        d = self.path_deviation()
+        self.max_path_deviation = max(self.max_path_deviation, d)
+        self._dev_sum += d
+        self._dev_n += 1
 
     def _check_contacts(self) -> None:
         obst, wall = self._require_scene().clearances()
@@ -440,6 +467,8 @@ class QuadRoom(World):
             out["final_position_error_m"] = float(math.dist((x, y, z), last[:3]))
             out["final_yaw_error_deg"] = math.degrees(abs(math.remainder(yaw - last[3], 2.0 * math.pi)))
             out["final_epsilon_px"] = self.epsilon_to_keyframe(len(self.params.keyframes) - 1)
+            out["path_deviation_max_m"] = self.max_path_deviation
+            out["path_deviation_mean_m"] = self._dev_sum / self._dev_n if self._dev_n else 0.0
         return out
 
 

@@ -23,7 +23,10 @@ re-matches until it raises ``features_found``.
 
 Only images are used: the current frame (``obs.sensors["image"]``) and the keyframe images
 (``obs.sensors["keyframes"]``); the keyframe poses in the parameters are ground truth for the world's
-summary and are never read here.
+summary and are never read here.  With the world's geometric camera (``obs.sensors["points"]`` and
+``["keyframe_points"]``: landmark ids and noisy pixels, ``["obstacle"]``: a column's silhouette) the
+correspondences come by landmark id instead of ORB matching and LK tracking; everything from the
+homography on is the same code.
 
 Feed-forward (Alg. 2, lines 2–15): the velocity ``nu_p`` of each segment ``k → k+1`` is computed once
 per run from the keyframe images (kept in the mission memory) and applied while servoing toward

@@ -193,3 +193,21 @@ def test_geometric_mode_refuses_keyframe_images(tmp_path):
     with pytest.raises(ValidationError, match="geometric"):
         QuadRoomParams(keyframes=[{"id": 0, "pose": [1.5, 0.0, 0.5, 0.0]}], keyframe_dir=str(tmp_path / "kf"),
                        perception="geometric")
+
+
+def test_path_deviation_is_the_distance_to_the_taught_polyline():
+    w = make_world(start=(0.0, 0.0, 1.0, 0.0))  # path (0,0) → (1,0) → (1.5,0.3)
+    try:
+        assert w.path_deviation((0.5, 0.2)) == pytest.approx(0.2)
+        assert w.path_deviation((-0.3, 0.4)) == pytest.approx(0.5)  # beyond the start: to the start point
+        assert w.path_deviation((1.25, 0.15)) == pytest.approx(0.0, abs=1e-12)  # on the second segment
+        w.pose[:] = (0.0, 0.0, 1.0, math.pi / 2)
+        w.vel[:] = 0.0
+        w.apply({"nu": np.array([0.3, 0.0, 0.0, 0.0])})  # sideways off the path, 0.3 m/s for 1 s
+        for _ in range(25):
+            w.advance(0.04)
+        s = w.summary_metrics()
+        assert s["path_deviation_max_m"] == pytest.approx(w.pose[1], rel=1e-9) and 0.2 < w.pose[1] < 0.3
+        assert 0.0 < s["path_deviation_mean_m"] < s["path_deviation_max_m"]
+    finally:
+        w.close()
