@@ -119,7 +119,7 @@ class CompiledMission:
     def world_params(self, seed: int) -> BaseModel:
         """World parameters with every distribution drawn from ``seed``."""
         drawn = sample(self.world_params_raw, world_rng(seed))
-        return self.world_cls.Params.model_validate(drawn)
+        return self.world_cls.Params.model_validate(with_model_defaults(self.world_cls.Params, drawn))
 
     def build_robot(self) -> Robot:
         return self.robot_cls(self.robot_params)
@@ -147,6 +147,23 @@ def load_mission(path: str | Path, overrides: list[str] | None = None) -> Compil
 def load_mission_text(text: str, file: str = "<string>", overrides: list[str] | None = None) -> CompiledMission:
     data, smap = load_yaml_text(text, file)
     return compile_mission(data, smap, overrides)
+
+
+def with_model_defaults(model: type[BaseModel], values: Any) -> Any:
+    """``values`` with every partial mapping given for a field whose default is a model completed
+    from that default, recursively: ``front_camera: {width: 640}`` (or ``--set
+    robot.params.front_camera.width=640``) changes one field of the default camera instead of
+    replacing the camera by one with only a width."""
+    if not isinstance(values, dict):
+        return values
+    out = dict(values)
+    for name, field in model.model_fields.items():
+        key = field.alias if field.alias is not None and field.alias in out else name
+        default = field.default
+        if key in out and isinstance(out[key], dict) and isinstance(default, BaseModel):
+            sub = type(default)
+            out[key] = {**default.model_dump(by_alias=True), **with_model_defaults(sub, out[key])}
+    return out
 
 
 def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap | None = None) -> Any:
@@ -346,7 +363,7 @@ class _Compiler:
 
     def _validate_model(self, model: type[BaseModel], values: Any, path: YPath) -> BaseModel | None:
         try:
-            return model.model_validate(values)
+            return model.model_validate(with_model_defaults(model, values))
         except ValidationError as exc:
             self.problems.extend(_pydantic_problems(exc, self.smap, path, model))
         except (TypeError, ValueError) as exc:

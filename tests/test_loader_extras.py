@@ -46,3 +46,20 @@ def test_tasks_get_the_control_period():
 
     run_mission(m, task_factory=factory, record=False, max_time=3.0)
     assert seen and all(dt == pytest.approx(1 / 40) for dt in seen)
+
+
+def test_a_partial_mapping_changes_one_field_of_a_default_sub_model():
+    """``front_camera.width`` alone keeps the default mount (pose, rate): the sub-model is completed
+    from the field's default, not rebuilt from the width alone (which has no pose and was refused)."""
+    import robots.racecar  # noqa: F401 - registration
+    from robots.racecar import RacecarParams
+
+    viki = Path(__file__).resolve().parents[1] / "missions" / "viki_hyco.yaml"
+    m = load_mission(viki, overrides=["robot.params.front_camera.width=320"])
+    default = RacecarParams().front_camera
+    cam = m.robot_params.front_camera
+    assert cam.width == 320 and default.width != 320
+    assert cam.model_dump(exclude={"width"}) == default.model_dump(exclude={"width"})
+    assert m.robot_params.rear_camera == RacecarParams().rear_camera
+    with pytest.raises(MissionError, match="front_camera.width"):
+        load_mission(viki, overrides=["robot.params.front_camera.width=-3"])
