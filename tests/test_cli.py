@@ -258,3 +258,17 @@ def test_batch_broken_mission_fails_fast(tmp_path: Path, capsys: pytest.CaptureF
     out, err = capsys.readouterr()
     _no_traceback(out, err)
     assert "unknown world 'toy_lines'" in err and not out_dir.exists()
+
+
+def test_validate_in_a_fresh_process_prints_only_its_answer() -> None:
+    """pybullet's import banner ("pybullet build time: …", on stderr) is muted by ``sim``; the answer
+    is one line on stdout and nothing on stderr."""
+    import subprocess
+    import sys
+
+    root = HERE.parent
+    r = subprocess.run([sys.executable, "-m", "taskflow.cli", "validate", "missions/viki_hyco.yaml"], cwd=root,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip().splitlines() == [r.stdout.strip()] and r.stdout.startswith("missions/viki_hyco.yaml: ok")
+    assert r.stderr == ""
