@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 import robots.quadcopter  # noqa: F401 - registration
 import sim.room_world  # noqa: F401
 import tasks.visual_path  # noqa: F401
+from taskflow.batch import run_batch
 from taskflow.loader import load_mission
 from taskflow.records import read_trace
 from taskflow.runtime import run_mission
@@ -130,11 +131,8 @@ def print_table(results: list[dict]) -> None:
         print(f"\n== {r['experiment']} ({r['outcome']}) — ours | paper")
         for label, key in rows:
             print(f"  {label:36s} {fmt(r.get(key)):>10s} | {fmt(r['paper'].get(key)):>8s}")
-    ff = {r["experiment"]: r for r in results}
-    for name in ("oval_feedforward", "oval_feedforward_tuned"):
-        if "oval" in ff and name in ff:
-            ratio = ff[name]["path_time_s"] / ff["oval"]["path_time_s"]
-            print(f"\n{name} takes {100 * ratio:.1f} % of the time of oval (paper: 25 %, target <= 30 %)")
+    for name, ratio in time_ratios({r["experiment"]: r["path_time_s"] for r in results}).items():
+        print(f"\n{name} takes {100 * ratio:.1f} % of the time of oval (paper: 25 %, target <= 30 %)")
 
 
 def plots(results: list[dict], out: Path, fig_dir: Path) -> list[Path]:
@@ -208,24 +206,33 @@ def plots(results: list[dict], out: Path, fig_dir: Path) -> list[Path]:
     return written
 
 
+def time_ratios(path_times: dict[str, float]) -> dict[str, float]:
+    """Path time of each feed-forward oval over the oval's without feed-forward (the paper's 25 %)."""
+    return {name: path_times[name] / path_times["oval"] for name in ("oval_feedforward", "oval_feedforward_tuned")
+            if "oval" in path_times and name in path_times}
+
+
 def batch(names: list[str], out: Path, perception: str, seeds: int, overrides: list[str]) -> dict:
-    """Every experiment over ``seeds`` seeds: success rate, time and final error of the successes."""
+    """Every experiment over seeds 0 … ``seeds`` − 1 (:func:`taskflow.batch.run_batch`, one process per
+    core): success rate, time and final error of the successes."""
     rows = {}
     for name in names:
-        runs = [run_experiment(name, out / f"seed{s}", [f"world.params.perception={perception}", *overrides], s)
-                for s in range(seeds)]
-        ok = [r for r in runs if r["completed"]]
+        res = run_batch(str(ROOT / "missions" / EXPERIMENTS[name][0]), trials=seeds, seed=0, out=out / name,
+                        overrides=[f"world.params.perception={perception}", *overrides])
+        trials = res["trials"]
+        ok = [s for s in trials if s["outcome"] == "succeeded"]
 
-        def stat(key: str, rs: list[dict] = ok) -> tuple[float, float]:
-            v = np.array([r[key] for r in rs if r[key] is not None], dtype=float)
+        def stat(values: list) -> tuple[float, float]:
+            v = np.array([x for x in values if x is not None], dtype=float)
             return (float(v.mean()), float(v.std())) if len(v) else (math.nan, math.nan)
 
-        rows[name] = {"runs": len(runs), "succeeded": len(ok), "path_time_s": stat("path_time_s"),
-                      "final_position_error_m": stat("final_position_error_m"),
-                      "path_deviation_max_m": stat("path_deviation_max_m"),
-                      "collisions_max": max(int(r["collisions"] or 0) for r in runs),
-                      "wall_s_per_run": float(np.mean([r["wall_s"] for r in runs])),
-                      "failures": [(i, r["outcome"], r["path_time_s"]) for i, r in enumerate(runs) if not r["completed"]],
+        rows[name] = {"runs": len(trials), "succeeded": len(ok), "path_time_s": stat([s["sim_time_s"] for s in ok]),
+                      "final_position_error_m": stat([s["metrics"].get("final_position_error_m") for s in ok]),
+                      "path_deviation_max_m": stat([s["metrics"].get("path_deviation_max_m") for s in ok]),
+                      "collisions_max": max(int(s["metrics"].get("collisions") or 0) for s in trials),
+                      "wall_s_per_run": res["per_trial_wall_s"],
+                      "failures": [(i, s["outcome"], s["sim_time_s"]) for i, s in enumerate(trials)
+                                   if s["outcome"] != "succeeded"],
                       "paper_time_s": EXPERIMENTS[name][1]["path_time_s"]}
     print(f"\n{perception} camera, {seeds} seeds — success, path time and final error of the successes (mean ± sd)")
     for name, r in rows.items():
@@ -233,10 +240,8 @@ def batch(names: list[str], out: Path, perception: str, seeds: int, overrides: l
         print(f"  {name:22s} {r['succeeded']:2d}/{r['runs']:<2d}  time {t[0]:6.1f} ± {t[1]:4.1f} s (paper {r['paper_time_s']:g})"
               f"  final error {100 * e[0]:4.1f} ± {100 * e[1]:3.1f} cm  max path deviation {100 * dv[0]:4.0f} cm"
               f"  max collisions {r['collisions_max']}  wall {r['wall_s_per_run']:.1f} s/run")
-    for name in ("oval_feedforward", "oval_feedforward_tuned"):
-        if "oval" in rows and name in rows:
-            ratio = rows[name]["path_time_s"][0] / rows["oval"]["path_time_s"][0]
-            print(f"  {name} / oval (successful runs): {100 * ratio:.1f} % (paper 25 %, target <= 30 %)")
+    for name, ratio in time_ratios({n: r["path_time_s"][0] for n, r in rows.items()}).items():
+        print(f"  {name} / oval (successful runs): {100 * ratio:.1f} % (paper 25 %, target <= 30 %)")
     return rows
 
 
@@ -266,10 +271,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"figure: {f}")
     summary = {"benchmark": "visual_path", "runs": out.as_posix(),
                "results": [{k: v for k, v in r.items() if k != "paper"} for r in results]}
-    ff = {r["experiment"]: r for r in results}
-    for name in ("oval_feedforward", "oval_feedforward_tuned"):
-        if "oval" in ff and name in ff:
-            summary[f"{name}_time_ratio"] = ff[name]["path_time_s"] / ff["oval"]["path_time_s"]
+    for name, ratio in time_ratios({r["experiment"]: r["path_time_s"] for r in results}).items():
+        summary[f"{name}_time_ratio"] = ratio
     print(json.dumps(summary, default=lambda o: None if isinstance(o, float) and math.isnan(o) else o))
     return 0
 

@@ -187,6 +187,7 @@ class QuadRoom(World):
         self._rng = np.random.default_rng(seed)
         self.columns: list[Column] = []
         self.landmarks = np.zeros((0, 3))
+        self.taught_path = np.array([params.start[:2]] + [k.pose[:2] for k in params.keyframes], dtype=np.float64)
         self._init_state()
 
     def _init_state(self) -> None:
@@ -274,11 +275,16 @@ class QuadRoom(World):
         return self._steps / self.physics_hz
 
     # --- the loop ------------------------------------------------------------------------------
-    def _point_view(self, pose: Sequence[float]) -> PointView:
-        """Landmarks seen from ``pose`` with this frame's pixel noise (geometric mode)."""
+    def _camera_at(self, pose: Sequence[float]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                                          tuple[int, int]]:
+        """World ← optical rotation, camera position, intrinsics and image size at ``pose``."""
         cam = self.robot.params.camera
         R, t = camera_pose_matrices(pose, cam.R(), cam.t())
-        ids, uv = visible_landmarks(self.landmarks, self.columns, R, t, cam.K(), (cam.width, cam.height))
+        return R, t, cam.K(), (cam.width, cam.height)
+
+    def _point_view(self, pose: Sequence[float]) -> PointView:
+        """Landmarks seen from ``pose`` with this frame's pixel noise (geometric mode)."""
+        ids, uv = visible_landmarks(self.landmarks, self.columns, *self._camera_at(pose))
         if self.params.pixel_noise > 0.0:
             uv = uv + self._rng.normal(0.0, self.params.pixel_noise, uv.shape)
         uv.setflags(write=False)
@@ -286,11 +292,10 @@ class QuadRoom(World):
         return PointView(ids, uv)
 
     def _widest_column(self, pose: Sequence[float]) -> tuple[float, float, bool] | None:
-        cam = self.robot.params.camera
-        R, t = camera_pose_matrices(pose, cam.R(), cam.t())
+        view = self._camera_at(pose)
         best = None
         for c in self.columns:
-            s = column_silhouette(c, R, t, cam.K(), (cam.width, cam.height))
+            s = column_silhouette(c, *view)
             if s is not None and (best is None or s[1] - s[0] > best[1] - best[0]):
                 best = s
         return best
@@ -298,15 +303,15 @@ class QuadRoom(World):
     def _capture(self) -> None:
         cam = self.robot.params.camera
         t = self.t
+        dark = any(a <= t < b for a, b in self.params.blackout)
+        self._frame_id += 1
+        self._frame_t = t
         if self.params.perception == "geometric":
-            dark = any(a <= t < b for a, b in self.params.blackout)
             empty = PointView(np.zeros(0, dtype=np.int64), np.zeros((0, 2)))
             self._points = empty if dark else self._point_view(self.pose)
             self._obstacle = None if dark else self._widest_column(self.pose)
-            self._frame_id += 1
-            self._frame_t = t
             return
-        if any(a <= t < b for a, b in self.params.blackout):
+        if dark:
             img = np.zeros((cam.height, cam.width, 3), dtype=np.uint8)
         else:
             img = self._require_scene().render(tuple(self.pose))
@@ -315,8 +320,6 @@ class QuadRoom(World):
                 img = np.clip(noisy, 0, 255).astype(np.uint8)
         img.setflags(write=False)
         self._frame = img
-        self._frame_id += 1
-        self._frame_t = t
 
     def observe(self) -> Observation:
         cam = self.robot.params.camera
@@ -366,13 +369,9 @@ class QuadRoom(World):
         self._require_scene().set_drone_pose(x, y, z, yaw)
         self._check_contacts()
 
-    def _taught_polyline(self) -> NDArray[np.float64]:
-        wp = self.params
-        return np.array([wp.start[:2]] + [k.pose[:2] for k in wp.keyframes], dtype=np.float64)
-
     def path_deviation(self, xy: Sequence[float] | None = None) -> float:
         """Horizontal distance (m) from ``xy`` (default: the drone) to the taught path polyline."""
-        poly = self._taught_polyline()
+        poly = self.taught_path
         q = np.asarray(self.pose[:2] if xy is None else xy, dtype=np.float64)
         if len(poly) < 2:
             return float(np.linalg.norm(q - poly[0]))

@@ -32,7 +32,7 @@ from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import field_validator
+from pydantic import ValidationInfo, field_validator
 
 from taskflow.api import StrictModel
 
@@ -68,25 +68,16 @@ class ImpedanceProfile(StrictModel):
     M: tuple[float, float, float] = (1.0, 1.0, 1.0)
     force: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
-    @field_validator("K", mode="before")
-    @classmethod
-    def _k(cls, v: object) -> tuple[float, float, float]:
-        return _three("stiffness K", v, positive=True, nonneg=True)
+    # field → (name in messages, > 0 required, >= 0 required)
+    _RULES: ClassVar[dict[str, tuple[str, bool, bool]]] = {
+        "K": ("stiffness K", True, True), "M": ("mass M", True, True),
+        "D": ("damping D", False, True), "force": ("force", False, False)}
 
-    @field_validator("M", mode="before")
+    @field_validator("K", "M", "D", "force", mode="before")
     @classmethod
-    def _m(cls, v: object) -> tuple[float, float, float]:
-        return _three("mass M", v, positive=True, nonneg=True)
-
-    @field_validator("D", mode="before")
-    @classmethod
-    def _d(cls, v: object) -> tuple[float, float, float]:
-        return _three("damping D", v, positive=False, nonneg=True)
-
-    @field_validator("force", mode="before")
-    @classmethod
-    def _f(cls, v: object) -> tuple[float, float, float]:
-        return _three("force", v, positive=False, nonneg=False)
+    def _xyz(cls, v: object, info: ValidationInfo) -> tuple[float, float, float]:
+        name, positive, nonneg = cls._RULES[str(info.field_name)]
+        return _three(name, v, positive=positive, nonneg=nonneg)
 
     def arrays(self) -> "ImpedanceGains":
         return ImpedanceGains(np.array(self.K), np.array(self.D), np.array(self.M), np.array(self.force))

@@ -89,6 +89,15 @@ class ArmParams(StrictModel):
     approach: Pose | None = None
 
 
+def _tick_period(memory: dict, t: float) -> float:
+    """Seconds since the previous tick of any screw task (kept in the shared memory), capped at
+    20 ms so that a gap — a state without a task, e.g. searching — does not count as one long tick;
+    0 on the first tick."""
+    t_prev = memory.get(MEM + "t")
+    memory[MEM + "t"] = t
+    return 0.0 if t_prev is None else min(0.02, max(0.0, t - t_prev))
+
+
 def _planar_from_odom(odom: NDArray[np.float64]) -> NDArray[np.float64]:
     x, y, th = (float(v) for v in odom)
     H = np.eye(4)
@@ -223,10 +232,7 @@ class MobilePbvs(Task):
     def step(self, obs: Observation) -> StepResult:
         m = self.mem
         t = obs.t
-        t_prev = m.get(MEM + "t")
-        # a gap (a state without a task: searching) does not count as one long tick
-        dt = 0.0 if t_prev is None else min(0.02, max(0.0, t - t_prev))
-        m[MEM + "t"] = t
+        dt = _tick_period(m, t)
         q = np.asarray(obs.state["q"], dtype=np.float64)
         q_ref = np.asarray(obs.state["q_ref"], dtype=np.float64)
         q_nom = m.get(MEM + "q_nom")
@@ -354,10 +360,7 @@ class ArmHome(Task):
 
     def step(self, obs: Observation) -> StepResult:
         m = self.mem
-        t = obs.t
-        t_prev = m.get(MEM + "t")
-        dt = 0.0 if t_prev is None else min(0.02, max(0.0, t - t_prev))
-        m[MEM + "t"] = t
+        dt = _tick_period(m, obs.t)
         q_ref = np.asarray(obs.state["q_ref"], dtype=np.float64)
         q_nom = m.get(MEM + "q_nom")
         q_nom = q_ref.copy() if q_nom is None else q_nom

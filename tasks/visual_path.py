@@ -574,10 +574,11 @@ class VisualPathServo(Task):
         if self.plane_ids is None or (not fits.all() and fits.sum() >= p.min_points):
             cur, kfp, ids = cur[fits], kfp[fits], ids[fits]
             self.plane_ids = ids
-        if self.tri_ids is None or not np.isin(self.tri_ids, ids).all():
+        in_tri = np.isin(ids, self.tri_ids, assume_unique=True) if self.tri_ids is not None else None
+        if in_tri is None or in_tri.sum() < 3:
             self.tri_ids = ids[sort_points(kfp)[:3]]
-        first = np.concatenate([np.flatnonzero(ids == t) for t in self.tri_ids])
-        order = np.concatenate((first, np.setdiff1d(np.arange(len(ids)), first, assume_unique=True)))
+            in_tri = np.isin(ids, self.tri_ids, assume_unique=True)
+        order = np.concatenate((np.flatnonzero(in_tri), np.flatnonzero(~in_tri)))  # the triangle first
         cur, kfp = cur[order], kfp[order]
         if self.law is None:
             self.law = ServoLaw(self.K, self.eTc, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
