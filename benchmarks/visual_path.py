@@ -13,8 +13,9 @@ collisions, path time, control loop frequency (simulated) and the cost per frame
 control (excluding rendering) with the real-time factor of the whole run.  The last line is JSON.
 
 ``--perception geometric`` runs the same missions with the world's geometric camera (landmarks
-projected with pixel noise, no rendering, ~20x real time) over ``--seeds`` seeds (RANSAC draws and
-pixel noise differ) and prints success rates with the mean time and final error of the successes.
+projected with pixel noise, no rendering) over ``--seeds`` seeds (RANSAC draws and pixel noise
+differ), as :func:`taskflow.batch.run_batch` trials on every core, and prints success rates with the
+mean time and final error of the successes.
 """
 
 from __future__ import annotations
