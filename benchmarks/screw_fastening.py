@@ -42,9 +42,9 @@ TARGETS = {"conveyor": (97.5, 1.0), "trolley": (90.0, 2.0)}  # success %, mean t
 
 
 def _register() -> None:
-    import robots.mobile_iiwa  # noqa: F401
-    import sim.screw_world  # noqa: F401
-    import tasks.screw_tasks  # noqa: F401
+    import taskflow_robots.mobile_iiwa  # noqa: F401
+    import taskflow_sim.screw_world  # noqa: F401
+    import taskflow_tasks.screw_tasks  # noqa: F401
 
 
 def run_one(job: tuple[str, int, bool, str]) -> dict[str, Any]:
@@ -108,11 +108,11 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     _register()
     import numpy as np
 
-    from robots.mobile_iiwa import MobileIiwa
+    from taskflow_robots.mobile_iiwa import MobileIiwa
     from taskflow.api import Observation, TaskContext
-    from tasks.impedance import ImpedanceProfile
-    from tasks.pid import PidProfile
-    from tasks.screw_tasks import ArmParams, PbvsArm, Prediction
+    from taskflow_tasks.impedance import ImpedanceProfile
+    from taskflow_tasks.pid import PidProfile
+    from taskflow_tasks.screw_tasks import ArmParams, PbvsArm, Prediction
 
     robot = MobileIiwa(MobileIiwa.Params())
     pose = {"xyz": [0.0, 0.0, 0.67], "rpy_deg": [145.0, -24.6, -30.8]}

@@ -34,15 +34,15 @@ from typing import Any
 
 import numpy as np
 
-import sim.viki_world  # noqa: F401  registers viki_ground (forked batch workers inherit it)
-import tasks.viki_hyco  # noqa: F401  registers viki_hyco
-import tasks.viki_rotation  # noqa: F401  registers viki_rotate
-from robots.racecar import Racecar
-from robots.sensors import Detection
+import taskflow_sim.viki_world  # noqa: F401  registers viki_ground (forked batch workers inherit it)
+import taskflow_tasks.viki_hyco  # noqa: F401  registers viki_hyco
+import taskflow_tasks.viki_rotation  # noqa: F401  registers viki_rotate
+from taskflow_robots.racecar import Racecar
+from taskflow_robots.sensors import Detection
 from taskflow.api import Observation, TaskContext
 from taskflow.batch import run_batch
-from tasks.viki_hyco import ViKiGains, ViKiHyCo
-from tasks.viki_laws import ServoInputs, viki_velocity
+from taskflow_tasks.viki_hyco import ViKiGains, ViKiHyCo
+from taskflow_tasks.viki_laws import ServoInputs, viki_velocity
 
 ROOT = Path(__file__).resolve().parents[1]
 MISSIONS = ROOT / "missions"
@@ -118,7 +118,7 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
 def render_costs(sizes: tuple[tuple[int, int], ...] = ((320, 180), (640, 360)), frames: int = 5) -> dict[str, float]:
     """ms per rendered frame (median): front camera with LiDAR fusion (the LiDAR scanned every frame
     here, i.e. worst case; in a run it scans at 10 Hz) and rear camera."""
-    from sim.viki_world import VikiGround
+    from taskflow_sim.viki_world import VikiGround
 
     robot = Racecar(Racecar.Params())
     out = {}

@@ -34,9 +34,9 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import robots.quadcopter  # noqa: F401 - registration
-import sim.room_world  # noqa: F401
-import tasks.visual_path  # noqa: F401
+import taskflow_robots.quadcopter  # noqa: F401 - registration
+import taskflow_sim.room_world  # noqa: F401
+import taskflow_tasks.visual_path  # noqa: F401
 from taskflow.batch import run_batch
 from taskflow.loader import load_mission
 from taskflow.records import read_trace

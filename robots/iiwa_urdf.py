@@ -168,7 +168,7 @@ class IiwaKinematics:
     """
 
     def __init__(self, urdf_text: str, frame: str = TOOL_TIP) -> None:
-        import pinocchio as pin  # local: keeps `import robots.mobile_iiwa` light
+        import pinocchio as pin  # local: keeps `import taskflow_robots.mobile_iiwa` light
 
         self._pin = pin
         self.model = pin.buildModelFromXML(urdf_text)

@@ -2,7 +2,7 @@
 eye-to-hand camera fixed on the platform — the robot of the screw-fastening paper (section 8).
 
 Pure description (no simulator): parameters, limits, command layout, the run-time URDF shared by
-PyBullet and Pinocchio (:mod:`robots.iiwa_urdf`) and the Pinocchio kinematics the tasks use.
+PyBullet and Pinocchio (:mod:`taskflow_robots.iiwa_urdf`) and the Pinocchio kinematics the tasks use.
 
 Frames: ``b`` platform base (centre of the footprint on the ground, x forward, y left, z up),
 ``a`` arm base (``H_ba`` = ``arm_mount``), ``c`` camera optical frame (``H_bc`` = ``camera.mount``;
@@ -27,10 +27,10 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, field_validator, model_validator
 
-from robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
+from taskflow_robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
-from robots.geometry import rpy_matrix
+from taskflow_robots.geometry import rpy_matrix
 
 Vec3 = tuple[float, float, float]
 

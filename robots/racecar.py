@@ -19,7 +19,7 @@ from pydantic import Field, field_validator
 
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
-from robots.geometry import rpy_matrix
+from taskflow_robots.geometry import rpy_matrix
 
 Vec3 = tuple[float, float, float]
 

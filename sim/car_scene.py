@@ -1,7 +1,7 @@
 """Building blocks shared by the car worlds: a PyBullet client, a box floor and the racecar on it.
 
 ``flat_ground`` is just this scene; a ViKi-HyCo world adds the object, cameras and LiDAR on top of it
-(subclass :class:`sim.flat_ground.FlatGround` and override its ``_populate`` hook, or build a
+(subclass :class:`taskflow_sim.flat_ground.FlatGround` and override its ``_populate`` hook, or build a
 :class:`CarScene` directly).
 """
 
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import pybullet as p
 
-from sim.racecar_body import Actuation, RacecarBody
+from taskflow_sim.racecar_body import Actuation, RacecarBody
 
 FLOOR_THICKNESS = 0.02
 

@@ -14,9 +14,9 @@ import numpy as np
 import pybullet as p
 from pydantic import Field
 
-from robots.racecar import Racecar
-from sim.car_scene import CarScene
-from sim.racecar_body import Actuation
+from taskflow_robots.racecar import Racecar
+from taskflow_sim.car_scene import CarScene
+from taskflow_sim.racecar_body import Actuation
 from taskflow.api import Command, Observation, Robot, StrictModel, World
 from taskflow.registry import register_world
 

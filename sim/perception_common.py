@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from robots.racecar import CameraMount
+from taskflow_robots.racecar import CameraMount
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from robots.quadcopter import QuadCamera
+from taskflow_robots.quadcopter import QuadCamera
 
 OBSTACLE_RGB = (0.1, 0.8, 0.15)
 """Default column colour: a saturated green that no generated texture contains."""

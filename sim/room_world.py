@@ -21,7 +21,7 @@ keyframe images of the visual path; no pose ever enters an observation.
 * **Perception modes.**  ``perception: rendered`` (default, the faithful pipeline) puts the rendered
   frame in ``obs.sensors["image"]`` and the keyframe images in ``obs.sensors["keyframes"]``.
   ``perception: geometric`` (fast, for tests and batches) renders nothing: landmarks on the room's
-  surfaces are projected exactly (:mod:`sim.room_landmarks`) with ``pixel_noise``, so
+  surfaces are projected exactly (:mod:`taskflow_sim.room_landmarks`) with ``pixel_noise``, so
   ``obs.sensors["points"]`` and ``obs.sensors["keyframe_points"]`` hold ``PointView``s (landmark ids
   and pixels) and ``obs.sensors["obstacle"]`` the widest column's ``(u_left, u_right,
   touches_border)`` at the middle row, or ``None``.
@@ -40,9 +40,9 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, field_validator, model_validator
 
-from robots.quadcopter import Quadcopter, QuadcopterParams
-from sim.quad_scene import Column, QuadScene, Room
-from sim.room_landmarks import PointView, column_silhouette, project, sample_landmarks, visible_landmarks
+from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
+from taskflow_sim.quad_scene import Column, QuadScene, Room
+from taskflow_sim.room_landmarks import PointView, column_silhouette, project, sample_landmarks, visible_landmarks
 from taskflow.api import Command, Observation, Robot, StrictModel, World
 from taskflow.registry import register_world
 

@@ -26,8 +26,8 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from robots.mobile_iiwa import CameraParams
-from sim.screw_scene import MARKER_DICT, MARKER_ID, MARKER_SIZE
+from taskflow_robots.mobile_iiwa import CameraParams
+from taskflow_sim.screw_scene import MARKER_DICT, MARKER_ID, MARKER_SIZE
 
 
 APRILTAG_OFFSET_PX = 0.5

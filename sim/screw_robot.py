@@ -19,8 +19,8 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from robots.iiwa_urdf import ARM_JOINTS, CAMERA_LINK, TOOL_JOINT, TOOL_TIP, write_urdf
-from robots.mobile_iiwa import MobileIiwa
+from taskflow_robots.iiwa_urdf import ARM_JOINTS, CAMERA_LINK, TOOL_JOINT, TOOL_TIP, write_urdf
+from taskflow_robots.mobile_iiwa import MobileIiwa
 
 
 def quat_of_yaw(yaw: float) -> list[float]:

@@ -1,7 +1,7 @@
 """``screw_conveyor``: the screw-fastening world of the paper (section 9) on PyBullet.
 
 A motor-cover part with four bolts and an ArUco marker moves on a conveyor (constant 50 mm/s) or on
-an irregularly pushed trolley (:mod:`sim.screw_motion`); the mobile iiwa (:mod:`sim.screw_robot`)
+an irregularly pushed trolley (:mod:`taskflow_sim.screw_motion`); the mobile iiwa (:mod:`taskflow_sim.screw_robot`)
 follows it.  What the robot gets (:meth:`observe`):
 
 * ``state``: ``q``/``qd`` (measured joints), ``q_ref`` (the joint reference the arm servo is
@@ -41,11 +41,11 @@ import pybullet as p
 from numpy.typing import NDArray
 from pydantic import Field, field_validator
 
-from robots.mobile_iiwa import MobileIiwa
-from sim import screw_scene as sc
-from sim.screw_motion import PartMotion
-from sim.screw_perception import Detection, PoseNoise, RenderedDetector, visible
-from sim.screw_robot import MobileIiwaBody
+from taskflow_robots.mobile_iiwa import MobileIiwa
+from taskflow_sim import screw_scene as sc
+from taskflow_sim.screw_motion import PartMotion
+from taskflow_sim.screw_perception import Detection, PoseNoise, RenderedDetector, visible
+from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow.api import Command, Observation, Robot, StrictModel, World
 from taskflow.registry import register_world
 

@@ -1,18 +1,18 @@
 """``viki_ground``: the racecar, a floor and one waste-like object — the world of the ViKi-HyCo missions.
 
-Scene: :class:`sim.flat_ground.FlatGround` (racecar on a thin box floor, odometry with optional noise)
-plus one static object (:mod:`sim.viki_objects`: ``can``, ``bottle`` or ``carton``) placed relative to the
+Scene: :class:`taskflow_sim.flat_ground.FlatGround` (racecar on a thin box floor, odometry with optional noise)
+plus one static object (:mod:`taskflow_sim.viki_objects`: ``can``, ``bottle`` or ``carton``) placed relative to the
 start pose (``object_distance`` / ``object_bearing`` from the rear-axle midpoint, heading-relative) or at
 world ``object_xy``.  Missions draw these from distributions (``{uniform: [...]}``, ``{choice: [...]}``),
 so a batch is a Monte Carlo campaign.
 
-Perception (``perception: geometric | rendered``, :mod:`sim.perception_geometric`,
-:mod:`sim.perception_rendered`) fills ``obs.sensors["detection"]`` with a
-:class:`robots.sensors.Detection` of the **active camera** at the camera's rate (15 Hz by default; the
+Perception (``perception: geometric | rendered``, :mod:`taskflow_sim.perception_geometric`,
+:mod:`taskflow_sim.perception_rendered`) fills ``obs.sensors["detection"]`` with a
+:class:`taskflow_robots.sensors.Detection` of the **active camera** at the camera's rate (15 Hz by default; the
 control runs at the mission's rate and sees the latest frame with ``fresh = False`` in between).
 
 Active camera: chosen by the running task through its command (``camera_front`` / ``camera_rear`` keys,
-:func:`robots.sensors.camera_command`); a command without camera keys keeps the current one (so a
+:func:`taskflow_robots.sensors.camera_command`); a command without camera keys keeps the current one (so a
 task-less "searching" state keeps looking); all keys 0 switches perception off (the kinematic rotation
 state: nothing is rendered).  ``initial_camera`` is the one used before the first command.  Only the
 active camera is processed: in ``rendered`` mode one ``getCameraImage`` per frame (plus the LiDAR at its
@@ -42,13 +42,13 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from robots.racecar import CameraMount
-from robots.sensors import CAMERAS, Detection, active_camera_from_command
-from sim.flat_ground import FlatGround, FlatGroundParams
-from sim.perception_common import CameraModel, DropoutModel, pose_matrix
-from sim.perception_geometric import GeometricPerception
-from sim.perception_rendered import LidarScanner, RenderedPerception
-from sim.viki_objects import SHAPES, PlacedObject, create_body
+from taskflow_robots.racecar import CameraMount
+from taskflow_robots.sensors import CAMERAS, Detection, active_camera_from_command
+from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
+from taskflow_sim.perception_common import CameraModel, DropoutModel, pose_matrix
+from taskflow_sim.perception_geometric import GeometricPerception
+from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
+from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
 from taskflow.api import Command, Observation, Robot
 from taskflow.registry import register_world
 

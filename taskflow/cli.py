@@ -14,8 +14,13 @@ from typing import Sequence
 
 from .errors import MissionError
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-DEFAULT_MISSION = REPO_ROOT / "missions" / "car_waypoints.yaml"
+
+def default_mission() -> Path:
+    """The shipped default mission (package ``taskflow_missions``, the repository's ``missions/``),
+    wherever taskflow is installed: a checkout or a wheel."""
+    import taskflow_missions
+
+    return taskflow_missions.DEFAULT
 
 
 def _print_problems(exc: MissionError) -> None:
@@ -32,7 +37,7 @@ def _load(path: str, overrides: list[str] | None = None):  # type: ignore[no-unt
 def cmd_run(args: argparse.Namespace) -> int:
     from .runtime import Progress, print_progress, run_mission
 
-    path = args.mission or str(DEFAULT_MISSION)
+    path = args.mission or str(default_mission())
     mission = _load(path, args.set)
     progress = Progress(print_progress) if sys.stderr.isatty() and not args.quiet else None
     print(f"running {mission.name} ({path}) seed={args.seed if args.seed is not None else mission.spec.seed}",
@@ -124,7 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = ap.add_subparsers(dest="cmd", required=True)
 
     r = sub.add_parser("run", help="run a mission (default: the shipped default mission), headless unless --gui")
-    r.add_argument("mission", nargs="?", help=f"mission file (default {DEFAULT_MISSION.relative_to(REPO_ROOT)})")
+    r.add_argument("mission", nargs="?", help=f"mission file (default: the shipped missions/{default_mission().name})")
     r.add_argument("--seed", type=int, default=None)
     r.add_argument("--out", default=None, help="run directory (default runs/NAME-seedN-TIME)")
     r.add_argument("--gui", action="store_true", help="open a PyBullet window")

@@ -38,7 +38,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dposv as _dposv
-from robots.geometry import rpy_matrix, skew
+from taskflow_robots.geometry import rpy_matrix, skew
 
 Array = NDArray[np.float64]
 

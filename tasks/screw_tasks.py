@@ -21,8 +21,8 @@ The PID and admittance states, the nominal joint trajectory ``q*`` and the part-
 in the mission's shared ``memory``: a state change switches gains and set-points, not the
 controllers' memory (the platform keeps the integral that carries it along with the part).
 
-Profile slots: ``platform`` and ``arm`` take ``pid`` profiles (:class:`tasks.pid.PidProfile`),
-``impedance`` takes ``impedance`` profiles (:class:`tasks.impedance.ImpedanceProfile`),
+Profile slots: ``platform`` and ``arm`` take ``pid`` profiles (:class:`taskflow_tasks.pid.PidProfile`),
+``impedance`` takes ``impedance`` profiles (:class:`taskflow_tasks.impedance.ImpedanceProfile`),
 ``prediction`` takes a ``prediction`` profile (:class:`Prediction`, default: off — the paper's plain
 PID).  With prediction on, the part's velocity is estimated by a least-squares fit of its pose in the
 odometry frame over a short window, the stale marker pose is propagated to the current time (the
@@ -40,12 +40,12 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator
 
-from robots.mobile_iiwa import MobileIiwaParams, Pose
+from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
 from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
 from taskflow.registry import register_task
-from tasks import pbvs
-from tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step
-from tasks.pid import PidProfile, PidState, pid_step
+from taskflow_tasks import pbvs
+from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step
+from taskflow_tasks.pid import PidProfile, PidState, pid_step
 
 MEM = "screw."  # prefix of this mission's keys in the shared memory
 _ZERO3 = np.zeros(3)

@@ -14,12 +14,12 @@ Eq. 26 (as meant, never amplifying) smooths the output in every mode; eq. 5 and 
 it into ``(v, steer)``.
 
 Camera: ``camera: front | rear`` picks the mount ``(R_rc, t_rc)`` of eq. 22 and is sent to the world in
-the command (``camera_front`` / ``camera_rear`` keys, :func:`robots.sensors.camera_command`), so only that
+the command (``camera_front`` / ``camera_rear`` keys, :func:`taskflow_robots.sensors.camera_command`), so only that
 camera is processed.  A camera name the robot does not have is a load-time error.
 
 Desired features: ``desired: [x, y]`` is the object's desired position in the robot frame (e.g. the
 manipulation zone); the desired box centre follows from it and the measured object (see
-:mod:`tasks.viki_laws`), or is given directly in pixels with ``desired_centre`` (the paper's way).  ``Z_d``
+:mod:`taskflow_tasks.viki_laws`), or is given directly in pixels with ``desired_centre`` (the paper's way).  ``Z_d``
 is read every frame in the depth image at the desired centre (eq. 19).  ``zd: pixel`` reads the single pixel
 (as printed; the world's ``depth_at``); ``zd: window`` (default) applies eq. 17's rule — mean depth of the
 40 %-shrunk box — to the current box moved to the desired centre (``depth_in``).  Away from the goal both
@@ -33,10 +33,10 @@ fixed by the **first** usable detection of the mission (eq. 18 + base-centre est
 mission memory (``memory["viki.object"]``) so later states — the rotation, the backward positioning —
 use it.  A state turns it into its control-point target once (on entry if the memory has the object,
 else at its first detection): the pose with the object at ``desired`` and the heading of
-:func:`tasks.viki_laws.goal_heading` (stored as ``memory["viki.target"]``).  ``target_update: latest``
+:func:`taskflow_tasks.viki_laws.goal_heading` (stored as ``memory["viki.target"]``).  ``target_update: latest``
 re-anchors the object on every detection instead (not the paper's rule).  For a goal behind the robot
 (``desired[0] < 0``, the rear camera) the fallback is the paper's *backward* kinematic controller: eq. 4 on
-the car seen backwards, servoing the point ``d`` behind the rear axle (:func:`tasks.viki_laws.reverse_control`;
+the car seen backwards, servoing the point ``d`` behind the rear axle (:func:`taskflow_tasks.viki_laws.reverse_control`;
 plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`` forces either.
 
 No detection yet and no object in memory: the robot holds still and, after ``search_timeout``, the task
@@ -56,13 +56,13 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, Field, field_validator, model_validator
 
-from robots.racecar import RacecarParams
-from robots.sensors import Detection, camera_command
+from taskflow_robots.racecar import RacecarParams
+from taskflow_robots.sensors import Detection, camera_command
 from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
 from taskflow.registry import register_task
-from tasks.car_goto import CarGains
-from tasks.car_visual_servo import car_jacobian_r, twist_transform
-from tasks.viki_laws import (
+from taskflow_tasks.car_goto import CarGains
+from taskflow_tasks.car_visual_servo import car_jacobian_r, twist_transform
+from taskflow_tasks.viki_laws import (
     ServoInputs,
     desired_centre,
     goal_heading,
@@ -81,7 +81,7 @@ class ViKiGains(CarGains):
 
     ``lam``: the paper's five numbers (section III-A: front ``[0.85, 0.3, 1, 1, 1]``, rear
     ``[0.85, 1.05, 1, 1, 1]``); ``diag(lam[0], lam[1])`` acts on ``[v, w]`` in eq. 24 and the other three
-    have no counterpart in the 2-DoF law (:func:`tasks.car_visual_servo.car_gains`).  ``k1``: eq. 4's
+    have no counterpart in the 2-DoF law (:func:`taskflow_tasks.car_visual_servo.car_gains`).  ``k1``: eq. 4's
     ``[k_x, k_y]`` (forward ``[2, 1]``, backward ``[1, 2]``).  ``d``: control-point distance of eq. 1
     (``None``: the wheelbase, as in the paper).
     """

@@ -61,10 +61,10 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
 
-from robots.quadcopter import QuadcopterParams
+from taskflow_robots.quadcopter import QuadcopterParams
 from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
 from taskflow.registry import register_task
-from tasks.hierarchy import (
+from taskflow_tasks.hierarchy import (
     Activation,
     collision_error,
     collision_jacobian,
@@ -74,7 +74,7 @@ from tasks.hierarchy import (
     visibility_error,
     visibility_jacobian,
 )
-from tasks.homography import (
+from taskflow_tasks.homography import (
     HomographyGains,
     adaptive_gain,
     feedforward_blend,
@@ -86,7 +86,7 @@ from tasks.homography import (
     sort_points,
     task_error,
 )
-from tasks.visual_path_perception import (
+from taskflow_tasks.visual_path_perception import (
     Features,
     ObstacleDetection,
     PointTracker,

@@ -51,8 +51,8 @@ def test_tasks_get_the_control_period():
 def test_a_partial_mapping_changes_one_field_of_a_default_sub_model():
     """``front_camera.width`` alone keeps the default mount (pose, rate): the sub-model is completed
     from the field's default, not rebuilt from the width alone (which has no pose and was refused)."""
-    import robots.racecar  # noqa: F401 - registration
-    from robots.racecar import RacecarParams
+    import taskflow_robots.racecar  # noqa: F401 - registration
+    from taskflow_robots.racecar import RacecarParams
 
     viki = Path(__file__).resolve().parents[1] / "missions" / "viki_hyco.yaml"
     m = load_mission(viki, overrides=["robot.params.front_camera.width=320"])

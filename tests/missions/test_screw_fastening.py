@@ -6,9 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 
-import robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
-import sim.screw_world  # noqa: F401 - registers screw_conveyor
-import tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
+import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
+import taskflow_sim.screw_world  # noqa: F401 - registers screw_conveyor
+import taskflow_tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
 from taskflow.loader import load_mission
 from taskflow.testing import assert_outcome, run_on_world
 

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-import sim.viki_world  # noqa: F401  registers the world viki_ground
-import tasks.viki_hyco  # noqa: F401  registers the task viki_hyco
-import tasks.viki_rotation  # noqa: F401  registers the task viki_rotate
+import taskflow_sim.viki_world  # noqa: F401  registers the world viki_ground
+import taskflow_tasks.viki_hyco  # noqa: F401  registers the task viki_hyco
+import taskflow_tasks.viki_rotation  # noqa: F401  registers the task viki_rotate
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission
 from taskflow.runtime import run_mission

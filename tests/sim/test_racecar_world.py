@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from robots.racecar import Racecar
-from sim.flat_ground import FlatGround
+from taskflow_robots.racecar import Racecar
+from taskflow_sim.flat_ground import FlatGround
 from taskflow.api import TaskContext
-from tasks.car_goto import CarGains, CarGoto
+from taskflow_tasks.car_goto import CarGains, CarGoto
 
 ROBOT = Racecar(Racecar.Params())
 L = ROBOT.params.wheelbase

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-import tasks.visual_path  # noqa: F401 - registers the tasks the missions use
-from robots.quadcopter import Quadcopter, QuadcopterParams
-from sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir, teach
+import taskflow_tasks.visual_path  # noqa: F401 - registers the tasks the missions use
+from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
+from taskflow_sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir, teach
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission
 
@@ -147,8 +147,8 @@ def geo_world():
 def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, pose):
     """Every landmark the geometric camera reports is on the surface PyBullet renders at its pixel
     (rendered depth = landmark depth): projection, intrinsics and column occlusion agree."""
-    from sim.room_landmarks import project
-    from sim.room_world import camera_pose_matrices
+    from taskflow_sim.room_landmarks import project
+    from taskflow_sim.room_world import camera_pose_matrices
 
     cam = geo_world.robot.params.camera
     geo_world.pose[:] = pose
@@ -165,7 +165,7 @@ def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, p
 
 
 def test_geometric_column_silhouette_matches_the_segmented_image(geo_world):
-    from tasks.visual_path_perception import obstacle_edges
+    from taskflow_tasks.visual_path_perception import obstacle_edges
 
     for pose in [(0.0, 0.0, 1.0, 0.0), (0.6, 0.2, 1.0, 0.15), (0.8, -0.3, 1.0, -0.25)]:
         rgb = geo_world._require_scene().render(pose)

@@ -9,9 +9,9 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from robots.mobile_iiwa import MobileIiwa
-from sim.screw_world import ScrewConveyor
-from tasks import pbvs
+from taskflow_robots.mobile_iiwa import MobileIiwa
+from taskflow_sim.screw_world import ScrewConveyor
+from taskflow_tasks import pbvs
 from taskflow.registry import WORLDS
 
 ROBOT = MobileIiwa(MobileIiwa.Params())

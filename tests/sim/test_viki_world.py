@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from robots.racecar import Racecar
-from robots.sensors import camera_command
-from sim.viki_world import VikiGround
+from taskflow_robots.racecar import Racecar
+from taskflow_robots.sensors import camera_command
+from taskflow_sim.viki_world import VikiGround
 
 ROBOT = Racecar(Racecar.Params())
 STILL = {"v": np.zeros(1), "steer": np.zeros(1)}

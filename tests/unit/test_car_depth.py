@@ -1,9 +1,9 @@
-"""Tests for sim.car_depth (ViKi-HyCo eq. 11-18: LiDAR projection, fusion, object localisation)."""
+"""Tests for taskflow_sim.car_depth (ViKi-HyCo eq. 11-18: LiDAR projection, fusion, object localisation)."""
 
 import numpy as np
 import pytest
 
-from sim.car_depth import (
+from taskflow_sim.car_depth import (
     blind_spot_mask,
     blind_spot_radius,
     fuse_depth,

@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pydantic import ValidationError
 
-from robots.racecar import Racecar
+from taskflow_robots.racecar import Racecar
 from taskflow.api import Observation, TaskContext
-from tasks.car_goto import CarGains, CarGoto
-from tasks.car_kinematics import (
+from taskflow_tasks.car_goto import CarGains, CarGoto
+from taskflow_tasks.car_kinematics import (
     ackermann_wheel_angles,
     bicycle_from_wheel_angles,
     car_command,

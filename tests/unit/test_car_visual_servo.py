@@ -1,11 +1,11 @@
-"""Tests for tasks.car_visual_servo (ViKi-HyCo eq. 10, 20-24) and the ideal feature-space loop."""
+"""Tests for taskflow_tasks.car_visual_servo (ViKi-HyCo eq. 10, 20-24) and the ideal feature-space loop."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tasks.bbox_target import desired_bbox
-from tasks.car_visual_servo import (
+from taskflow_tasks.bbox_target import desired_bbox
+from taskflow_tasks.car_visual_servo import (
     camera_mount_rotation,
     camera_vs_velocity,
     car_feature_jacobian,
@@ -15,7 +15,7 @@ from tasks.car_visual_servo import (
     skew,
     twist_transform,
 )
-from tasks.image_features import (
+from taskflow_tasks.image_features import (
     CameraIntrinsics,
     bbox_features,
     feature_error,

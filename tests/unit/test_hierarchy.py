@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from taskflow.executor import blend_weight
-from tasks.hierarchy import (
+from taskflow_tasks.hierarchy import (
     Activation,
     activation,
     collision_error,

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tasks.homography import (
+from taskflow_tasks.homography import (
     FLU_R_OPTICAL,
     HomographyGains,
     adaptive_gain,

@@ -1,10 +1,10 @@
-"""Tests for tasks.image_features (ViKi-HyCo eq. 7-9, feature choice of section II-E)."""
+"""Tests for taskflow_tasks.image_features (ViKi-HyCo eq. 7-9, feature choice of section II-E)."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tasks.image_features import (
+from taskflow_tasks.image_features import (
     CameraIntrinsics,
     as_intrinsics,
     bbox_corners,

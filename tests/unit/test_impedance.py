@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step, static_displacement
+from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step, static_displacement
 
 
 def contact(k_env: float, F_cmd: float, K: float, D: float, M: float, dt: float, steps: int):

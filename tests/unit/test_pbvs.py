@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tasks import pbvs
+from taskflow_tasks import pbvs
 
 
 def rand_pose(rng: np.random.Generator, scale: float = 1.0) -> np.ndarray:

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from robots.quadcopter import QuadCamera, Quadcopter, QuadcopterParams
-from tasks.homography import FLU_R_OPTICAL, robot_velocity, twist_transform
+from taskflow_robots.quadcopter import QuadCamera, Quadcopter, QuadcopterParams
+from taskflow_tasks.homography import FLU_R_OPTICAL, robot_velocity, twist_transform
 
 
 def test_camera_intrinsics_follow_tinyrenderer():

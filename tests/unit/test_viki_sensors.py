@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from robots.racecar import Racecar
-from robots.sensors import Detection, active_camera_from_command, camera_command
-from sim.perception_common import CameraModel, DropoutModel, pixel_box, quantise_box
+from taskflow_robots.racecar import Racecar
+from taskflow_robots.sensors import Detection, active_camera_from_command, camera_command
+from taskflow_sim.perception_common import CameraModel, DropoutModel, pixel_box, quantise_box
 
 RP = Racecar(Racecar.Params()).params
 

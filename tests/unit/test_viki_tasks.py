@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from robots.racecar import Racecar
-from robots.sensors import Detection
+from taskflow_robots.racecar import Racecar
+from taskflow_robots.sensors import Detection
 from taskflow.api import Observation, TaskContext
-from tasks.car_goto import CarGains
-from tasks.car_kinematics import kinematic_control
-from tasks.viki_hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
-from tasks.viki_laws import desired_centre, object_base, reverse_control, saturate_twist
-from tasks.viki_rotation import ViKiRotate, k_turn_legs
+from taskflow_tasks.car_goto import CarGains
+from taskflow_tasks.car_kinematics import kinematic_control
+from taskflow_tasks.viki_hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
+from taskflow_tasks.viki_laws import desired_centre, object_base, reverse_control, saturate_twist
+from taskflow_tasks.viki_rotation import ViKiRotate, k_turn_legs
 
 ROBOT = Racecar(Racecar.Params())
 RP = ROBOT.params

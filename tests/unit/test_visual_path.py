@@ -10,16 +10,16 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from robots.quadcopter import Quadcopter, QuadcopterParams
-from sim.quad_scene import generate_texture
-from tasks.homography import (
+from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
+from taskflow_sim.quad_scene import generate_texture
+from taskflow_tasks.homography import (
     intrinsic_matrix,
     largest_triangle,
     normalize_homography,
     normalize_pixels,
     task_error,
 )
-from tasks.visual_path import (
+from taskflow_tasks.visual_path import (
     HierarchyGains,
     KeyframeRef,
     PathGains,
@@ -29,7 +29,7 @@ from tasks.visual_path import (
     segment_velocities,
     segment_velocities_from_points,
 )
-from tasks.visual_path_perception import (
+from taskflow_tasks.visual_path_perception import (
     PointTracker,
     detect,
     estimate_homography,
