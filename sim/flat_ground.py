@@ -25,7 +25,8 @@ class FlatGroundParams(StrictModel):
     """Start pose ``[x, y, yaw]`` (m, rad) of the rear-axle midpoint, physics rate, noise and actuators."""
 
     start: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    physics_hz: float = Field(default=240.0, gt=0.0)
+    physics_hz: float = Field(default=240.0, ge=100.0, le=10_000.0,
+                              description="physics rate (Hz): wheel contact needs ≥ 100 Hz; a whole multiple of rate_hz")
     odom_noise: float = Field(default=0.0, ge=0.0, description="std of odometry x, y noise (m)")
     odom_yaw_noise: float = Field(default=0.0, ge=0.0, description="std of odometry yaw noise (rad)")
     friction: float = Field(default=1.0, gt=0.0, description="floor and tyre lateral friction")

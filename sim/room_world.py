@@ -115,7 +115,8 @@ class QuadRoomParams(StrictModel):
     keyframe_dir: str | None = Field(default=None, description="images written by teach(); None: render on reset")
     texture_seed: int = Field(default=0, ge=0, description="seed of the generated textures (fixed by the taught path)")
     texture_px_per_m: float = Field(default=160.0, gt=10.0, le=1000.0)
-    physics_hz: float = Field(default=240.0, gt=0.0)
+    physics_hz: float = Field(default=250.0, ge=25.0, le=10_000.0,
+                              description="integration rate of the velocity lag (Hz); a whole multiple of rate_hz")
     image_noise: float = Field(default=0.0, ge=0.0, le=50.0, description="std of Gaussian pixel noise (grey levels)")
     blackout: list[tuple[float, float]] = Field(default=[], description="[t0, t1] intervals of black frames (s)")
     obstacle_height: float = Field(default=3.0, gt=0.0)

@@ -78,7 +78,7 @@ class ScrewWorldParams(StrictModel):
     roi_px: int = Field(default=224, gt=32, description="rendered mode: region-of-interest side (px)")
     lost_after: float = Field(default=0.2, gt=0.0, description="no detection for this long → target_lost (s)")
     occlusions: list[tuple[float, float]] = Field(default_factory=list, description="[t0, t1] intervals hiding the marker (s)")
-    physics_hz: float = Field(default=100.0, gt=0.0, description="physics rate (Hz): one step per 100 Hz control tick; 250 gives the same benchmark errors at twice the cost")
+    physics_hz: float = Field(default=100.0, ge=100.0, le=10_000.0, description="physics rate (Hz): one step per 100 Hz control tick; 250 gives the same benchmark errors at twice the cost; a whole multiple of rate_hz")
     contact_stiffness: float = Field(default=1e4, gt=0.0)
     contact_damping: float = Field(default=200.0, ge=0.0)
     ft_noise: float = Field(default=0.05, ge=0.0, description="F/T sensor force noise std (N)")

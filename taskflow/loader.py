@@ -382,9 +382,12 @@ class _Compiler:
                          f"robots it accepts: {', '.join(world_cls.robots)}")
             try:
                 drawn = sample(world_params_raw, world_rng(self.spec.seed))
-                self._validate_model(world_cls.Params, drawn, wpath)
+                wparams = self._validate_model(world_cls.Params, drawn, wpath)
             except DistributionError as exc:
                 self.err(wpath + exc.path, str(exc))
+            else:
+                if wparams is not None:
+                    self._check_rates(world_cls, wparams, wpath)
         self.fail_if_problems()
         assert robot_cls is not None and world_cls is not None and robot_params is not None
         self.robot_cls, self.world_cls = robot_cls, world_cls
@@ -403,6 +406,18 @@ class _Compiler:
             file=self.smap.file, raw=self.data, spec=self.spec, root=root, states=self.states,
             transitions=self.transitions, robot_cls=robot_cls, robot_params=robot_params,
             world_cls=world_cls, world_params_raw=world_params_raw, metric_units=metric_units, events=events)
+
+    def _check_rates(self, world_cls: type[World], wparams: BaseModel, wpath: YPath) -> None:
+        """The control period must be a whole number of physics steps, so every tick lasts the same."""
+        physics = float(getattr(wparams, "physics_hz", world_cls.physics_hz))
+        rate = float(self.spec.rate_hz)
+        ratio = physics / rate
+        if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+            where = wpath + ("physics_hz",) if "physics_hz" in type(wparams).model_fields else ("rate_hz",)
+            divisors = [f"{physics / k:g}" for k in range(1, 41) if abs(physics / k - round(physics / k, 6)) < 1e-9][:8]
+            self.err(where, f"control rate_hz {rate:g} Hz does not divide the physics rate {physics:g} Hz of world "
+                     f"{world_cls.name!r} ({ratio:.4g} physics steps per tick): ticks would last unequal times",
+                     f"rate_hz values that divide {physics:g} Hz: {', '.join(divisors)}")
 
     # -- the tree ---------------------------------------------------------------------------
     def _build(self, node: StateNode, spec: State | Machine, ypath: YPath) -> None:
