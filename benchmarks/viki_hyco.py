@@ -67,7 +67,7 @@ def batch_stats(result: dict[str, Any]) -> dict[str, Any]:
 
     ex, ey = col("final_error_x_m", trials), col("final_error_y_m", trials)
     t_ok = np.array([s["sim_time_s"] for s in ok], float)
-    rtf = np.array([s["real_time_factor"] for s in trials if s.get("real_time_factor")], float)
+    rtf = np.array([t["real_time_factor"] for t in result["timing"]["trials"] if t.get("real_time_factor")], float)
     outcomes: dict[str, int] = {}
     for s in trials:
         key = f"{s['outcome']}:{s['final_state']}"
@@ -84,7 +84,7 @@ def batch_stats(result: dict[str, Any]) -> dict[str, Any]:
         "time_s_std": float(np.std(t_ok)) if t_ok.size else None,
         "rtf_mean": float(np.mean(rtf)) if rtf.size else None,
         "rtf_min": float(np.min(rtf)) if rtf.size else None,
-        "batch_wall_s": result["total_wall_s"],
+        "batch_wall_s": result["timing"]["total_wall_s"],
         "batch_file": result.get("batch_file"),
     }
 
@@ -153,7 +153,7 @@ def single_process_rtf(rendered_overrides: list[str], seed: int) -> dict[str, fl
     out = {}
     for name, ov in (("geometric", []), ("rendered", rendered_overrides)):
         r = run_mission(load_mission(str(MISSIONS / "viki_hyco.yaml"), ov), seed=seed, record=False)
-        out[f"rtf_single_{name}"] = float(r.summary["real_time_factor"])
+        out[f"rtf_single_{name}"] = float(r.timing["real_time_factor"])
     return out
 
 
@@ -190,7 +190,7 @@ def main() -> None:
         res = run_batch(str(path), trials=n, workers=args.workers, seed=args.seed, overrides=overrides,
                         out=out / name)
         results[name] = batch_stats(res)
-        print(f"  {name}: {n} trials in {res['total_wall_s']:.1f} s", flush=True)
+        print(f"  {name}: {n} trials in {res['timing']['total_wall_s']:.1f} s", flush=True)
     costs = law_costs()
     costs.update(render_costs())
     costs.update(single_process_rtf(batches[-1][2], args.seed))

@@ -65,15 +65,13 @@ def _float(v: str) -> float:
         return math.nan
 
 
-def frame_costs(run_dir: Path) -> dict[str, float]:
-    """Perception + control time per camera frame (ms) from the trace, excluding rendering."""
-    tr = read_trace(run_dir)
-    pc = np.array([_float(a) + _float(b) for a, b in zip(tr.get("m.perception_time", []), tr.get("m.control_time", []))])
-    pc = pc[np.isfinite(pc)] * 1000.0
-    if len(pc) == 0:
+def frame_costs(timing: dict) -> dict[str, float]:
+    """Perception + control wall time per camera frame (ms), excluding rendering, from the run's
+    ``timing.json`` (the task's ``frame`` timing)."""
+    frame = timing.get("parts_ms", {}).get("task.frame")
+    if not frame:
         return {"frame_ms_mean": math.nan, "frame_ms_median": math.nan, "frame_ms_p95": math.nan}
-    return {"frame_ms_mean": float(pc.mean()), "frame_ms_median": float(np.median(pc)),
-            "frame_ms_p95": float(np.percentile(pc, 95))}
+    return {"frame_ms_mean": frame["mean"], "frame_ms_median": frame["p50"], "frame_ms_p95": frame["p95"]}
 
 
 def run_experiment(name: str, out: Path, overrides: list[str] | None = None, seed: int | None = None) -> dict:
@@ -101,9 +99,9 @@ def run_experiment(name: str, out: Path, overrides: list[str] | None = None, see
         "path_deviation_max_m": mt.get("path_deviation_max_m"),
         "path_deviation_mean_m": mt.get("path_deviation_mean_m"),
         "loop_hz": m.spec.rate_hz,
-        "real_time_factor": s["real_time_factor"],
+        "real_time_factor": r.timing["real_time_factor"],
         "wall_s": wall,
-        **frame_costs(out / name),
+        **frame_costs(r.timing),
         "paper": paper,
     }
     return res
@@ -231,7 +229,7 @@ def batch(names: list[str], out: Path, perception: str, seeds: int, overrides: l
                       "final_position_error_m": stat([s["metrics"].get("final_position_error_m") for s in ok]),
                       "path_deviation_max_m": stat([s["metrics"].get("path_deviation_max_m") for s in ok]),
                       "collisions_max": max(int(s["metrics"].get("collisions") or 0) for s in trials),
-                      "wall_s_per_run": res["per_trial_wall_s"],
+                      "wall_s_per_run": res["timing"]["per_trial_wall_s"],
                       "failures": [(i, s["outcome"], s["sim_time_s"]) for i, s in enumerate(trials)
                                    if s["outcome"] != "succeeded"],
                       "paper_time_s": EXPERIMENTS[name][1]["path_time_s"]}

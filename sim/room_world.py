@@ -142,6 +142,15 @@ class QuadRoomParams(StrictModel):
         return v
 
     @model_validator(mode="after")
+    def _inside_the_room(self) -> QuadRoomParams:
+        r = self.room
+        for what, (x, y, z, _) in [("start", self.start), *((f"keyframe {k.id}", k.pose) for k in self.keyframes)]:
+            if not (r.x0 < x < r.x1 and r.y0 < y < r.y1 and 0.0 < z < r.height):
+                raise ValueError(f"{what} pose ({x:g}, {y:g}, {z:g}) is outside the room: x in ({r.x0:g}, {r.x1:g}), "
+                                 f"y in ({r.y0:g}, {r.y1:g}), z in (0, {r.height:g}) m")
+        return self
+
+    @model_validator(mode="after")
     def _keyframe_files(self) -> QuadRoomParams:
         if self.keyframe_dir is not None and self.perception == "geometric":
             raise ValueError("keyframe_dir holds images for perception: rendered; perception: geometric projects "

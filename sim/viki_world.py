@@ -28,9 +28,10 @@ object's base centre in the robot frame), ``err_x, err_y`` (that minus the manip
 
 ``summary_metrics()``: ``final_error_x_m``, ``final_error_y_m``, ``final_error_m`` (object in the robot
 frame at the end minus ``goal``), detection counts (``frames``, ``detections``, ``detections_missed`` —
-frames the dropout model dropped while the object was in view, ``dropout_fraction``), perception cost
-(``perception_ms_per_frame``), motion statistics (``v_sign_changes``, ``v_sign_changes_last_5s``,
-``path_length_m``) and the object's kind and placement.
+frames the dropout model dropped while the object was in view, ``dropout_fraction``), motion statistics
+(``v_sign_changes``, ``v_sign_changes_last_5s``, ``path_length_m``) and the object's kind and placement.
+The wall-clock cost of each frame's perception is reported as the observation's ``timings["perception"]``
+(``timing.json``: ``world.perception``), never in the summary.
 """
 
 from __future__ import annotations
@@ -125,7 +126,6 @@ class VikiGround(FlatGround):
         self.first_detection_t: float | None = None
         self.detections = 0
         self.missed = 0
-        self._perception_s = 0.0
         self._v_trace: list[tuple[float, float]] = []
         self._path = 0.0
         self._last_xy: tuple[float, float] | None = None
@@ -197,7 +197,7 @@ class VikiGround(FlatGround):
             self._path += math.hypot(x - self._last_xy[0], y - self._last_xy[1])
         self._last_xy = (float(x), float(y))
         if self._active is not None and self.t + 1e-9 >= self._next_frame:
-            self._new_frame(self._active)
+            obs.timings = {"perception": self._new_frame(self._active)}
         elif self._last is not None and self._last.fresh:
             self._last = self._last.stale()
         if self._active is not None and self._last is not None and self._last.camera == self._active:
@@ -207,7 +207,8 @@ class VikiGround(FlatGround):
         self._events = []
         return obs
 
-    def _new_frame(self, name: str) -> None:
+    def _new_frame(self, name: str) -> float:
+        """Capture and detect on camera ``name``; returns the wall-clock seconds perception took."""
         cam = self.cameras[name]
         T_wr = self.robot_pose_matrix()
         T_wc = cam.pose(T_wr)
@@ -217,7 +218,7 @@ class VikiGround(FlatGround):
             bbox, depth, depth_at, depth_in = per.detect(T_wc)
         else:
             bbox, depth, depth_at, depth_in = per.detect(T_wc, self.t, T_wr)
-        self._perception_s += time.perf_counter() - t0
+        perception_s = time.perf_counter() - t0
         dropped = self._dropout.frame(T_wc) if self._dropout is not None else False
         self.frames += 1
         if bbox is not None:
@@ -239,6 +240,7 @@ class VikiGround(FlatGround):
         if detected != self._last_detected and (self._last_detected is not None or detected):
             self._events.append("target_found" if detected else "target_lost")
         self._last_detected = detected
+        return perception_s
 
     def apply(self, command: Command) -> None:
         active = active_camera_from_command(command, self._active)
@@ -293,7 +295,6 @@ class VikiGround(FlatGround):
             "detections": self.detections,
             "detections_missed": self.missed,
             "dropout_fraction": self.missed / (self.detections + self.missed) if self.detections + self.missed else 0.0,
-            "perception_ms_per_frame": 1e3 * self._perception_s / self.frames if self.frames else 0.0,
             "v_sign_changes": _sign_changes(vs),
             "v_sign_changes_last_5s": _sign_changes(vs[ts >= ts[-1] - 5.0]) if ts.size else 0,
             "path_length_m": self._path,

@@ -44,7 +44,9 @@ class Observation:
 
     ``state`` is proprioception (odometry pose, joint positions ...), ``sensors`` the latest sensor
     outputs (detections, marker poses, images), ``events`` the names emitted since the last tick and
-    ``metrics`` sensor-side values (never ground truth) that guards may read.
+    ``metrics`` sensor-side values (never ground truth) that guards may read.  ``timings`` is the
+    wall-clock seconds the world spent producing this observation, by part (e.g. ``{"render": 0.02}``):
+    it goes to ``timing.json`` only — never to guards, the trace or the summary.
     """
 
     t: float
@@ -52,15 +54,21 @@ class Observation:
     sensors: dict[str, Any] = field(default_factory=dict)
     events: tuple[str, ...] = ()
     metrics: dict[str, float] = field(default_factory=dict)
+    timings: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
 class StepResult:
-    """What a task returns each tick: the command, its named errors, and events it raises."""
+    """What a task returns each tick: the command, its named errors, and events it raises.
+
+    ``timings`` is the wall-clock seconds of this step by part (e.g. ``{"perception": 0.008,
+    "control": 0.0004}``); it goes to ``timing.json`` only.  Wall-clock values never belong in
+    ``metrics``: a guard or the trace would then depend on the machine's speed."""
 
     command: Command
     metrics: dict[str, float] = field(default_factory=dict)
     events: tuple[str, ...] = ()
+    timings: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -137,7 +145,9 @@ class World:
     Class attributes declare what validation checks: ``Params`` (pydantic, may hold distributions
     resolved with the seed), ``events`` it emits, ``metrics`` (sensor-side values, with units) it
     publishes in observations, ``ground_truth_keys`` the scalar columns of :meth:`ground_truth`,
-    ``actions`` (asynchronous action name → events it ends with), ``robots`` it accepts.
+    ``actions`` (asynchronous action name → events it ends with), ``action_params`` (action name → pydantic
+    model of its parameters, checked for every state and ``foreach`` item at load), ``robots`` it
+    accepts, and ``physics_hz`` (or a ``physics_hz`` parameter): the mission's ``rate_hz`` must divide it.
     """
 
     name: ClassVar[str] = ""
@@ -146,6 +156,7 @@ class World:
     metrics: ClassVar[dict[str, str]] = {}
     ground_truth_keys: ClassVar[tuple[str, ...]] = ()
     actions: ClassVar[dict[str, tuple[str, ...]]] = {}
+    action_params: ClassVar[dict[str, type[BaseModel]]] = {}
     robots: ClassVar[tuple[str, ...]] = ()
 
     physics_hz: float = 240.0

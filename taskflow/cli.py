@@ -28,6 +28,35 @@ def _print_problems(exc: MissionError) -> None:
         print(str(p), file=sys.stderr)
 
 
+class UsageError(Exception):
+    """A command-line value that cannot be used: one line on stderr, exit 1."""
+
+
+def _max_time(text: str | None) -> float | None:
+    """``--max-time 30``, ``"30 s"`` or ``"2 min"``: the same rule as ``max_time`` in a file."""
+    if text is None:
+        return None
+    from .units import UnitError, parse_max_time
+
+    try:
+        return parse_max_time(_number_or_text(text))
+    except UnitError as exc:
+        raise UsageError(f"--max-time {text!r}: {exc}") from None
+
+
+def _number_or_text(text: str) -> float | str:
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def _positive(flag: str, value: int | None) -> int | None:
+    if value is not None and value < 1:
+        raise UsageError(f"{flag} {value}: must be at least 1")
+    return value
+
+
 def _load(path: str, overrides: list[str] | None = None):  # type: ignore[no-untyped-def]
     from .loader import load_mission
 
@@ -38,18 +67,22 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .runtime import Progress, print_progress, run_mission
 
     path = args.mission or str(default_mission())
+    max_time = _max_time(args.max_time)
     mission = _load(path, args.set)
     progress = Progress(print_progress) if sys.stderr.isatty() and not args.quiet else None
     print(f"running {mission.name} ({path}) seed={args.seed if args.seed is not None else mission.spec.seed}",
           file=sys.stderr)
-    result = run_mission(mission, seed=args.seed, out_dir=args.out, gui=args.gui, max_time=args.max_time,
+    result = run_mission(mission, seed=args.seed, out_dir=args.out, gui=args.gui, max_time=max_time,
                          progress=progress)
     if progress is not None:
         sys.stderr.write("\n")
-    s = result.summary
+    s, timing = result.summary, result.timing
     print(f"outcome: {s['outcome']} ({s.get('reason', '')})")
-    print(f"final state: {s['final_state']}   sim time: {s['sim_time_s']:.2f} s   wall: {s['wall_time_s']:.2f} s"
-          f"   RTF: {s['real_time_factor'] or 0:.1f}x   ticks: {s['ticks']}")
+    print(f"final state: {s['final_state']}   sim time: {s['sim_time_s']:.2f} s   wall: {timing.get('wall_time_s', 0):.2f} s"
+          f"   RTF: {timing.get('real_time_factor') or 0:.1f}x   ticks: {s['ticks']}")
+    for loop, c in s.get("items", {}).items():
+        print(f"  items of {loop}: {c['succeeded']}/{c['attempted']} succeeded (rule: {c['rule']}, "
+              f"{c['required']} required)")
     shown = {k: v for k, v in s["metrics"].items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
     for k in sorted(shown)[:20]:
         print(f"  {k:32s} {shown[k]:.6g}")
@@ -96,9 +129,16 @@ def cmd_batch(args: argparse.Namespace) -> int:
     from .batch import format_table, run_batch
 
     path = args.mission
+    _positive("--trials", args.trials)
+    _positive("--workers", args.workers)
+    max_time = _max_time(args.max_time)
     _load(path, args.set)  # fail fast, with file:line:col, before any worker starts
-    result = run_batch(path, trials=args.trials, workers=args.workers, seed=args.seed, overrides=args.set,
-                       out=args.out, max_time=args.max_time, keep_runs=args.keep_runs)
+    try:
+        result = run_batch(path, trials=args.trials, workers=args.workers, seed=args.seed, overrides=args.set,
+                           out=args.out, max_time=max_time, keep_runs=args.keep_runs)
+    except KeyboardInterrupt as exc:
+        print(f"interrupted: finished trials recorded in {exc}", file=sys.stderr)
+        return 130
     print(format_table(result))
     print(f"batch record: {result['batch_file']}")
     return 0 if result["aggregate"]["success_rate"] == 1.0 else 1
@@ -119,7 +159,13 @@ def cmd_teach(args: argparse.Namespace) -> int:
 def cmd_plot(args: argparse.Namespace) -> int:
     from .plots import plot_run
 
-    for f in plot_run(Path(args.run_dir)):
+    run_dir = Path(args.run_dir)
+    if not (run_dir / "trace.csv").is_file():
+        what = ("no such folder" if not run_dir.exists() else
+                "a batch folder: plot one of its trial-NNNNN folders (taskflow batch --keep-runs)"
+                if (run_dir / "batch.json").is_file() else "not a run folder (it has no trace.csv)")
+        raise UsageError(f"{run_dir}: {what}")
+    for f in plot_run(run_dir):
         print(f)
     return 0
 
@@ -133,7 +179,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int, default=None)
     r.add_argument("--out", default=None, help="run directory (default runs/NAME-seedN-TIME)")
     r.add_argument("--gui", action="store_true", help="open a PyBullet window")
-    r.add_argument("--max-time", type=float, default=None, help="simulated seconds before 'timeout'")
+    r.add_argument("--max-time", default=None, help="simulated time before 'timeout': seconds, or '30 s', '2 min'")
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a mission key")
     r.add_argument("--plot", action="store_true", help="write the figures into the run directory")
     r.add_argument("--quiet", action="store_true", help="no progress line")
@@ -159,7 +205,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seed", type=int, default=0, help="first seed; trial i uses seed+i")
     b.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     b.add_argument("--out", default=None, help="batch directory (default runs/batch-NAME-TIME)")
-    b.add_argument("--max-time", type=float, default=None)
+    b.add_argument("--max-time", default=None, help="as for run")
     b.add_argument("--keep-runs", action="store_true", help="also write every trial's run directory")
     b.set_defaults(fn=cmd_batch)
 
@@ -182,6 +228,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.fn(args))
     except MissionError as exc:
         _print_problems(exc)
+        return 1
+    except UsageError as exc:
+        print(f"taskflow {args.cmd}: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

@@ -46,6 +46,46 @@ def _draw(spec: dict[str, Any], rng: np.random.Generator, path: tuple[Any, ...])
     return int(rng.integers(int(a), int(b) + 1))
 
 
+def support(spec: dict[str, Any]) -> list[tuple[Any, str]]:
+    """Values at the edges of a distribution's support, each with how to say it: a field that accepts
+    all of them accepts every draw (for a normal, whose support is unbounded, ±10¹² σ stand in)."""
+    kind, args = next(iter(spec.items()))
+    if kind == "choice":
+        return [(v, f"choice {v!r}") for v in args]
+    a, b = float(args[0]), float(args[1])
+    if kind == "normal":
+        if b == 0.0:
+            return [(a, f"normal [{a:g}, 0]")]
+        return [(a - 1e12 * b, f"normal [{a:g}, {b:g}] (unbounded: any value)"),
+                (a + 1e12 * b, f"normal [{a:g}, {b:g}] (unbounded: any value)")]
+    if kind == "randint":
+        return [(int(a), f"randint bound {int(a)}"), (int(b), f"randint bound {int(b)}")]
+    return [(a, f"uniform bound {a:g}"), (b, f"uniform bound {b:g}")]
+
+
+def distributions_in(value: Any, path: tuple[Any, ...] = ()) -> list[tuple[tuple[Any, ...], dict[str, Any]]]:
+    """Every distribution inside ``value`` with its path."""
+    if is_distribution(value):
+        return [(path, value)]
+    if isinstance(value, dict):
+        return [d for k, v in value.items() for d in distributions_in(v, path + (k,))]
+    if isinstance(value, list):
+        return [d for i, v in enumerate(value) for d in distributions_in(v, path + (i,))]
+    return []
+
+
+def replaced(value: Any, path: tuple[Any, ...], new: Any) -> Any:
+    """A copy of ``value`` with the item at ``path`` replaced by ``new``."""
+    if not path:
+        return new
+    head, rest = path[0], path[1:]
+    if isinstance(value, dict):
+        return {**value, head: replaced(value[head], rest, new)}
+    out = list(value)
+    out[head] = replaced(value[head], rest, new)
+    return out
+
+
 def sample(value: Any, rng: np.random.Generator, path: tuple[Any, ...] = ()) -> Any:
     """A copy of ``value`` with every distribution replaced by a draw."""
     if is_distribution(value):

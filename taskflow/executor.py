@@ -52,6 +52,21 @@ class TransitionRecord:
 
 
 @dataclass
+class ItemCount:
+    """A foreach loop's items over a whole run: attempted, succeeded, and its success rule."""
+
+    required: int  # per run of the loop
+    rule: str  # as written: "all", "3", "75 %"
+    attempted: int = 0
+    succeeded: int = 0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"attempted": self.attempted, "succeeded": self.succeeded, "failed": self.attempted - self.succeeded,
+                "success_rate": self.succeeded / self.attempted if self.attempted else None,
+                "required": self.required, "rule": self.rule}
+
+
+@dataclass
 class IterationRecord:
     state: str
     index: int
@@ -94,11 +109,17 @@ class Executor:
         self.leaf: StateNode | None = None
         self.task: Task | None = None
         self.entered_at: dict[str, float] = {}
+        # first entry of each state since its enclosing state was last entered afresh (`since: first_entry`)
+        self.first_entered: dict[str, float] = {}
         self.dwell_since: dict[int, float] = {}
         self.iteration: dict[str, int] = {}
         self.iteration_start: dict[str, float] = {}
         self.history: dict[str, str] = {}
         self.iterations: list[IterationRecord] = []
+        self.loop_failures: list[str] = []  # loops that finished failed by their success rule, for the reason
+        self.loop_succeeded: dict[str, int] = {}  # foreach path → items succeeded in its current run
+        self.item_counts: dict[str, ItemCount] = {}  # foreach path → items attempted / succeeded over the whole run
+        self.step_timings: dict[str, float] = {}  # wall-clock seconds of the last task step's parts (never guarded on)
         self.path: list[str] = []  # leaves visited, in order
         self.time_in_state: dict[str, float] = {}
         self.transitions_fired: list[TransitionRecord] = []
@@ -117,6 +138,8 @@ class Executor:
         # per-leaf: a validated parameter model when the task's params hold no $reference
         self._static_params: dict[str, Any] = {}
         self._scoped: set[str] = {n.path for n in mission.states.values() if any(a.foreach for a in n.ancestors())}
+        self._below: dict[str, list[str]] = {n.path: [d.path for d in n.walk() if d is not n]
+                                             for n in mission.states.values() if n.children}
         self._model = _Model()
         self._machine = _Machine(model=self._model, states=[START, *self._state_dicts(mission.root)], initial=START,
                                  auto_transitions=True, send_event=False)
@@ -162,11 +185,15 @@ class Executor:
     def _enter(self, node: StateNode) -> None:
         t = self.t
         self.entered_at[node.path] = t
+        self.first_entered.setdefault(node.path, t)
         for tr in node.transitions:
             self.dwell_since.pop(tr.index, None)
+        if not self._resuming and node.children:
+            self._forget_first_entries(node)
         if node.foreach and not self._resuming:
             self.iteration[node.path] = 0
             self.iteration_start[node.path] = t
+            self.loop_succeeded[node.path] = 0
         if node.action is not None:
             name, params = node.action
             self.world.start_action(name, resolve_refs(params, self.params, self.items(node)))
@@ -198,6 +225,12 @@ class Executor:
             self._running_actions.discard(node.action[0])
         if node.history and self.leaf is not None:
             self.history[node.path] = self.leaf.path
+
+    def _forget_first_entries(self, node: StateNode) -> None:
+        """A fresh entry of ``node`` (or its next foreach item) starts its sub-states' `first_entry` clocks anew."""
+        first = self.first_entered
+        for path in self._below[node.path]:
+            first.pop(path, None)
 
     def _destination(self, target: StateNode, resume: bool) -> tuple[StateNode, bool]:
         if target.children and target.history and resume and target.path in self.history:
@@ -251,7 +284,10 @@ class Executor:
         if parent is None or parent.parent is None:
             self.outcome = outcome
             desc = self.mission.description_of(leaf)
-            self.reason = self.reason or f"reached final state {leaf.path!r}" + (f" ({desc})" if desc else "")
+            why = f"reached final state {leaf.path!r}" + (f" ({desc})" if desc else "")
+            if outcome != "succeeded" and self.loop_failures:
+                why += "; " + "; ".join(self.loop_failures)
+            self.reason = self.reason or why
             return
         if parent.foreach:
             lst_name, item_name, on_failure = parent.foreach
@@ -260,14 +296,26 @@ class Executor:
             self.iterations.append(IterationRecord(parent.path, i, lst[i], outcome,
                                                    self.iteration_start.get(parent.path, self.t), self.t,
                                                    self.world.ground_truth()))
+            count = self.item_counts.setdefault(parent.path, ItemCount(required=parent.require, rule=parent.require_text))
+            count.attempted += 1
+            if outcome == "succeeded":
+                count.succeeded += 1
+                self.loop_succeeded[parent.path] = self.loop_succeeded.get(parent.path, 0) + 1
             if outcome == "succeeded" or on_failure == "continue":
                 if i + 1 < len(lst):
                     self.iteration[parent.path] = i + 1
                     self.iteration_start[parent.path] = self.t
+                    self._forget_first_entries(parent)
+                    # a new item enters the sub-machine afresh (no history, nested loops restart)
                     self._go(parent.initial_leaf(), None, f"{parent.path}: next {item_name} ({i + 2}/{len(lst)})",
-                             resume=True)
+                             resume=False)
                     return
-                outcome = "succeeded" if outcome == "succeeded" or on_failure == "continue" else outcome
+                # the last item: the loop's own success rule decides
+                done = self.loop_succeeded.get(parent.path, 0)
+                outcome = "succeeded" if done >= parent.require else "failed"
+                if outcome == "failed":
+                    self.loop_failures.append(f"{parent.path!r} finished failed: {done} of {len(lst)} items "
+                                              f"succeeded, its rule requires {parent.require} ({parent.require_text})")
         self._complete(parent, outcome)
 
     def _complete(self, node: StateNode, outcome: str) -> None:
@@ -289,6 +337,7 @@ class Executor:
         task = self.task
         if task is not None:
             res = task.step(obs)
+            self.step_timings = res.timings
             command = res.command
             metrics = {**obs.metrics, **res.metrics} if obs.metrics else res.metrics
             if res.events:
@@ -329,10 +378,11 @@ class Executor:
                 if tr.dwell > 0.0:
                     self.dwell_since.pop(tr.index, None)
             elif kind == "on":
-                if tr.event in events:
+                if tr.event in events and (tr.predicate is None or tr.predicate(metrics)):
                     return self._fire_from(table, i, metrics)
             elif kind == "after":
-                if t - entered[tr.source.path] + 1e-9 >= tr.after:
+                since = (self.first_entered if tr.since_first else entered)[tr.since.path]  # type: ignore[union-attr]
+                if t - since + 1e-9 >= tr.after:
                     return self._fire_from(table, i, metrics)
         return None
 

@@ -11,6 +11,9 @@ Grammar (keywords are lower case)::
     metric     := NAME ("." NAME)*
     quantity   := NUMBER [UNIT]                   e.g. 2 px, 1 cm, 3 deg, 0.5 m/s
 
+Parentheses and ``not`` nest at most :data:`MAX_DEPTH` levels deep (a deeper guard is a load-time
+error, not a stack overflow).
+
 Examples: ``feature_error < 2 px``, ``pos_error < 1 cm and yaw_error < 2 deg``,
 ``abs(lateral_error) <= $eps_t``.  A quantity is converted to the SI base unit of the metric it
 is compared with; comparing a length metric with ``3 deg`` is a load-time error.  A comparison whose
@@ -53,6 +56,8 @@ _OPS: dict[str, Callable[[float, float], bool]] = {
 }
 _FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
 KEYWORDS = {"and", "or", "not", "abs"}
+MAX_DEPTH = 32
+"""Deepest nesting of parentheses and ``not`` a guard may have."""
 
 
 @dataclass
@@ -120,6 +125,13 @@ class _Parser:
         self.text = text
         self.toks = _tokenize(text)
         self.i = 0
+        self.depth = 0
+
+    def deeper(self, offset: int) -> None:
+        self.depth += 1
+        if self.depth > MAX_DEPTH:
+            raise GuardSyntaxError(f"the guard nests parentheses and 'not' more than {MAX_DEPTH} levels deep", offset,
+                                   f"at most {MAX_DEPTH} levels; simplify the expression")
 
     def peek(self) -> tuple[str, str, int] | None:
         return self.toks[self.i] if self.i < len(self.toks) else None
@@ -160,18 +172,21 @@ class _Parser:
 
     def not_expr(self) -> Node:
         if self.is_word("not"):
-            self.take()
-            return Node("not", [self.not_expr()])
+            self.deeper(self.take()[2])
+            node = Node("not", [self.not_expr()])
+            self.depth -= 1
+            return node
         return self.primary()
 
     def primary(self) -> Node:
         tok = self.peek()
         if tok is not None and tok[0] == "par" and tok[1] == "(":
-            self.take()
+            self.deeper(self.take()[2])
             node = self.expr()
             close = self.take()
             if close[1] != ")":
                 raise GuardSyntaxError(f"expected ')' but found {close[1]!r}", close[2])
+            self.depth -= 1
             return node
         return self.comparison()
 

@@ -15,13 +15,13 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from .api import Robot, Task, World
-from .distributions import DistributionError, sample, world_rng
+from .distributions import DistributionError, distributions_in, replaced, sample, support, world_rng
 from .errors import MissionError, Problem
 from .guards import GuardSyntaxError, Predicate, bind_units, compile_guard, parse_guard
 from .registry import ROBOTS, TASKS, WORLDS, RegistryError, UnknownName, describe_choices
-from .schema import Machine, Mission, State
+from .schema import SINCE_ENTRY, SINCE_FIRST_ENTRY, Machine, Mission, State
 from .units import UnitError, parse_quantity
-from .yamlsrc import SourceMap, load_yaml_file, load_yaml_text
+from .yamlsrc import MissionLoader, SourceMap, load_yaml_file, load_yaml_text
 
 YPath = tuple[Any, ...]
 
@@ -33,11 +33,13 @@ class CompiledTransition:
     index: int
     source: "StateNode"
     target: "StateNode"
-    kind: str  # when | after | on | done
+    kind: str  # when | after | on (with an optional condition) | done
     label: str  # as written, for logs and diagrams
     predicate: Predicate | None = None
     dwell: float = 0.0
     after: float = 0.0
+    since: "StateNode | None" = None  # `after` counts from this state's entry (the source unless `since` names another)
+    since_first: bool = False  # `since: first_entry`: from the first entry, kept across re-entries and resumes
     event: str | None = None
     done: bool | str | None = None
     resume: bool = True
@@ -62,6 +64,8 @@ class StateNode:
     transitions: list[CompiledTransition] = field(default_factory=list)
     history: bool = False
     foreach: tuple[str, str, str] | None = None  # (list parameter, item name, on_failure)
+    require: int = 0  # foreach: items that must succeed (the mission's `require` rule resolved against the list)
+    require_text: str = ""  # the rule as written ("all", "3", "75 %")
     action: tuple[str, dict[str, Any]] | None = None
     final: str | None = None  # outcome
     depth: int = 0
@@ -167,7 +171,8 @@ def with_model_defaults(model: type[BaseModel], values: Any) -> Any:
 
 
 def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap | None = None) -> Any:
-    """``--set a.b.0.c=value``: the value is read as YAML (safe loader).
+    """``--set a.b.0.c=value``: the value is read as YAML by the same safe YAML 1.2 reader as the file
+    (``on:`` stays a key, ``1e3`` is a number).
 
     With ``smap``, each overridden path is remembered so that a problem inside it names the
     ``--set`` that caused it instead of a line of the file."""
@@ -177,7 +182,7 @@ def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap 
         if not sep or not key:
             raise MissionError([Problem(file, 0, 0, f"--set {item!r} is not KEY=VALUE", "write e.g. --set world.params.speed=0.05")])
         try:
-            value = yaml.safe_load(text)
+            value = yaml.load(text, Loader=MissionLoader)  # noqa: S506 - MissionLoader is a SafeLoader (YAML 1.2 scalars)
         except yaml.YAMLError as exc:
             raise MissionError([Problem(file, 0, 0, f"--set {key}: value is not valid YAML ({exc})")]) from None
         node = data
@@ -271,6 +276,9 @@ def _pydantic_problems(exc: ValidationError, smap: SourceMap, base: YPath, model
         elif etype.startswith("literal_error"):
             hint = msg
             msg = f"invalid value {err.get('input')!r}"
+        elif etype in ("bool_type", "bool_parsing"):
+            msg = f"{err.get('input')!r}: {msg[0].lower()}{msg[1:]}"
+            hint = "write true or false (YAML 1.2: yes/no/on/off are strings)"
         key = (path, msg)
         if key in seen:
             continue
@@ -388,6 +396,7 @@ class _Compiler:
             else:
                 if wparams is not None:
                     self._check_rates(world_cls, wparams, wpath)
+                    self._check_support(world_cls, world_params_raw, drawn, wpath)
         self.fail_if_problems()
         assert robot_cls is not None and world_cls is not None and robot_params is not None
         self.robot_cls, self.world_cls = robot_cls, world_cls
@@ -407,13 +416,33 @@ class _Compiler:
             transitions=self.transitions, robot_cls=robot_cls, robot_params=robot_params,
             world_cls=world_cls, world_params_raw=world_params_raw, metric_units=metric_units, events=events)
 
+    def _check_support(self, world_cls: type[World], raw: dict[str, Any], drawn: dict[str, Any], wpath: YPath) -> None:
+        """Every value a distribution can draw must be a valid parameter, not just the default seed's draw."""
+        model = world_cls.Params
+        for path, spec in distributions_in(raw):
+            for value, what in support(spec):
+                try:
+                    model.model_validate(with_model_defaults(model, replaced(drawn, path, value)))
+                except ValidationError as exc:
+                    msg = exc.errors()[0]["msg"].removeprefix("Value error, ")
+                    self.err(wpath + path, f"{what} is not a valid value here ({msg}): some seeds would draw it",
+                             "keep the distribution inside the parameter's valid range")
+                    break
+                except (TypeError, ValueError) as exc:
+                    self.err(wpath + path, f"{what} is not a valid value here ({exc}): some seeds would draw it",
+                             "keep the distribution inside the parameter's valid range")
+                    break
+
     def _check_rates(self, world_cls: type[World], wparams: BaseModel, wpath: YPath) -> None:
         """The control period must be a whole number of physics steps, so every tick lasts the same."""
         physics = float(getattr(wparams, "physics_hz", world_cls.physics_hz))
         rate = float(self.spec.rate_hz)
         ratio = physics / rate
         if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
-            where = wpath + ("physics_hz",) if "physics_hz" in type(wparams).model_fields else ("rate_hz",)
+            world_raw = self.data.get("world")
+            given = isinstance(world_raw, dict) and "physics_hz" in (world_raw.get("params") or {})
+            # point at what the author wrote last: the world's physics_hz, unless rate_hz came from a --set
+            where = wpath + ("physics_hz",) if given and ("rate_hz",) not in self.smap.overrides else ("rate_hz",)
             divisors = [f"{physics / k:g}" for k in range(1, 41) if abs(physics / k - round(physics / k, 6)) < 1e-9][:8]
             self.err(where, f"control rate_hz {rate:g} Hz does not divide the physics rate {physics:g} Hz of world "
                      f"{world_cls.name!r} ({ratio:.4g} physics steps per tick): ticks would last unequal times",
@@ -569,6 +598,11 @@ class _Compiler:
                     valid = ["$" + k for k in list(params) + list(scope)]
                     self.err(n.ypath + ("action", "params") + exc.path, f"unknown reference ${exc.name}",
                              describe_choices("$" + exc.name, valid))
+                else:
+                    model = self.world_cls.action_params.get(name)
+                    if model is not None:
+                        self._validate_every_item(n, model, aparams, n.ypath + ("action", "params"),
+                                                  f"action {name!r}")
             spec = self._spec_of(n)
             if isinstance(spec, State) and spec.foreach is not None:
                 fe = spec.foreach
@@ -577,6 +611,16 @@ class _Compiler:
                     self.err(where, f"unknown list parameter {fe.in_!r}", describe_choices(fe.in_, list(params)))
                 elif not isinstance(params[fe.in_], list) or not params[fe.in_]:
                     self.err(where, f"parameter {fe.in_!r} must be a non-empty list to iterate over")
+                else:
+                    n_items = len(params[fe.in_])
+                    n.require, n.require_text = fe.required(n_items), str(fe.require)
+                    if n.require > n_items:
+                        self.err(n.ypath + ("foreach", "require"), f"require {fe.require!r}: the list {fe.in_!r} has "
+                                 f"only {n_items} items", f"require at most {n_items}, or 'all'")
+                    if fe.on_failure == "stop" and fe.require != "all":
+                        self.err(n.ypath + ("foreach", "require"), f"require {fe.require!r} with on_failure: stop — "
+                                 "the first failed item ends the loop, so the rule could never let one fail",
+                                 "add `on_failure: continue`, or drop `require`")
                 if fe.as_ in params:
                     self.err(n.ypath + ("foreach", "as"), f"{fe.as_!r} would hide the mission parameter of that name",
                              "choose another item name")
@@ -585,29 +629,37 @@ class _Compiler:
             scope = {item: params.get(lst, [None]) for item, lst in n.scope_items()}
             sample_scope = {k: (v[0] if isinstance(v, list) and v else None) for k, v in scope.items()}
             try:
-                resolved = resolve_refs(n.task_params, params, sample_scope)
+                resolve_refs(n.task_params, params, sample_scope)
             except UnknownRef as exc:
                 valid = ["$" + k for k in list(params) + list(scope)]
                 self.err(n.task_ypath + ("params",) + exc.path, f"unknown reference ${exc.name}",
                          describe_choices("$" + exc.name, valid))
                 continue
-            if self._validate_model(n.task_cls.Params, resolved, n.task_ypath + ("params",)) is None:
-                continue
-            # every other item of every enclosing foreach must fit too (the others at their first item)
-            for item, lst in n.scope_items():
-                values = params.get(lst)
-                for idx, value in enumerate(values if isinstance(values, list) else []):
-                    if idx == 0:
-                        continue
-                    try:
-                        n.task_cls.Params.model_validate(resolve_refs(n.task_params, params, {**sample_scope, item: value}))
-                    except ValidationError as exc:
-                        first = exc.errors()[0]
-                        where = ".".join(str(x) for x in _clean_loc(tuple(first["loc"])))
-                        self.err(("parameters", lst, idx), f"item {idx} of {lst!r} does not fit task "
-                                 f"{n.task_cls.name!r} (state {n.path!r}): {where}: {first['msg']}",
-                                 "make every item the same shape as the first")
-                        break
+            self._validate_every_item(n, n.task_cls.Params, n.task_params, n.task_ypath + ("params",),
+                                      f"task {n.task_cls.name!r}")
+
+    def _validate_every_item(self, n: StateNode, model: type[BaseModel], raw: dict[str, Any], where: YPath,
+                             what: str) -> None:
+        """Validate ``raw`` (which may hold ``$references``) against ``model`` with the first item of every
+        enclosing foreach, then with every other item of each list (the others at their first item)."""
+        params = self.spec.parameters
+        scope = {item: params.get(lst, [None]) for item, lst in n.scope_items()}
+        sample_scope = {k: (v[0] if isinstance(v, list) and v else None) for k, v in scope.items()}
+        if self._validate_model(model, resolve_refs(raw, params, sample_scope), where) is None:
+            return
+        for item, lst in n.scope_items():
+            values = params.get(lst)
+            for idx, value in enumerate(values if isinstance(values, list) else []):
+                if idx == 0:
+                    continue
+                try:
+                    model.model_validate(with_model_defaults(model, resolve_refs(raw, params, {**sample_scope, item: value})))
+                except ValidationError as exc:
+                    first = exc.errors()[0]
+                    loc = ".".join(str(x) for x in _clean_loc(tuple(first["loc"])))
+                    self.err(("parameters", lst, idx), f"item {idx} of {lst!r} does not fit {what} "
+                             f"(state {n.path!r}): {loc}: {first['msg']}", "make every item the same shape as the first")
+                    break
 
     # -- transitions ---------------------------------------------------------------------------
     def _resolve_target(self, source: StateNode, name: str) -> StateNode | None:
@@ -653,39 +705,32 @@ class _Compiler:
                     ct.kind, ct.label, ct.dwell = "when", tr.when, tr.for_ or 0.0
                     if ct.dwell:
                         ct.label += f" for {ct.dwell:g} s"
-                    try:
-                        guard = parse_guard(tr.when)
-                    except GuardSyntaxError as exc:
-                        line, col = self.smap.where(tpath + ("when",))
-                        self.problems.append(Problem(self.smap.file, line, col, f"guard {tr.when!r}: {exc} (at character {exc.offset + 1})", exc.hint))
-                        continue
-                    available = self._metrics_under(n)
-                    bad = False
-                    for m in sorted(guard.metrics):
-                        if m not in available:
-                            bad = True
-                            self.err(tpath + ("when",), f"metric {m!r} is not published in state {n.path!r}",
-                                     describe_choices(m, list(available)))
-                    if bad:
-                        continue
-                    for c in guard.comparisons():
-                        if c.param is not None and c.param in not_quantities:
-                            self.err(tpath + ("when",), f"guard {tr.when!r}: {not_quantities[c.param]}",
-                                     "give the parameter a number with a unit")
-                    for msg in bind_units(guard, available, gparams, skip=set(not_quantities)):
-                        self.err(tpath + ("when",), f"guard {tr.when!r}: {msg}")
-                    ct.predicate = compile_guard(guard) if not any(c.value is None for c in guard.comparisons()) else None
+                    ct.predicate = self._compile_guard(n, tr.when, tpath + ("when",), not_quantities, gparams)
                     if ct.predicate is None:
                         continue
-                elif tr.after is not None:
+                if tr.after is not None:
                     ct.kind, ct.after, ct.label = "after", float(tr.after), f"after {float(tr.after):g} s"
+                    ct.since = n
+                    if tr.since is not None and tr.since != SINCE_ENTRY:
+                        ct.label += f" since {tr.since}"
+                        if tr.since == SINCE_FIRST_ENTRY:
+                            ct.since_first = True
+                        else:
+                            since = self._enclosing(n, tr.since)
+                            if since is None:
+                                valid = [SINCE_ENTRY, SINCE_FIRST_ENTRY] + [a.name for a in n.ancestors()[1:]]
+                                self.err(tpath + ("since",), f"since {tr.since!r}: neither 'entry', 'first_entry' nor "
+                                         f"a state enclosing {n.path!r}", describe_choices(tr.since, valid))
+                                continue
+                            ct.since = since
                 elif tr.on is not None:
-                    ct.kind, ct.event, ct.label = "on", tr.on, f"on {tr.on}"
+                    cond = ct.label
+                    ct.kind, ct.event, ct.label = "on", tr.on, f"on {tr.on}" + (f" when {cond}" if cond else "")
                     if tr.on not in events:
                         self.err(tpath + ("on",), f"unknown event {tr.on!r}: no world, sensor, action or task of this mission emits it",
                                  describe_choices(tr.on, sorted(events)))
                         continue
-                else:
+                elif tr.done not in (None, False):
                     ct.kind, ct.done = "done", tr.done
                     ct.label = "done" if tr.done is True else f"done {tr.done}"
                     if n.is_leaf:
@@ -695,16 +740,71 @@ class _Compiler:
                 n.transitions.append(ct)
                 self.transitions.append(ct)
 
+    def _compile_guard(self, n: StateNode, text: str, where: YPath, not_quantities: dict[str, str],
+                       gparams: dict[str, tuple[float, str]]) -> Predicate | None:
+        """Parse, check and compile the guard ``text`` of a transition of ``n`` (None: reported)."""
+        try:
+            guard = parse_guard(text)
+        except GuardSyntaxError as exc:
+            self.err(where, f"guard {text!r}: {exc} (at character {exc.offset + 1})", exc.hint)
+            return None
+        available = self._metrics_under(n)
+        bad = False
+        for m in sorted(guard.metrics):
+            if m not in available:
+                bad = True
+                self.err(where, f"metric {m!r} is not published in state {n.path!r}", describe_choices(m, list(available)))
+        if bad:
+            return None
+        for c in guard.comparisons():
+            if c.param is not None and c.param in not_quantities:
+                self.err(where, f"guard {text!r}: {not_quantities[c.param]}", "give the parameter a number with a unit")
+        for msg in bind_units(guard, available, gparams, skip=set(not_quantities)):
+            self.err(where, f"guard {text!r}: {msg}")
+        if any(c.value is None for c in guard.comparisons()):
+            return None
+        return compile_guard(guard)
+
+    @staticmethod
+    def _finishing_outcomes(n: StateNode, finals: list[StateNode]) -> dict[str, str]:
+        """The outcomes composite ``n`` can finish with, each with why (for the message)."""
+        out: dict[str, str] = {}
+        for f in finals:
+            out.setdefault(f.final or "succeeded", f"its sub-state {f.name!r} is final: {f.final}")
+        if n.foreach and n.foreach[2] == "continue":
+            # failed items are recorded and the loop goes on; at its end the `require` rule decides
+            failing = [f.name for f in finals if f.final != "succeeded"]
+            out = {k: v for k, v in out.items() if k == "succeeded"}
+            if failing:
+                out["failed"] = (f"when fewer than {n.require_text or 'all'} items succeed: "
+                                 f"an item can end in {failing[0]!r}")
+        return out
+
+    @staticmethod
+    def _enclosing(n: StateNode, name: str) -> StateNode | None:
+        """``n`` or the ancestor of ``n`` called ``name`` (a bare name or a dotted path)."""
+        for a in n.ancestors()[1:]:
+            if name in (a.name, a.path):
+                return a
+        return None
+
     # -- structure: reachability, ways out ------------------------------------------------------------
     def _check_structure(self, root: StateNode) -> None:
-        # every composite that can finish needs a `done` transition (the root's finals end the run)
+        # every composite that can finish needs a `done` transition for each outcome it can finish with
+        # (the root's finals end the run)
         for n in root.walk():
             finals = [c for c in n.children.values() if c.final]
-            has_done = any(t.kind == "done" for t in n.transitions)
-            if n.parent is not None and n.children and (finals or n.foreach) and not has_done:
+            dones = [t for t in n.transitions if t.kind == "done"]
+            if n.parent is not None and n.children and (finals or n.foreach) and not dones:
                 self.err(n.ypath, f"state {n.path!r} can finish (it has final sub-states) but has no `done` transition",
                          "add e.g. `- {to: NEXT, done: true}`")
-            if n.children and not finals and has_done:
+            elif n.parent is not None and finals:
+                handled = {t.done for t in dones}
+                for outcome, why in self._finishing_outcomes(n, finals).items():
+                    if True not in handled and outcome not in handled:
+                        self.err(n.ypath, f"state {n.path!r} can finish {outcome} ({why}) but no `done` transition "
+                                 "handles that outcome", f"add `- {{to: NEXT, done: {outcome}}}`, or make one `done: true`")
+            if n.children and not finals and dones:
                 self.err(n.ypath, f"state {n.path!r} waits for `done` but none of its sub-states is final",
                          "mark the last sub-state `final: succeeded`")
         if not any(c.final for c in root.children.values()):

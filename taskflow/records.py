@@ -8,7 +8,13 @@
                           ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
                           (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it; ``nan``
                           where a metric has no value that tick)
-  ``summary.json``        outcome, final state, states visited, times, final metrics
+  ``summary.json``        outcome, final state, states visited, times, foreach items, final metrics, and
+                          the versions of the packages that shape the result
+  ``timing.json``         wall-clock figures only: real-time factor, per-tick loop time and the parts tasks
+                          and worlds time (perception, control …) as n / mean / p50 / p95 / max in ms
+
+Everything but ``timing.json`` depends only on the mission and the seed: two runs with one seed write
+the same bytes.
 
 Rows are buffered and flushed every ``flush_every`` ticks; ``summary.json`` exists from the start
 (outcome ``aborted``, reason ``run did not finish``) and is replaced when the run ends, so a crash or
@@ -118,10 +124,48 @@ class RunRecorder:
         self.flush()
         write_json(self.dir / "summary.json", clean_floats(data))
 
+    def timing(self, data: dict[str, Any]) -> None:
+        write_json(self.dir / "timing.json", clean_floats(data))
+
     def close(self) -> None:
         self.flush()
         self._trace.close()
         self._transitions.close()
+
+
+def _stats_ms(seconds: list[float]) -> dict[str, float]:
+    a = 1e3 * np.asarray(seconds, dtype=float)
+    return {"n": int(a.size), "mean": float(a.mean()), "p50": float(np.percentile(a, 50)),
+            "p95": float(np.percentile(a, 95)), "max": float(a.max())}
+
+
+class TimingRecord:
+    """Wall-clock time of one run: the control loop per tick, and the named parts tasks and worlds report
+    (``StepResult.timings`` / ``Observation.timings``, in seconds).  Kept apart from the trace and the
+    summary, which must not depend on the machine's speed."""
+
+    def __init__(self) -> None:
+        self.parts: dict[str, list[float]] = {}
+        self.ticks: list[float] = []
+        self._last: float | None = None
+
+    def add(self, source: str, timings: dict[str, float]) -> None:
+        for name, seconds in timings.items():
+            self.parts.setdefault(f"{source}.{name}", []).append(seconds)
+
+    def tick(self, now: float) -> None:
+        """Mark the end of a tick at wall time ``now`` (``time.perf_counter()``)."""
+        if self._last is not None:
+            self.ticks.append(now - self._last)
+        self._last = now
+
+    def summary(self, sim_time: float, wall: float, ticks: int) -> dict[str, Any]:
+        return {
+            "sim_time_s": sim_time, "wall_time_s": wall, "ticks": ticks,
+            "real_time_factor": sim_time / wall if wall > 0 else None,
+            "tick_ms": _stats_ms(self.ticks) if self.ticks else None,
+            "parts_ms": {k: _stats_ms(v) for k, v in sorted(self.parts.items()) if v},
+        }
 
 
 def read_trace(run_dir: str | Path) -> dict[str, np.ndarray]:

@@ -10,7 +10,13 @@ One tick at the mission's ``rate_hz``::
 
 A run ends at a final state, at ``max_time`` (outcome ``timeout``), on an exception (``aborted``,
 with the error in ``summary.json`` and ``error.txt``) or on Ctrl-C / SIGTERM (``aborted``,
-``interrupted``).  On anything but success the robot is commanded to a safe stop.
+``interrupted``).  Whatever the outcome, the robot is then commanded to a safe stop, so a finished
+mission leaves it at rest.
+
+Nothing here reads the wall clock into the run's behaviour: ``trace.csv``, ``transitions.jsonl`` and
+``summary.json`` depend only on the mission and the seed.  Wall-clock figures — the loop's real-time
+factor and the timings tasks and worlds report (``StepResult.timings``, ``Observation.timings``) — go
+to ``timing.json`` only.
 """
 
 from __future__ import annotations
@@ -26,7 +32,9 @@ from typing import Any, Callable
 from .api import World
 from .executor import Executor, TaskFactory, TransitionRecord
 from .loader import CompiledMission
-from .records import RunRecorder, clean_floats
+from .provenance import versions
+from .records import RunRecorder, TimingRecord, clean_floats
+from .units import parse_max_time
 
 OUTCOMES = ("succeeded", "failed", "aborted", "timeout")
 
@@ -37,6 +45,7 @@ class RunResult:
     summary: dict[str, Any]
     run_dir: Path | None
     executor: Executor
+    timing: dict[str, Any]  # wall-clock figures (timing.json): never part of the summary
 
     @property
     def succeeded(self) -> bool:
@@ -59,6 +68,9 @@ def _sigterm(signum: int, frame: Any) -> None:
     raise _Terminated()
 
 
+INTERRUPTED = "interrupted (Ctrl-C)"
+
+
 def default_run_dir(mission: CompiledMission, seed: int, root: str | Path = "runs") -> Path:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     base = Path(root) / f"{mission.name}-seed{seed}-{stamp}"
@@ -76,16 +88,17 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                 safe_stop_s: float = 1.0) -> RunResult:
     """Run ``mission`` to its end and return the outcome and summary.
 
-    On any outcome but success the world is told to stop the robot every tick for ``safe_stop_s``
+    Whatever the outcome, the world is then told to stop the robot every tick for ``safe_stop_s``
     simulated seconds (recorded in the trace with the event ``safe_stop``; ``sim_time_s`` in the
     summary stays the time the outcome was decided, ``stopped_at_s`` is when the stop ended).
+    ``max_time`` overrides the mission's (seconds, or a string with a unit).
 
     ``out_dir=None`` with ``record=True`` writes under ``runs/``; ``record=False`` writes nothing
     (tests and batches that only need the summary).  ``world`` replaces the registered world (the
     scripted backend of :mod:`taskflow.testing` uses it).
     """
     seed = mission.spec.seed if seed is None else int(seed)
-    max_time = float(mission.spec.max_time if max_time is None else max_time)
+    max_time = float(mission.spec.max_time) if max_time is None else parse_max_time(max_time)
     robot = mission.build_robot()
     world_params = mission.world_params(seed)
     if world is None:
@@ -109,9 +122,10 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     if on_start is not None:
         on_start(executor)
     summary: dict[str, Any] = {"mission": mission.name, "file": mission.file, "seed": seed, "outcome": "aborted",
-                               "reason": "run did not finish"}
+                               "reason": "run did not finish", "versions": versions()}
     if recorder is not None:
         recorder.summary(summary)
+    timing = TimingRecord()
     wall0 = time.perf_counter()
     last_report = wall0
     t = 0.0
@@ -142,17 +156,19 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             if recorder is not None:
                 recorder.tick(t, leaf, events, metrics, command, world.ground_truth())
             k += 1
-            if progress is not None:
-                now = time.perf_counter()
-                if now - last_report >= progress.period_s:
-                    last_report = now
-                    progress.callback(executor.state, t, t / max(now - wall0, 1e-9))
+            timing.add("world", obs.timings)
+            timing.add("task", executor.step_timings)
+            now = time.perf_counter()
+            timing.tick(now)
+            if progress is not None and now - last_report >= progress.period_s:
+                last_report = now
+                progress.callback(executor.state, t, t / max(now - wall0, 1e-9))
             if executor.outcome is None:
                 world.advance(dt)
             obs = world.observe()
         outcome, reason = executor.outcome or "aborted", executor.reason
     except KeyboardInterrupt:
-        outcome, reason = "aborted", "interrupted (Ctrl-C)"
+        outcome, reason = "aborted", INTERRUPTED
     except _Terminated:
         outcome, reason = "aborted", "terminated (SIGTERM)"
     except Exception as exc:  # the run record must survive any failure of a task or world
@@ -164,29 +180,33 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             signal.signal(signal.SIGTERM, old_handler)
     executor.outcome, executor.reason = outcome, reason
     t_end = t
+    wall_run = time.perf_counter() - wall0
+    timing_summary: dict[str, Any] = {}
     try:
         executor.close(t)
-        if outcome != "succeeded" and reason != "interrupted (Ctrl-C)":
-            t = _safe_stop(world, executor, recorder, t, dt, safe_stop_s)
+        t = _safe_stop(world, executor, recorder, t, dt, safe_stop_s)
         final_metrics: dict[str, Any] = dict(metrics)
         try:
             final_metrics.update(world.summary_metrics())
         except Exception as exc:  # noqa: BLE001 - a summary must still be written
             final_metrics["summary_error"] = f"{type(exc).__name__}: {exc}"
-        summary = build_summary(mission, seed, executor, t_end, time.perf_counter() - wall0, final_metrics, k)
+        summary = build_summary(mission, seed, executor, t_end, final_metrics, k)
         summary["stopped_at_s"] = t
+        timing_summary = timing.summary(t_end, wall_run, k)
         if recorder is not None:
             recorder.summary(summary)
+            recorder.timing(timing_summary)
     finally:
         if recorder is not None:
             recorder.close()
         world.close()
-    return RunResult(outcome, summary, recorder.dir if recorder else None, executor)
+    return RunResult(outcome, summary, recorder.dir if recorder else None, executor, timing_summary)
 
 
 def _safe_stop(world: World, executor: Executor, recorder: RunRecorder | None, t: float, dt: float,
                duration: float) -> float:
-    """Command the robot to stop and let the world settle for ``duration`` s, recording the ticks."""
+    """Command the robot to stop and let the world settle for ``duration`` s, recording the ticks.
+    A second Ctrl-C cuts the stop short; the summary is still written."""
     try:
         for _ in range(round(duration / dt)):
             world.safe_stop()
@@ -195,13 +215,14 @@ def _safe_stop(world: World, executor: Executor, recorder: RunRecorder | None, t
             t = obs.t
             if recorder is not None:
                 recorder.tick(t, executor.state, ("safe_stop",), {}, executor.robot.stop_command(), world.ground_truth())
-    except Exception:  # noqa: BLE001 - the world may be what failed; the record matters more
+    except (Exception, KeyboardInterrupt, _Terminated):  # noqa: BLE001 - the world may be what failed; the record matters more
         pass
     return t
 
 
-def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: float, wall: float,
+def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: float,
                   metrics: dict[str, Any], ticks: int) -> dict[str, Any]:
+    """What a run did, from the mission, the seed and the simulation only (no wall-clock figure)."""
     return clean_floats({
         "mission": mission.name,
         "file": mission.file,
@@ -211,15 +232,15 @@ def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: f
         "final_state": ex.state,
         "states_visited": list(ex.path),
         "sim_time_s": round(sim_time, 9),
-        "wall_time_s": wall,
-        "real_time_factor": sim_time / wall if wall > 0 else None,
         "ticks": ticks,
         "time_in_state_s": {k: round(v, 9) for k, v in ex.time_in_state.items()},
         "iterations": [
             {"state": r.state, "index": r.index, "item": r.item, "outcome": r.outcome,
              "t_start": r.t_start, "t_end": r.t_end, "ground_truth": r.ground_truth} for r in ex.iterations],
+        "items": {path: count.as_dict() for path, count in ex.item_counts.items()},
         "transitions": len(ex.transitions_fired),
         "metrics": metrics,
+        "versions": versions(),
     })
 
 

@@ -7,11 +7,12 @@ prints :func:`mission_json_schema` for editors.
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictBool, StrictInt, field_validator, model_validator
 
-from .units import UnitError, parse_duration
+from .units import UnitError, parse_duration, parse_max_time, parse_rate
 
 OUTCOMES = ("succeeded", "failed", "aborted")
 Outcome = Literal["succeeded", "failed", "aborted"]
@@ -26,6 +27,27 @@ def _duration(v: Union[str, float, int]) -> float:
 
 Duration = Annotated[Union[float, int, str], AfterValidator(_duration)]
 """``"5 s"``, ``"200 ms"`` or a number of seconds; stored as seconds."""
+
+
+def _max_time(v: Union[str, float, int]) -> float:
+    try:
+        return parse_max_time(v)
+    except UnitError as exc:
+        raise ValueError(str(exc)) from None
+
+
+def _rate(v: Union[str, float, int]) -> float:
+    try:
+        return parse_rate(v)
+    except UnitError as exc:
+        raise ValueError(str(exc)) from None
+
+
+MaxTime = Annotated[Union[float, int, str], AfterValidator(_max_time)]
+"""A run's simulated time limit: a duration > 0 and at most one simulated day."""
+
+Rate = Annotated[Union[float, int, str], AfterValidator(_rate)]
+"""A rate: ``20``, ``"20 Hz"`` or ``"1 kHz"``; stored in Hz."""
 
 
 class _Model(BaseModel):
@@ -54,6 +76,39 @@ class Foreach(_Model):
     as_: str = Field(alias="as", description="name under which tasks see the current item")
     on_failure: Literal["stop", "continue"] = Field(
         "stop", description="an iteration ending failed/aborted: stop the loop (done with that outcome) or record it and go on")
+    require: Union[Literal["all"], StrictInt, str] = Field(
+        "all", description="the loop's success rule: 'all' items, at least N items (an integer), or a share like '75 %'; "
+                           "with fewer the loop finishes failed")
+
+    @field_validator("require")
+    @classmethod
+    def _require(cls, v: Union[str, int]) -> Union[str, int]:
+        if isinstance(v, bool):
+            raise ValueError("require is 'all', a number of items or a share like '75 %', not a boolean")
+        if isinstance(v, int):
+            if v < 1:
+                raise ValueError(f"require: at least 1 item must succeed, got {v}")
+            return v
+        if v == "all":
+            return v
+        text = v.strip()
+        if text.endswith("%"):
+            try:
+                share = float(text[:-1])
+            except ValueError:
+                share = float("nan")
+            if 0.0 < share <= 100.0:
+                return f"{share:g} %"
+        raise ValueError(f"require {v!r} is not 'all', a number of items or a share like '75 %'")
+
+    def required(self, n_items: int) -> int:
+        """How many of ``n_items`` must succeed for the loop to succeed."""
+        if self.require == "all":
+            return n_items
+        if isinstance(self.require, int):
+            return self.require
+        share = float(str(self.require).rstrip(" %"))
+        return max(1, math.ceil(share * n_items / 100.0 - 1e-9))
 
 
 class Action(_Model):
@@ -63,26 +118,37 @@ class Action(_Model):
     params: dict[str, Any] = Field(default_factory=dict)
 
 
+SINCE_ENTRY = "entry"
+SINCE_FIRST_ENTRY = "first_entry"
+
+
 class Transition(_Model):
-    """One way out of a state.  Exactly one trigger: ``when``, ``after``, ``on`` or ``done``."""
+    """One way out of a state.  One trigger — ``when``, ``after``, ``on`` or ``done`` — or an event
+    with a condition (``on`` + ``when``, SCXML's event + cond)."""
 
     to: str = Field(description="target state: a sibling or ancestor's sibling name, or a dotted path from the root")
-    when: str | None = Field(None, description="guard expression over metrics, e.g. 'pos_error < 1 cm'")
+    when: str | None = Field(None, description="guard expression over metrics, e.g. 'pos_error < 1 cm'; with `on`, "
+                                                "the condition the event must find true")
     for_: Duration | None = Field(None, alias="for", description="the guard must hold this long")
-    after: Duration | None = Field(None, description="time in the state")
+    after: Duration | None = Field(None, description="time in the state (see `since`)")
+    since: str | None = Field(None, description="what `after` counts from: 'entry' (default, every entry), 'first_entry' "
+                                                "(kept across history resumes and re-entries), or the name of an "
+                                                "enclosing state (its last entry)")
     on: str | None = Field(None, description="event name")
-    done: bool | Outcome | None = Field(None, description="the sub-machine finished (true: any outcome)")
-    resume: bool = Field(True, description="re-enter a history state where it was left")
+    done: StrictBool | Outcome | None = Field(None, description="the sub-machine finished (true: any outcome)")
+    resume: StrictBool = Field(True, description="re-enter a history state where it was left")
     blend: Duration | None = Field(None, description="blend outgoing → incoming command with h(t) over this time")
 
     @model_validator(mode="after")
     def _one_trigger(self) -> "Transition":
         given = [k for k in ("when", "after", "on", "done") if getattr(self, k) not in (None, False)]
-        if len(given) != 1:
+        if len(given) != 1 and set(given) != {"on", "when"}:
             raise ValueError(
-                f"a transition needs exactly one of when/after/on/done (got {', '.join(given) or 'none'})")
-        if self.for_ is not None and self.when is None:
-            raise ValueError("'for' (dwell) only goes with a 'when' guard")
+                f"a transition needs exactly one of when/after/on/done, or on + when (got {', '.join(given) or 'none'})")
+        if self.for_ is not None and (self.when is None or self.on is not None):
+            raise ValueError("'for' (dwell) only goes with a 'when' guard without 'on' (an event has no duration)")
+        if self.since is not None and self.after is None:
+            raise ValueError("'since' only goes with 'after'")
         return self
 
 
@@ -96,10 +162,10 @@ class State(_Model):
     initial: str | None = None
     states: dict[str, "State"] = Field(default_factory=dict)
     transitions: list[Transition] = Field(default_factory=list)
-    history: bool = Field(False, description="re-entry resumes the sub-state last active")
+    history: StrictBool = Field(False, description="re-entry resumes the sub-state last active")
     foreach: Foreach | None = None
     action: Action | None = None
-    final: bool | Outcome | None = Field(None, description="final state with this outcome (true = succeeded)")
+    final: StrictBool | Outcome | None = Field(None, description="final state with this outcome (true = succeeded)")
 
 
 class Machine(_Model):
@@ -118,9 +184,10 @@ class Mission(_Model):
     description: str = ""
     robot: str | ComponentRef
     world: str | ComponentRef
-    rate_hz: float = Field(gt=0, le=10_000, description="control rate")
-    seed: int = Field(0, ge=0)
-    max_time: Duration = Field(600.0, description="simulated time limit; reaching it ends the run as 'timeout'")
+    rate_hz: Rate = Field(description="control rate: 20 or '20 Hz'; must divide the world's physics rate")
+    seed: int = Field(0, ge=0, le=2**63 - 1)
+    max_time: MaxTime = Field(600.0, description="simulated time limit (≤ one simulated day); reaching it ends the run "
+                                                 "as 'timeout'")
     parameters: dict[str, Any] = Field(default_factory=dict, description="poses, lists of poses, thresholds ...")
     profiles: dict[str, dict[str, dict[str, Any]]] = Field(
         default_factory=dict, description="profile kind (gains, pid, impedance, setpoints ...) → name → values")

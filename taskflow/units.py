@@ -25,6 +25,8 @@ UNITS: dict[str, tuple[str, float]] = {
     "mm/s": ("speed", 1e-3),
     "rad/s": ("angular_speed", 1.0),
     "deg/s": ("angular_speed", math.pi / 180.0),
+    "Hz": ("frequency", 1.0),
+    "kHz": ("frequency", 1e3),
     "N": ("force", 1.0),
     "Nm": ("torque", 1.0),
     "%": ("ratio", 1e-2),
@@ -39,6 +41,7 @@ BASE_UNIT_OF: dict[str, str] = {
     "time": "s",
     "speed": "m/s",
     "angular_speed": "rad/s",
+    "frequency": "Hz",
     "force": "N",
     "torque": "Nm",
     "ratio": "",
@@ -104,3 +107,36 @@ def parse_duration(text: str | float | int) -> float:
     if value < 0:
         raise UnitError(f"a duration cannot be negative: {text!r}")
     return value
+
+
+def parse_bounded(text: str | float | int, dim: str, what: str, low: float, high: float,
+                  low_inclusive: bool = False) -> float:
+    """A finite quantity of dimension ``dim`` (a bare number is taken in its base unit) within
+    ``(low, high]`` (``[low, high]`` with ``low_inclusive``), in base units."""
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        value = float(text)
+    else:
+        value, _ = parse_quantity(text, expect=dim)
+    unit = BASE_UNIT_OF[dim]
+    if not math.isfinite(value):
+        raise UnitError(f"{what} must be a finite number of {unit}, got {text!r}")
+    if value < low or (value == low and not low_inclusive) or value > high:
+        lo = "≥" if low_inclusive else ">"
+        raise UnitError(f"{what} must be {lo} {low:g} {unit} and ≤ {high:g} {unit}, got {text!r}")
+    return value
+
+
+MAX_TIME_S = 86_400.0
+"""Longest simulated time a run may be given (one simulated day)."""
+
+MAX_RATE_HZ = 10_000.0
+
+
+def parse_max_time(text: str | float | int) -> float:
+    """``max_time`` / ``--max-time``: ``"90 s"``, ``"2 min"`` or seconds; finite, > 0, ≤ one simulated day."""
+    return parse_bounded(text, "time", "max_time", 0.0, MAX_TIME_S)
+
+
+def parse_rate(text: str | float | int) -> float:
+    """``rate_hz``: ``20``, ``"20 Hz"`` or ``"1 kHz"``; finite, > 0, ≤ 10 kHz."""
+    return parse_bounded(text, "frequency", "rate_hz", 0.0, MAX_RATE_HZ)

@@ -3,7 +3,8 @@
 The result is the plain Python data plus a map ``path → (line, col)`` (1-based) so that validation
 errors can point at the offending key.  Only the safe loader is used: ``!!python/...`` tags are refused.
 Aliases are allowed (handy for sharing gains), but a document that expands past ``MAX_NODES`` nodes
-(an alias bomb) is refused before anything walks it.
+(an alias bomb, or simply a huge file) is refused before anything walks it, and no more than
+``MAX_BYTES`` are ever read (a device such as ``/dev/zero`` is refused before reading).
 """
 
 from __future__ import annotations
@@ -144,8 +145,10 @@ def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
         try:
             _walk(node, (), smap, [MAX_NODES])
         except _TooBig:
-            raise MissionError([Problem(file, 1, 1, f"the document expands to more than {MAX_NODES} nodes (alias bomb?)",
-                                        "remove the nested aliases")]) from None
+            raise MissionError([Problem(file, 1, 1, f"the document has more than {MAX_NODES} YAML nodes (keys, values "
+                                        "and list items, counted after aliases expand): over the limit",
+                                        f"a mission may have at most {MAX_NODES} nodes; split it, or share less through "
+                                        "nested aliases")]) from None
         except _Duplicate as dup:
             raise MissionError([Problem(file, dup.line, dup.col, f"duplicate key {dup.key!r}",
                                         f"it is already given on line {dup.first}; keep one")]) from None
@@ -195,10 +198,17 @@ def load_yaml_file(path: str | Path) -> tuple[Any, SourceMap, str]:
         raise MissionError([Problem(file, 0, 0, "no such file", "check the path")])
     if p.is_dir():
         raise MissionError([Problem(file, 0, 0, "is a directory, not a mission file", "give a .yaml file")])
+    if not p.is_file():
+        raise MissionError([Problem(file, 0, 0, "is not a regular file (a device, pipe or socket)",
+                                    "give a .yaml file")])
     try:
-        raw = p.read_bytes()
+        with open(p, "rb") as f:
+            raw = f.read(MAX_BYTES + 1)  # never more than the limit, whatever the file claims to be
     except OSError as exc:
         raise MissionError([Problem(file, 0, 0, f"cannot read: {exc.strerror or exc}")]) from None
+    if len(raw) > MAX_BYTES:
+        raise MissionError([Problem(file, 1, 1, f"file is larger than {MAX_BYTES} bytes",
+                                    f"a mission must be under {MAX_BYTES} bytes")])
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -83,7 +83,7 @@ def test_validate_with_set(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["validate", str(TOY), "--set", "rate_hz=50", "--set", "world.params.start=1.5"]) == 0
     assert main(["validate", str(TOY), "--set", "rate_hz=0"]) == 1
     err = capsys.readouterr().err
-    assert "greater than 0" in err
+    assert "rate_hz must be > 0 Hz" in err
 
 
 def test_set_unknown_key(capsys: pytest.CaptureFixture[str]) -> None:
@@ -149,8 +149,8 @@ def test_schema(capsys: pytest.CaptureFixture[str]) -> None:
 
 # -- run ------------------------------------------------------------------------------------------------------
 
-SUMMARY_KEYS = {"mission", "seed", "outcome", "final_state", "states_visited", "sim_time_s", "wall_time_s", "ticks",
-                "metrics"}
+SUMMARY_KEYS = {"mission", "seed", "outcome", "final_state", "states_visited", "sim_time_s", "ticks", "items",
+                "metrics", "versions", "stopped_at_s"}
 
 
 def test_run_toy_mission(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -165,16 +165,23 @@ def test_run_toy_mission(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert summary["mission"] == "toy_full" and summary["seed"] == 0 and summary["outcome"] == "succeeded"
     assert summary["final_state"] == "done" and summary["states_visited"][-1] == "done"
     assert summary["states_visited"][0] == "search"
-    assert summary["ticks"] > 0 and summary["sim_time_s"] > 0 and summary["wall_time_s"] > 0
+    assert summary["ticks"] > 0 and summary["sim_time_s"] > 0
+    assert "wall_time_s" not in summary and "real_time_factor" not in summary  # wall clock: timing.json only
+    assert summary["versions"]["pybullet"] and summary["versions"]["numpy"] and summary["versions"]["transitions"]
     assert summary["metrics"]["final_x"] == pytest.approx(0.0, abs=0.03)  # home again
+    timing = json.loads((out_dir / "timing.json").read_text())
+    assert timing["wall_time_s"] > 0 and timing["real_time_factor"] > 0 and timing["ticks"] == summary["ticks"]
 
     trace = read_trace(out_dir)
-    assert len(trace["t"]) == summary["ticks"]
+    # the mission's ticks, then the safe stop that follows every outcome (1 s, event `safe_stop`)
+    stop = trace["events"] == "safe_stop"
+    assert int((~stop).sum()) == summary["ticks"] and int(stop.sum()) == round(1.0 * 20)
+    assert summary["stopped_at_s"] == pytest.approx(summary["sim_time_s"] + 1.0)
     assert np.all(np.diff(trace["t"]) > 0)
     assert set(trace["state"]) <= set(summary["states_visited"])
     assert {"m.pos_error", "cmd.v", "gt.x"} <= set(trace)
     arr = np.genfromtxt(out_dir / "trace.csv", names=True, delimiter=",", dtype=None, encoding=None)
-    assert arr.shape == (summary["ticks"],)
+    assert arr.shape == (summary["ticks"] + 20,)
     assert np.allclose(arr["t"], trace["t"])
 
     recs = [json.loads(line) for line in (out_dir / "transitions.jsonl").read_text().splitlines()]

@@ -37,7 +37,7 @@ def test_every_foreach_item_is_checked_against_the_task():
 
 
 def test_tasks_get_the_control_period():
-    m = load_mission(TOY, overrides=["rate_hz=40"])
+    m = load_mission(TOY, overrides=["rate_hz=50"])
     seen = []
 
     def factory(cls, ctx):  # type: ignore[no-untyped-def]
@@ -45,7 +45,7 @@ def test_tasks_get_the_control_period():
         return cls(ctx)
 
     run_mission(m, task_factory=factory, record=False, max_time=3.0)
-    assert seen and all(dt == pytest.approx(1 / 40) for dt in seen)
+    assert seen and all(dt == pytest.approx(1 / 50) for dt in seen)
 
 
 def test_a_partial_mapping_changes_one_field_of_a_default_sub_model():

@@ -145,15 +145,21 @@ class _Gen:
             item = f"item{self.items}"
             st_["foreach"] = {"in": "goals", "as": item,
                               "on_failure": self.draw(st.sampled_from(["stop", "continue"]))}
+            if st_["foreach"]["on_failure"] == "continue":
+                st_["foreach"]["require"] = self.draw(st.sampled_from(["all", 1, "50 %"]))
             in_foreach = [*in_foreach, item]
         if self.draw(st.booleans()):
             st_["history"] = True
         states, initial = self.children(path, depth, in_foreach)
         st_["initial"] = initial
         st_["states"] = states
-        # a way to finish: done (any outcome, or a specific one), to the next sibling via the chain target
-        done = self.draw(st.sampled_from([True, True, "succeeded", "failed"]))
-        st_["transitions"] = [{"to": "?done", "done": done}]
+        # a way to finish, to the next sibling via the chain target: `done: true`, or one `done` per outcome
+        # (the loader refuses a composite that can finish with an outcome no `done` handles)
+        if self.draw(st.booleans()):
+            st_["transitions"] = [{"to": "?done", "done": True}]
+        else:
+            outcomes = self.draw(st.permutations(["succeeded", "failed", "aborted"]))
+            st_["transitions"] = [{"to": "?done", "done": o} for o in outcomes]
         return st_
 
 
@@ -232,6 +238,25 @@ def _domain_of(tr: Any) -> Any:
     return common
 
 
+def _loop_outcome(m: CompiledMission, iterations: list[dict[str, Any]], node: StateNode, t: float) -> str:
+    """What a foreach loop that finished at ``t`` must finish with, from its iteration records alone: with
+    ``on_failure: stop`` the first failed item's outcome; with ``continue`` its ``require`` rule over the
+    items of that run (``all``, a count, or a share rounded up)."""
+    mine = [it for it in iterations if it["state"] == node.path and it["t_end"] <= t + 1e-9]
+    run: list[dict[str, Any]] = []
+    for it in mine:  # the run that ended at t: from its last index-0 iteration on
+        run = [it] if it["index"] == 0 else run + [it]
+    fe = m.spec.machine
+    for a in node.ancestors()[1:]:
+        fe = fe.states[a.name]
+    rule, n = fe.foreach.require, len(m.spec.parameters[fe.foreach.in_])
+    if fe.foreach.on_failure == "stop":
+        bad = [it["outcome"] for it in run if it["outcome"] != "succeeded"]
+        return bad[0] if bad else "succeeded"
+    need = n if rule == "all" else rule if isinstance(rule, int) else math.ceil(float(rule.rstrip(" %")) * n / 100)
+    return "succeeded" if sum(it["outcome"] == "succeeded" for it in run) >= need else "failed"
+
+
 def check_run(m: CompiledMission, result: Any, script: Script) -> None:
     ex = result.executor
     recs = ex.transitions_fired
@@ -264,6 +289,8 @@ def check_run(m: CompiledMission, result: Any, script: Script) -> None:
             done = [t for t in node.transitions if t.kind == "done" and t.label == d["label"]]
             assert done, rec
             domain = _domain_of(done[0])
+            if node.foreach:
+                assert d["outcome"] == _loop_outcome(m, result.summary["iterations"], node, rec.t), rec
         else:
             label = label.removesuffix(" (resume)")
             assert not src_leaf.final, f"{rec}: left a final state"

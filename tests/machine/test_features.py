@@ -245,11 +245,15 @@ def test_foreach_failure_stops_or_continues():
     r = run_mission(stop, record=False)
     assert_outcome(r, "failed")
     assert [it["outcome"] for it in r.summary["iterations"]] == ["failed"]
+    # continue: every item is tried; the loop's rule (default: all items) then fails the loop
     cont = load_mission(FULL, overrides=["world.params.tool_ok=false",
                                          "machine.states.operate.states.visit.foreach.on_failure=continue"])
     r = run_mission(cont, record=False)
-    assert_outcome(r, "succeeded")
+    assert_outcome(r, "failed")
     assert [it["outcome"] for it in r.summary["iterations"]] == ["failed"] * 3
+    assert r.summary["items"]["operate.visit"] == {"attempted": 3, "succeeded": 0, "failed": 3, "success_rate": 0.0,
+                                                   "required": 3, "rule": "all"}
+    assert "0 of 3 items succeeded" in r.summary["reason"]
 
 
 # -- asynchronous action -----------------------------------------------------------------------

@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from taskflow.cli import main
@@ -36,7 +37,9 @@ def test_reaches_every_waypoint_within_5_cm_of_ground_truth(tmp_path):
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["outcome"] == "succeeded" and summary["final_state"] == "done"
     trace = read_trace(tmp_path / "run")
-    assert len(trace["t"]) == summary["ticks"]
+    stop = trace["events"] == "safe_stop"  # the 1 s safe stop that follows every outcome
+    assert int((~stop).sum()) == summary["ticks"] and int(stop.sum()) == 20
+    assert abs(trace["gt.v"][-1]) < 1e-3  # at rest when the record ends
     assert set(trace["state"]) >= {"drive.approach", "drive.settle"}
     assert not any(math.isnan(x) for x in trace["gt.x"])
 

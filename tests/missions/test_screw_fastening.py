@@ -39,11 +39,19 @@ def test_conveyor_fastens_four_screws_within_a_millimetre_and_a_half():
 def test_marker_hidden_for_a_second_resumes_the_interrupted_state_on_pybullet():
     m = load_mission(CONVEYOR, ["world.params.occlusions=[[12.0, 13.0]]"])
     r = run_on_world(m, seed=0)
-    assert_outcome(r, "succeeded")
     path = r.summary["states_visited"]
     i = path.index("searching")
     assert path[i - 1] == path[i + 1] and path[i - 1].startswith("operate.")
-    assert r.summary["metrics"]["screws_succeeded"] >= 3
+    # the screw the occlusion interrupted lost its approach (the part moved on while the robot stood still)
+    # and failed its coupling; the others were fastened. Not every screw fastened: the mission's rule
+    # (`require: all`) makes the run fail, and the summary says which item it was
+    its = r.summary["iterations"]
+    hit = [it for it in its if it["t_start"] <= 12.0 < it["t_end"]]
+    assert len(hit) == 1 and hit[0]["outcome"] == "failed"
+    assert all(it["outcome"] == "succeeded" for it in its if it is not hit[0])
+    assert r.summary["items"]["operate.screws"]["succeeded"] == 3
+    assert_outcome(r, "failed")
+    assert "3 of 4 items succeeded" in r.summary["reason"]
 
 
 def test_marker_lost_for_good_ends_in_error_with_the_platform_stopped_and_the_arm_home():
