@@ -31,8 +31,10 @@ class BatchInterrupted(Exception):
 
 
 def _worker_init() -> None:
-    # Ctrl-C reaches every process of the terminal's group: only the parent decides what happens
+    # Ctrl-C reaches every process of the terminal's group: only the parent decides what happens, and
+    # ends a worker with SIGTERM (a run in progress then records itself as aborted)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _trial(args: tuple[str, list[str], int, str | None, float | None]) -> tuple[dict[str, Any], dict[str, Any]]:
