@@ -131,10 +131,47 @@ def _bad_scalar(node: yaml.Node, loader: yaml.SafeLoader, budget: list[int]) -> 
     return None
 
 
+_NODE_EVENTS = (yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent, yaml.AliasEvent)
+
+
+def _too_many_nodes(text: str, limit: int) -> bool:
+    """Whether the document has more than ``limit`` nodes as written (aliases counted once), found with
+    libyaml's event parser before anything is built — composing a huge document in Python would take
+    seconds and hundreds of MB only to be refused.  A syntax error stops the count (the loader reports it)."""
+    try:
+        from yaml._yaml import CParser  # libyaml, shipped in PyYAML's wheels
+    except ImportError:  # pragma: no cover - pure-Python PyYAML: the walk's budget still applies
+        return False
+    parser = CParser(text)
+    n = 0
+    try:
+        while True:
+            event = parser.get_event()
+            if event is None or isinstance(event, yaml.StreamEndEvent):
+                return False
+            if isinstance(event, _NODE_EVENTS):
+                n += 1
+                if n > limit:
+                    return True
+    except yaml.YAMLError:
+        return False
+    finally:
+        parser.dispose()
+
+
+def _node_limit_problem(file: str) -> MissionError:
+    return MissionError([Problem(file, 1, 1, f"the document has more than {MAX_NODES} YAML nodes (keys, values "
+                                 "and list items, counted after aliases expand): over the limit",
+                                 f"a mission may have at most {MAX_NODES} nodes; split it, or share less through "
+                                 "nested aliases")])
+
+
 def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
     smap = SourceMap(file)
     if len(text) > MAX_BYTES:
         raise MissionError([Problem(file, 1, 1, f"file is {len(text)} bytes", f"a mission must be under {MAX_BYTES} bytes")])
+    if _too_many_nodes(text, MAX_NODES):
+        raise _node_limit_problem(file)
     loader: MissionLoader | None = None
     node: yaml.Node | None = None
     try:
@@ -145,10 +182,7 @@ def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
         try:
             _walk(node, (), smap, [MAX_NODES])
         except _TooBig:
-            raise MissionError([Problem(file, 1, 1, f"the document has more than {MAX_NODES} YAML nodes (keys, values "
-                                        "and list items, counted after aliases expand): over the limit",
-                                        f"a mission may have at most {MAX_NODES} nodes; split it, or share less through "
-                                        "nested aliases")]) from None
+            raise _node_limit_problem(file) from None
         except _Duplicate as dup:
             raise MissionError([Problem(file, dup.line, dup.col, f"duplicate key {dup.key!r}",
                                         f"it is already given on line {dup.first}; keep one")]) from None
