@@ -8,7 +8,7 @@ prints :func:`mission_json_schema` for editors.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Callable, Literal, Union
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictBool, StrictInt, field_validator, model_validator
 
@@ -18,35 +18,26 @@ OUTCOMES = ("succeeded", "failed", "aborted")
 Outcome = Literal["succeeded", "failed", "aborted"]
 
 
-def _duration(v: Union[str, float, int]) -> float:
-    try:
-        return parse_duration(v)
-    except UnitError as exc:
-        raise ValueError(str(exc)) from None
+def _quantity(parse: Callable[[Union[str, float, int]], float]) -> AfterValidator:
+    """A pydantic validator that parses a number-or-quantity with ``parse`` (a :mod:`taskflow.units`
+    parser) and turns its :class:`UnitError` into the validation error pydantic reports."""
+
+    def validate(v: Union[str, float, int]) -> float:
+        try:
+            return parse(v)
+        except UnitError as exc:
+            raise ValueError(str(exc)) from None
+
+    return AfterValidator(validate)
 
 
-Duration = Annotated[Union[float, int, str], AfterValidator(_duration)]
+Duration = Annotated[Union[float, int, str], _quantity(parse_duration)]
 """``"5 s"``, ``"200 ms"`` or a number of seconds; stored as seconds."""
 
-
-def _max_time(v: Union[str, float, int]) -> float:
-    try:
-        return parse_max_time(v)
-    except UnitError as exc:
-        raise ValueError(str(exc)) from None
-
-
-def _rate(v: Union[str, float, int]) -> float:
-    try:
-        return parse_rate(v)
-    except UnitError as exc:
-        raise ValueError(str(exc)) from None
-
-
-MaxTime = Annotated[Union[float, int, str], AfterValidator(_max_time)]
+MaxTime = Annotated[Union[float, int, str], _quantity(parse_max_time)]
 """A run's simulated time limit: a duration > 0 and at most one simulated day."""
 
-Rate = Annotated[Union[float, int, str], AfterValidator(_rate)]
+Rate = Annotated[Union[float, int, str], _quantity(parse_rate)]
 """A rate: ``20``, ``"20 Hz"`` or ``"1 kHz"``; stored in Hz."""
 
 
