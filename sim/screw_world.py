@@ -14,21 +14,48 @@ follows it.  What the robot gets (:meth:`observe`):
   ``target_lost`` when no detection has been captured for ``lost_after`` seconds; the screwdriver's
   end events.
 
-The screwdriver is an asynchronous action ``screwdriver`` with params ``{phase: activate | fasten,
-duration: s}``: activation takes the tool's ``activation_s`` and ends with ``tool_activated`` when
-the bit stayed on the bolt the whole time (lateral, axial and tilt errors within the tool's
-tolerances) or ``tool_failed`` (coupling failure); ``fasten`` runs ``duration`` (default
-``fasten_s``) and ends with ``screw_done`` — or ``tool_failed`` as soon as the bit slips off (lateral
-error beyond ``slip_t``) or when the bolt was never coupled.  The bolt is the one nearest the tool tip
-when the action starts.
+The screwdriver is an asynchronous action ``screwdriver`` with params :class:`ScrewdriverParams`
+``{phase: activate | fasten, duration: s > 0}`` (``action_params``; validated again by
+:meth:`ScrewConveyor.start_action`).  Each activation starts one **operation** at the bolt the bit is
+on: a bolt whose head is within the tool's coupling tolerances of the tip (lateral ``tol_t``, axial
+``tol_axial``, tilt ``tol_r``) when the activation starts.  Activation takes ``duration`` (default the
+tool's ``activation_s``) and ends with ``tool_activated`` when the bit stayed within those tolerances
+the whole time, or ``tool_failed`` — failure ``coupling`` when it left them, ``no_bolt`` when no bolt
+was within them at the start (a mission pose off every bolt, or a large positioning error; the
+operation records the nearest bolt and its distance).  ``fasten`` runs ``duration`` (default
+``fasten_s``) on the coupled bolt and ends with ``screw_done`` — or ``tool_failed`` as soon as the bit
+slips off (lateral error beyond ``slip_t``: failure ``slipped``) or at once when no bolt is coupled
+(``not_coupled``).  A cancelled activation ends its operation (``cancelled``); a cancelled fastening
+leaves it ``interrupted`` with the bit coupled, and the next ``fasten`` continues it (a state resumed
+after the marker was lost).
 
-Ground truth (never in observations): the tool tip's translation error (m) and rotation error (rad)
-to the bolt's operation frame are sampled every control tick while the screwdriver runs
-(activation and fastening), and :meth:`summary_metrics` reports ``screws_total``,
-``screws_succeeded``, ``screws_failed``, ``err_t_{min,max,mean}_mm``, ``err_r_{min,max,mean}_deg``,
-``screwing_time_mean_s``, a per-bolt ``screw_log``, and the marker pose error at capture against the
-truth (``perception_rms_xy_mm`` across the view, ``perception_rms_z_mm`` along it,
-``perception_rms_r_deg``) — measured in the rendered mode, injected in the pose mode.
+Ground truth (never in observations): :meth:`ground_truth` gives the platform and part poses, the
+tool tip's errors to the nearest bolt and the contact force.  :meth:`summary_metrics`
+describes what happened at the part, per screwdriver operation (the mission's items are the
+framework's to count):
+
+* ``operations`` — operations started (one per activation); ``operations_fastened``,
+  ``operations_failed`` (of which ``operations_no_bolt`` found no bolt under the tool) and
+  ``operations_unfinished`` (cancelled, interrupted or still running at the end);
+* ``operation_log`` — per operation: ``operation`` (index), ``bolt`` (the bolt worked on, None when
+  there was none), ``nearest_bolt`` and ``nearest_bolt_mm`` (tool tip → nearest bolt frame at the
+  start), ``bolt_already_fastened``, ``t_start``, ``t_end``, ``outcome`` (``fastened``, ``failed``,
+  ``cancelled``, ``interrupted``, or ``activating`` / ``coupled`` / ``fastening`` if the run ended
+  first), ``failure`` (``no_bolt``, ``coupling``, ``slipped``, ``not_coupled`` or None),
+  ``coupling_error_mm`` (largest lateral error during activation), ``err_t_mean_mm``,
+  ``err_t_max_mm``, ``err_r_mean_deg``, ``err_r_max_deg`` and ``err_samples`` (tool tip to the
+  operation's bolt, sampled every control tick while the screwdriver runs; None without a bolt),
+  ``screwing_s`` (activation start → fastened);
+* ``fastened_err_t_{min,max,mean}_mm``, ``fastened_err_r_{min,max,mean}_deg`` over the samples of the
+  fastened operations only (``fastened_err_operations`` of them, ``fastened_err_samples`` samples);
+  ``at_bolt_err_*`` the same over every operation that had a bolt (fastened, failed at the bolt,
+  cancelled: ``at_bolt_err_operations``, ``at_bolt_err_samples``) — the paper's Table 2 measures all
+  its screwing attempts; operations without a bolt have no bolt error and are in neither;
+* ``screwing_time_mean_s`` over the fastened operations; ``bolts_on_part`` and ``bolts_fastened``
+  (distinct bolts of the part fastened);
+* ``final_base_speed_mps`` (the platform's twist), ``final_part_x_m``; the marker pose error at
+  capture against the truth (``perception_rms_xy_mm`` across the view, ``perception_rms_z_mm`` along
+  it, ``perception_rms_r_deg``) — measured in the rendered mode, injected in the pose mode.
 """
 
 from __future__ import annotations
@@ -39,7 +66,7 @@ from typing import Any, ClassVar, Literal, Mapping
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-from pydantic import Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim import screw_scene as sc
@@ -93,6 +120,16 @@ class ScrewWorldParams(StrictModel):
         return v
 
 
+class ScrewdriverParams(StrictModel):
+    """Parameters of the ``screwdriver`` action: ``phase`` and its ``duration`` (s; default the tool's
+    ``activation_s`` for ``activate``, the world's ``fasten_s`` for ``fasten``)."""
+
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    phase: Literal["activate", "fasten"] = "activate"
+    duration: float | None = Field(default=None, gt=0.0, le=600.0, description="how long the phase runs (s)")
+
+
 NOMINAL_DISTANCE = 0.80  # platform origin → part frame, across the conveyor (m)
 
 
@@ -114,6 +151,7 @@ class ScrewConveyor(World):
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("base_x", "base_y", "base_yaw", "part_x", "part_y", "part_yaw",
                                                     "tool_err_t", "tool_err_r", "contact_force")
     actions: ClassVar[dict[str, tuple[str, ...]]] = {"screwdriver": ("tool_activated", "tool_failed", "screw_done")}
+    action_params: ClassVar[dict[str, type[BaseModel]]] = {"screwdriver": ScrewdriverParams}
     robots: ClassVar[tuple[str, ...]] = ("mobile_iiwa",)
 
     params: ScrewWorldParams
@@ -176,13 +214,10 @@ class ScrewConveyor(World):
         self._events: list[str] = []
         self._dq_pending = np.zeros(7)
         self._action: dict[str, Any] | None = None
-        self._samples_t: list[float] = []
-        self._samples_r: list[float] = []
-        self._log: list[dict[str, Any]] = []
+        self._ops: list[dict[str, Any]] = []  # one record per screwdriver operation (summary: operation_log)
+        self._op_samples: list[tuple[list[float], list[float]]] = []  # per operation: errors to its bolt (m, rad)
         self._bolts_done: set[int] = set()
-        self._bolts_failed: set[int] = set()
         self._coupled: int | None = None
-        self._screwing_times: list[float] = []
         self._bolts_P = sc.bolt_frames_in_P()
         tm = self.robot.params.tool.mass
         self._tool_com = np.array([0.0, 0.0, 0.5 * (self.robot.params.tool.length - self.robot.params.tool.bit_length)])
@@ -357,42 +392,75 @@ class ScrewConveyor(World):
 
     # -- the screwdriver -------------------------------------------------------------------------
     def start_action(self, name: str, params: Mapping[str, Any]) -> None:
-        if name != "screwdriver":
-            raise KeyError(f"screw_conveyor has no action {name!r} — valid: screwdriver")
-        phase = str(params.get("phase", "activate"))
-        if phase not in ("activate", "fasten"):
-            raise ValueError(f"screwdriver phase must be 'activate' or 'fasten', got {phase!r}")
+        model = self.action_params.get(name)
+        if model is None:
+            raise KeyError(f"screw_conveyor has no action {name!r} — valid: {', '.join(self.action_params)}")
+        sp = model.model_validate(dict(params))  # a ValidationError (ValueError) names the bad field
+        assert isinstance(sp, ScrewdriverParams)
+        if self._action is not None:  # a new phase replaces one still running
+            self.cancel_action(name)
         tp = self.robot.params.tool
-        duration = float(params.get("duration", tp.activation_s if phase == "activate" else self.params.fasten_s))
-        bolt = self.tool_errors()[0]
-        self._action = {"phase": phase, "bolt": bolt, "t0": self.t, "end": self.t + duration, "ok": True, "worst": 0.0}
-        if phase == "activate":
-            self._log.append({"bolt": bolt, "t_activate": self.t, "outcome": "activating"})
-        elif self._coupled != bolt:
-            self._action["ok"] = False  # fastening a bolt the bit is not coupled to
+        t = self.t
+        if sp.phase == "activate":
+            nearest, et, _, lat, ax, tilt = self.tool_errors()
+            on_bolt = lat <= tp.tol_t and abs(ax) <= tp.tol_axial and tilt <= tp.tol_r
+            self._coupled = None
+            op = self._new_operation(nearest, et, nearest if on_bolt else None, "activating")
+            duration = tp.activation_s if sp.duration is None else sp.duration
+            self._action = {"phase": "activate", "op": op, "bolt": self._ops[op]["bolt"], "end": t + duration,
+                            "ok": on_bolt, "failure": None if on_bolt else "no_bolt", "worst": 0.0}
+        else:
+            last = self._ops[-1] if self._ops else None
+            if (self._coupled is not None and last is not None and last["bolt"] == self._coupled
+                    and last["outcome"] in ("coupled", "interrupted")):
+                op, ok, failure = len(self._ops) - 1, True, None
+                last["outcome"] = "fastening"
+            else:  # fastening with no bolt coupled: an operation of its own that fails at once
+                nearest, et, *_ = self.tool_errors()
+                op, ok, failure = self._new_operation(nearest, et, None, "fastening"), False, "not_coupled"
+            duration = self.params.fasten_s if sp.duration is None else sp.duration
+            self._action = {"phase": "fasten", "op": op, "bolt": self._ops[op]["bolt"], "end": t + duration,
+                            "ok": ok, "failure": failure, "worst": 0.0}
         self._sample_action()
+
+    def _new_operation(self, nearest: int, dist: float, bolt: int | None, outcome: str) -> int:
+        self._ops.append({"operation": len(self._ops), "bolt": bolt, "nearest_bolt": nearest,
+                          "nearest_bolt_mm": 1e3 * dist, "bolt_already_fastened": bolt is not None and bolt in self._bolts_done,
+                          "t_start": self.t, "t_end": None, "outcome": outcome, "failure": None, "coupling_error_mm": None})
+        self._op_samples.append(([], []))
+        return len(self._ops) - 1
 
     def cancel_action(self, name: str) -> None:
         a = self._action
-        if a is not None:
-            if self._log and self._log[-1]["outcome"] in ("activating", "fastening"):
-                self._log[-1]["outcome"] = f"cancelled ({a['phase']})"
-            self._action = None
+        if a is None:
+            return
+        self._action = None
+        op = self._ops[a["op"]]
+        if a["phase"] == "activate":
+            self._coupled = None
+            if a["bolt"] is not None:
+                op["coupling_error_mm"] = 1e3 * a["worst"]
+            op.update(outcome="cancelled", t_end=self.t)
+        elif a["ok"]:
+            op["outcome"] = "interrupted"  # still coupled: the next fasten continues this operation
+        else:
+            op.update(outcome="cancelled", t_end=self.t)
 
     def _sample_action(self) -> None:
         a = self._action
-        if a is None:
+        if a is None or a["bolt"] is None:
             return
         tp = self.robot.params.tool
         _, et, er, lat, ax, tilt = self.tool_errors(a["bolt"])
-        self._samples_t.append(et)
-        self._samples_r.append(er)
-        a["worst"] = max(a["worst"], lat)
+        ts, rs = self._op_samples[a["op"]]
+        ts.append(et)
+        rs.append(er)
         if a["phase"] == "activate":
-            if lat > tp.tol_t or abs(ax) > tp.tol_axial or tilt > tp.tol_r:
-                a["ok"] = False
-        elif lat > tp.slip_t or abs(ax) > 2.0 * tp.tol_axial:
-            a["ok"] = False
+            a["worst"] = max(a["worst"], lat)
+            if a["ok"] and (lat > tp.tol_t or abs(ax) > tp.tol_axial or tilt > tp.tol_r):
+                a["ok"], a["failure"] = False, "coupling"
+        elif a["ok"] and (lat > tp.slip_t or abs(ax) > 2.0 * tp.tol_axial):
+            a["ok"], a["failure"] = False, "slipped"
 
     def _update_action(self) -> None:
         a = self._action
@@ -400,38 +468,31 @@ class ScrewConveyor(World):
             return
         self._sample_action()
         t = self.t
-        log = self._log[-1] if self._log else None
+        op = self._ops[a["op"]]
         if a["phase"] == "activate":
             if t + 1e-9 >= a["end"]:
                 self._action = None
+                if a["bolt"] is not None:
+                    op["coupling_error_mm"] = 1e3 * a["worst"]
                 if a["ok"]:
                     self._coupled = a["bolt"]
+                    op["outcome"] = "coupled"
                     self._events.append("tool_activated")
-                    if log is not None:
-                        log.update(outcome="fastening", coupling_error_mm=1e3 * a["worst"])
                 else:
                     self._coupled = None
-                    self._bolts_failed.add(a["bolt"])
+                    op.update(outcome="failed", failure=a["failure"], t_end=t)
                     self._events.append("tool_failed")
-                    if log is not None:
-                        log.update(outcome="coupling failed", coupling_error_mm=1e3 * a["worst"], t_end=t)
-        else:
-            if not a["ok"]:
-                self._action = None
-                self._coupled = None
-                self._bolts_failed.add(a["bolt"])
-                self._events.append("tool_failed")
-                if log is not None:
-                    log.update(outcome="slipped", t_end=t)
-            elif t + 1e-9 >= a["end"]:
-                self._action = None
-                self._coupled = None
-                self._bolts_done.add(a["bolt"])
-                self._bolts_failed.discard(a["bolt"])
-                self._events.append("screw_done")
-                if log is not None:
-                    log.update(outcome="fastened", t_end=t)
-                    self._screwing_times.append(t - log["t_activate"])
+        elif not a["ok"]:
+            self._action = None
+            self._coupled = None
+            op.update(outcome="failed", failure=a["failure"], t_end=t)
+            self._events.append("tool_failed")
+        elif t + 1e-9 >= a["end"]:
+            self._action = None
+            self._coupled = None
+            self._bolts_done.add(a["bolt"])
+            op.update(outcome="fastened", t_end=t, screwing_s=t - op["t_start"])
+            self._events.append("screw_done")
 
     # -- records ----------------------------------------------------------------------------------
     def ground_truth(self) -> dict[str, float]:
@@ -442,19 +503,45 @@ class ScrewConveyor(World):
                 "part_yaw": m.yaw, "tool_err_t": et, "tool_err_r": er,
                 "contact_force": float(np.linalg.norm(self._wrench[:3]))}
 
+    def operation_log(self) -> list[dict[str, Any]]:
+        """The operations with their errors to their bolt (see the module docstring)."""
+        out = []
+        for op, (ts, rs) in zip(self._ops, self._op_samples, strict=True):
+            rec = dict(op)
+            t, r = np.array(ts), np.array(rs)
+            rec["err_samples"] = int(len(t))
+            rec["err_t_mean_mm"] = float(np.mean(t) * 1e3) if len(t) else None
+            rec["err_t_max_mm"] = float(np.max(t) * 1e3) if len(t) else None
+            rec["err_r_mean_deg"] = float(np.degrees(np.mean(r))) if len(r) else None
+            rec["err_r_max_deg"] = float(np.degrees(np.max(r))) if len(r) else None
+            out.append(rec)
+        return out
+
     def summary_metrics(self) -> dict[str, Any]:
-        ts, rs = np.array(self._samples_t), np.array(self._samples_r)
+        ops = self._ops
+        fastened = [i for i, op in enumerate(ops) if op["outcome"] == "fastened"]
+        failed = [i for i, op in enumerate(ops) if op["outcome"] == "failed"]
+        at_bolt = [i for i, op in enumerate(ops) if op["bolt"] is not None]
         out: dict[str, Any] = {
-            "screws_total": len(self._bolts_P),
-            "screws_succeeded": len(self._bolts_done),
-            "screws_failed": len(self._bolts_failed - self._bolts_done),
-            "screw_log": self._log,
-            "error_samples": int(len(ts)),
+            "operations": len(ops),
+            "operations_fastened": len(fastened),
+            "operations_failed": len(failed),
+            "operations_no_bolt": sum(1 for op in ops if op["failure"] == "no_bolt"),
+            "operations_unfinished": len(ops) - len(fastened) - len(failed),
+            "bolts_on_part": len(self._bolts_P),
+            "bolts_fastened": len(self._bolts_done),
+            "operation_log": self.operation_log(),
         }
-        for name, arr, scale, unit in (("err_t", ts, 1e3, "mm"), ("err_r", rs, 180.0 / math.pi, "deg")):
-            for stat, fn in (("min", np.min), ("max", np.max), ("mean", np.mean)):
-                out[f"{name}_{stat}_{unit}"] = float(fn(arr) * scale) if len(arr) else None
-        out["screwing_time_mean_s"] = float(np.mean(self._screwing_times)) if self._screwing_times else None
+        for group, idx in (("fastened", fastened), ("at_bolt", at_bolt)):
+            ts = np.array([x for i in idx for x in self._op_samples[i][0]])
+            rs = np.array([x for i in idx for x in self._op_samples[i][1]])
+            out[f"{group}_err_operations"] = len(idx)
+            out[f"{group}_err_samples"] = int(len(ts))
+            for name, arr, scale, unit in (("err_t", ts, 1e3, "mm"), ("err_r", rs, 180.0 / math.pi, "deg")):
+                for stat, fn in (("min", np.min), ("max", np.max), ("mean", np.mean)):
+                    out[f"{group}_{name}_{stat}_{unit}"] = float(fn(arr) * scale) if len(arr) else None
+        times = [ops[i]["screwing_s"] for i in fastened]
+        out["screwing_time_mean_s"] = float(np.mean(times)) if times else None
         if self.client is not None:
             gt = self.ground_truth()
             out["final_base_speed_mps"] = float(np.hypot(*self.body.platform.twist[:2]))
