@@ -80,7 +80,10 @@ GRAVITY = 9.81
 
 
 class ScrewWorldParams(StrictModel):
-    """Part motion, start poses, perception mode and noise, contact, timing."""
+    """Part motion, start poses, perception mode and noise, contact, timing.  Every number must be
+    finite (an infinite latency or a NaN speed is refused, not simulated)."""
+
+    model_config = ConfigDict(allow_inf_nan=False)
 
     motion: Literal["conveyor", "trolley"] = "conveyor"
     speed: float = Field(default=0.05, ge=0.0, le=0.5, description="nominal part speed (m/s)")
@@ -103,13 +106,13 @@ class ScrewWorldParams(StrictModel):
     latency: float = Field(default=0.025, ge=0.0, description="capture → available to the robot (s)")
     dropout: float = Field(default=0.01, ge=0.0, lt=1.0, description="probability a frame misses the marker")
     roi_px: int = Field(default=224, gt=32, description="rendered mode: region-of-interest side (px)")
-    lost_after: float = Field(default=0.2, gt=0.0, description="no detection for this long → target_lost (s)")
+    lost_after: float = Field(default=0.2, gt=0.0, description="no detection for this long → target_lost (s); longer than one camera period")
     occlusions: list[tuple[float, float]] = Field(default_factory=list, description="[t0, t1] intervals hiding the marker (s)")
     physics_hz: float = Field(default=100.0, ge=100.0, le=10_000.0, description="physics rate (Hz): one step per 100 Hz control tick; 250 gives the same benchmark errors at twice the cost; a whole multiple of rate_hz")
     contact_stiffness: float = Field(default=1e4, gt=0.0)
     contact_damping: float = Field(default=200.0, ge=0.0)
     ft_noise: float = Field(default=0.05, ge=0.0, description="F/T sensor force noise std (N)")
-    fasten_s: float = Field(default=3.0, gt=0.0, description="default fastening duration (s)")
+    fasten_s: float = Field(default=3.0, gt=0.0, le=600.0, description="default fastening duration (s)")
 
     @field_validator("occlusions")
     @classmethod
@@ -160,6 +163,10 @@ class ScrewConveyor(World):
     def __init__(self, robot: Robot, params: ScrewWorldParams, seed: int, gui: bool = False) -> None:
         if not isinstance(robot, MobileIiwa):
             raise TypeError(f"world screw_conveyor hosts a mobile_iiwa, got {type(robot).__name__}")
+        cam_period = 1.0 / robot.params.camera.rate_hz
+        if params.lost_after <= cam_period:
+            raise ValueError(f"screw_conveyor: lost_after ({params.lost_after:g} s) must be longer than one camera period "
+                             f"({cam_period:g} s at {robot.params.camera.rate_hz:g} Hz), or the marker is lost between every two frames")
         super().__init__(robot, params, seed, gui)
         self.physics_hz = float(params.physics_hz)
         self.client: int | None = None

@@ -271,3 +271,24 @@ def test_screwdriver_refuses_nonsense_parameters(params, field):
     finally:
         w.close()
 
+
+@pytest.mark.parametrize("params", [
+    {"latency": float("inf")}, {"direction": float("nan")}, {"part_start": (0.0, float("inf"), 0.0)},
+    {"occlusions": [(1.0, float("inf"))]}, {"fasten_s": -3.0}, {"fasten_s": 1e9}, {"noise_z": -0.001},
+    {"lost_after": 0.0},
+])
+def test_world_parameters_refuse_nonsense(params):
+    with pytest.raises(ValueError):
+        ScrewConveyor.Params(**params)
+
+
+def test_marker_loss_faster_than_the_camera_is_refused():
+    with pytest.raises(ValueError, match="camera period"):
+        ScrewConveyor(ROBOT, ScrewConveyor.Params(lost_after=0.02), seed=0)  # 40 Hz camera: 25 ms between frames
+
+
+@pytest.mark.parametrize("tool", [{"slip_t": 0.002}, {"tol_t": -0.001}, {"activation_s": float("inf")}, {"tol_r": 2.0}])
+def test_tool_tolerances_refuse_nonsense(tool):
+    with pytest.raises(ValueError):
+        MobileIiwa.Params.model_validate({"tool": tool})
+
