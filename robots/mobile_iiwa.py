@@ -184,6 +184,8 @@ class MobileIiwaParams(StrictModel):
     v_max: float = Field(default=1.0, gt=0.0, le=1.0, description="platform speed limit (m/s), paper: 1.0")
     w_max: float = Field(default=1.0, gt=0.0, description="platform yaw-rate limit (rad/s)")
     accel_max: float = Field(default=1.0, gt=0.0, description="platform acceleration limit (m/s²)")
+    brake_decel: float = Field(default=2.0, gt=0.0, description="platform deceleration of a safe stop (m/s²): "
+                               "rest within v_max / brake_decel s")
     platform_size: Vec3 = (1.0, 0.7, 0.55)
     arm_mount: Pose = Pose(xyz=(0.30, 0.0, 0.55))
     camera: CameraParams = CameraParams()

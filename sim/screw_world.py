@@ -29,8 +29,10 @@ slips off (lateral error beyond ``slip_t``: failure ``slipped``) or at once when
 leaves it ``interrupted`` with the bit coupled, and the next ``fasten`` continues it (a state resumed
 after the marker was lost).
 
-Ground truth (never in observations): :meth:`ground_truth` gives the platform and part poses, the
-tool tip's errors to the nearest bolt and the contact force.  :meth:`summary_metrics`
+Ground truth (never in observations): :meth:`ground_truth` gives the platform pose and its speed and
+yaw rate measured from PyBullet's base pose over the last physics step (``base_speed`` m/s,
+``base_yaw_rate`` rad/s), the largest arm joint speed PyBullet reports (``arm_speed`` rad/s), the part
+pose, the tool tip's errors to the nearest bolt and the contact force.  :meth:`summary_metrics`
 describes what happened at the part, per screwdriver operation (the mission's items are the
 framework's to count):
 
@@ -53,9 +55,14 @@ framework's to count):
   its screwing attempts; operations without a bolt have no bolt error and are in neither;
 * ``screwing_time_mean_s`` over the fastened operations; ``bolts_on_part`` and ``bolts_fastened``
   (distinct bolts of the part fastened);
-* ``final_base_speed_mps`` (the platform's twist), ``final_part_x_m``; the marker pose error at
-  capture against the truth (``perception_rms_xy_mm`` across the view, ``perception_rms_z_mm`` along
-  it, ``perception_rms_r_deg``) — measured in the rendered mode, injected in the pose mode.
+* ``final_base_speed_mps`` and ``final_arm_speed_radps`` (ground truth, as in :meth:`ground_truth`),
+  ``final_part_x_m``; the marker pose error at capture against the truth (``perception_rms_xy_mm``
+  across the view, ``perception_rms_z_mm`` along it, ``perception_rms_r_deg``) — measured in the
+  rendered mode, injected in the pose mode.
+
+:meth:`safe_stop` brakes the platform to rest at the robot's ``brake_decel`` (0.5 s from the 1 m/s
+speed limit with the default 2 m/s²), holds the arm's reference where it is, and stops the
+screwdriver.
 """
 
 from __future__ import annotations
@@ -151,7 +158,8 @@ class ScrewConveyor(World):
     Params: ClassVar[type[ScrewWorldParams]] = ScrewWorldParams
     events: ClassVar[tuple[str, ...]] = ("target_lost", "target_found")
     metrics: ClassVar[dict[str, str]] = {}
-    ground_truth_keys: ClassVar[tuple[str, ...]] = ("base_x", "base_y", "base_yaw", "part_x", "part_y", "part_yaw",
+    ground_truth_keys: ClassVar[tuple[str, ...]] = ("base_x", "base_y", "base_yaw", "base_speed", "base_yaw_rate",
+                                                    "arm_speed", "part_x", "part_y", "part_yaw",
                                                     "tool_err_t", "tool_err_r", "contact_force")
     actions: ClassVar[dict[str, tuple[str, ...]]] = {"screwdriver": ("tool_activated", "tool_failed", "screw_done")}
     action_params: ClassVar[dict[str, type[BaseModel]]] = {"screwdriver": ScrewdriverParams}
@@ -225,6 +233,7 @@ class ScrewConveyor(World):
         self._op_samples: list[tuple[list[float], list[float]]] = []  # per operation: errors to its bolt (m, rad)
         self._bolts_done: set[int] = set()
         self._coupled: int | None = None
+        self._base_rate = (0.0, 0.0)  # ground truth: platform speed (m/s) and yaw rate (rad/s) over the last step
         self._bolts_P = sc.bolt_frames_in_P()
         tm = self.robot.params.tool.mass
         self._tool_com = np.array([0.0, 0.0, 0.5 * (self.robot.params.tool.length - self.robot.params.tool.bit_length)])
@@ -310,9 +319,13 @@ class ScrewConveyor(World):
         self._dq_pending = dq
 
     def safe_stop(self) -> None:
-        self.body.command_base((0.0, 0.0, 0.0))
+        """Bring the robot to rest: the platform brakes to zero at the robot's ``brake_decel``, the arm's
+        reference stops where it is (the servo settles the joints there), the screwdriver stops."""
+        self.body.brake()
         self.body.hold()
         self._dq_pending = np.zeros(7)
+        if self._action is not None:
+            self.cancel_action("screwdriver")
 
     def advance(self, dt: float) -> None:
         if not (math.isfinite(dt) and dt >= 0.0):
@@ -329,7 +342,9 @@ class ScrewConveyor(World):
         self.body.command_arm(self._dq_pending, n)
         self._dq_pending = np.zeros(7)
         c = self.client
-        for _ in range(n):
+        for i in range(n):
+            if i == n - 1:
+                before = self.body.sim_base_planar()
             self.motion.step(h)
             m = self.motion
             sc.set_part_planar(c, self.part, m.x, m.y, m.yaw)
@@ -342,6 +357,9 @@ class ScrewConveyor(World):
                 self._frame += 1
                 self._next_capture = self._frame * self._cam_period
             self._deliver(t)
+        after = self.body.sim_base_planar()
+        self._base_rate = (math.hypot(after[0] - before[0], after[1] - before[1]) / h,
+                           math.remainder(after[2] - before[2], 2.0 * math.pi) / h)
         self.body.sync_state()
         self._sense_wrench()
         self._update_action()
@@ -506,7 +524,10 @@ class ScrewConveyor(World):
         ps = self.body.platform.pose
         m = self.motion
         _, et, er, *_ = self.tool_errors()
-        return {"base_x": float(ps[0]), "base_y": float(ps[1]), "base_yaw": float(ps[2]), "part_x": m.x, "part_y": m.y,
+        _, qd = self.body.joints()
+        return {"base_x": float(ps[0]), "base_y": float(ps[1]), "base_yaw": float(ps[2]),
+                "base_speed": self._base_rate[0], "base_yaw_rate": self._base_rate[1],
+                "arm_speed": float(np.max(np.abs(qd))), "part_x": m.x, "part_y": m.y,
                 "part_yaw": m.yaw, "tool_err_t": et, "tool_err_r": er,
                 "contact_force": float(np.linalg.norm(self._wrench[:3]))}
 
@@ -551,7 +572,8 @@ class ScrewConveyor(World):
         out["screwing_time_mean_s"] = float(np.mean(times)) if times else None
         if self.client is not None:
             gt = self.ground_truth()
-            out["final_base_speed_mps"] = float(np.hypot(*self.body.platform.twist[:2]))
+            out["final_base_speed_mps"] = gt["base_speed"]
+            out["final_arm_speed_radps"] = gt["arm_speed"]
             out["final_part_x_m"] = gt["part_x"]
         if self._perr:
             pe = np.array(self._perr)

@@ -8,11 +8,12 @@ from pathlib import Path
 import pytest
 
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
-import taskflow_sim.screw_world  # noqa: F401 - registers screw_conveyor
 import taskflow_tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission
+from taskflow.runtime import run_mission
 from taskflow.testing import assert_outcome, run_on_world
+from taskflow_sim.screw_world import ScrewConveyor
 
 ROOT = Path(__file__).resolve().parents[2]
 CONVEYOR = ROOT / "missions" / "screw_fastening.yaml"
@@ -114,3 +115,29 @@ def test_a_negative_fastening_duration_is_refused_not_reported_fastened():
     assert r.outcome == "aborted" and "duration" in r.summary["reason"]
     assert r.summary["metrics"]["operations_fastened"] == 0
 
+
+class _KeptOpen(ScrewConveyor):
+    """The real world, left connected when the run ends so the test can go on stepping it."""
+
+    def close(self) -> None:
+        pass
+
+    def disconnect(self) -> None:
+        super().close()
+
+
+def test_one_second_of_safe_stop_after_success_leaves_the_robot_at_rest():
+    m = load_mission(CONVEYOR)
+    world = _KeptOpen(m.build_robot(), m.world_params(0), 0)
+    try:
+        r = run_mission(m, seed=0, record=False, world=world)
+        assert_outcome(r, "succeeded")
+        dt = 1.0 / m.spec.rate_hz
+        for _ in range(round(1.0 / dt)):  # what the runtime does after every outcome
+            world.safe_stop()
+            world.advance(dt)
+        gt = world.ground_truth()  # PyBullet's base pose over the last step and its joint speeds
+        assert gt["base_speed"] < 1e-3 and abs(gt["base_yaw_rate"]) < 1e-3
+        assert gt["arm_speed"] < 1e-3
+    finally:
+        world.disconnect()

@@ -292,3 +292,44 @@ def test_tool_tolerances_refuse_nonsense(tool):
     with pytest.raises(ValueError):
         MobileIiwa.Params.model_validate({"tool": tool})
 
+
+def test_safe_stop_brings_the_platform_and_the_arm_to_rest_from_full_speed():
+    """From the 1 m/s speed limit and a full yaw rate, with the arm moving: within 1 s of safe_stop (the
+    runtime's stop time) the platform is at rest by PyBullet's base pose and the arm joints by
+    PyBullet's joint speeds."""
+    w = make(speed=0.0)
+    try:
+        rng = np.random.default_rng(0)
+        for _ in range(150):  # 1.5 s: full speed, full yaw rate, the arm swinging at up to ~1 rad/s
+            w.apply({"base_twist": np.array([0.8, 0.6, 1.0]), "arm_dq": rng.uniform(-0.01, 0.01, 7)})
+            w.advance(DT)
+        gt = w.ground_truth()
+        assert gt["base_speed"] == pytest.approx(1.0, abs=1e-3)  # measured from PyBullet's base pose
+        assert gt["base_yaw_rate"] == pytest.approx(1.0, abs=1e-3)
+        assert gt["arm_speed"] > 0.05
+        for _ in range(round(0.6 / DT)):  # 1 m/s at the 2 m/s² brake deceleration: at rest after 0.5 s
+            w.safe_stop()
+            w.advance(DT)
+        gt = w.ground_truth()
+        assert gt["base_speed"] < 1e-9 and abs(gt["base_yaw_rate"]) < 1e-9
+        for _ in range(round(0.4 / DT)):
+            w.safe_stop()
+            w.advance(DT)
+        gt = w.ground_truth()
+        assert gt["base_speed"] < 1e-9 and abs(gt["base_yaw_rate"]) < 1e-9
+        assert gt["arm_speed"] < 1e-3
+        pose = (gt["base_x"], gt["base_y"], gt["base_yaw"])
+        for _ in range(50):
+            w.safe_stop()
+            w.advance(DT)
+        gt = w.ground_truth()
+        assert (gt["base_x"], gt["base_y"], gt["base_yaw"]) == pose
+        s = w.summary_metrics()
+        assert s["final_base_speed_mps"] < 1e-9 and s["final_arm_speed_radps"] < 1e-3
+        # a command after the stop drives again
+        for _ in range(50):
+            w.apply({"base_twist": np.array([0.2, 0.0, 0.0]), "arm_dq": np.zeros(7)})
+            w.advance(DT)
+        assert w.ground_truth()["base_speed"] > 0.1
+    finally:
+        w.close()
