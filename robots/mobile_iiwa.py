@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, field_validator, model_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from taskflow_robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
 from taskflow.api import Robot, StrictModel
@@ -112,6 +112,8 @@ class CameraParams(StrictModel):
     looking 48° down at the part's marker 0.67 m away.
     """
 
+    model_config = ConfigDict(allow_inf_nan=False)  # every number finite
+
     mount: Pose = Pose(xyz=(0.45, 0.40, 1.35), rpy=(-2.41075, 0.0, -2.24554))
     width: int = Field(default=640, gt=0)
     height: int = Field(default=480, gt=0)
@@ -119,6 +121,12 @@ class CameraParams(StrictModel):
     rate_hz: float = Field(default=40.0, gt=0.0)
     near: float = Field(default=0.05, gt=0.0)
     far: float = Field(default=5.0, gt=0.0)
+
+    @model_validator(mode="after")
+    def _clip(self) -> "CameraParams":
+        if self.far <= self.near:
+            raise ValueError(f"the far clip plane ({self.far} m) must lie beyond the near one ({self.near} m)")
+        return self
 
     def focal_px(self) -> float:
         """``fx = fy = H / (2 tan(fovy / 2))`` (the FOV is vertical)."""
@@ -142,6 +150,8 @@ class ToolParams(StrictModel):
     bolt's; while fastening, the bit slips off when the lateral error exceeds ``slip_t``.
     """
 
+    model_config = ConfigDict(allow_inf_nan=False)  # every number finite
+
     length: float = Field(default=0.15, gt=0.0)
     radius: float = Field(default=0.025, gt=0.0)
     bit_radius: float = Field(default=0.004, gt=0.0)
@@ -150,13 +160,16 @@ class ToolParams(StrictModel):
     activation_s: float = Field(default=1.0, gt=0.0)
     tol_t: float = Field(default=0.003, gt=0.0)
     tol_axial: float = Field(default=0.003, gt=0.0)
-    tol_r: float = Field(default=math.radians(3.0), gt=0.0)
+    tol_r: float = Field(default=math.radians(3.0), gt=0.0, lt=0.5 * math.pi)
     slip_t: float = Field(default=0.005, gt=0.0)
 
     @model_validator(mode="after")
     def _bit(self) -> "ToolParams":
         if self.bit_length >= self.length:
             raise ValueError(f"bit_length ({self.bit_length}) must be shorter than the tool ({self.length})")
+        if self.slip_t < self.tol_t:
+            raise ValueError(f"slip_t ({self.slip_t}) must be at least the coupling tolerance tol_t ({self.tol_t}): "
+                             "a bit coupled within tol_t would otherwise count as slipped off at once")
         return self
 
 
@@ -166,9 +179,13 @@ _Q_HOME = (0.0, -0.35, 0.0, -1.74, 0.0, 1.75, 0.0)  # tool tip at b (0.55, 0, 1.
 class MobileIiwaParams(StrictModel):
     """Platform limits, arm mount ``H_ba``, camera ``H_bc``, tool, home configuration and DLS damping."""
 
+    model_config = ConfigDict(allow_inf_nan=False)  # every number finite
+
     v_max: float = Field(default=1.0, gt=0.0, le=1.0, description="platform speed limit (m/s), paper: 1.0")
     w_max: float = Field(default=1.0, gt=0.0, description="platform yaw-rate limit (rad/s)")
     accel_max: float = Field(default=1.0, gt=0.0, description="platform acceleration limit (m/s²)")
+    brake_decel: float = Field(default=2.0, gt=0.0, description="platform deceleration of a safe stop (m/s²): "
+                               "rest within v_max / brake_decel s")
     platform_size: Vec3 = (1.0, 0.7, 0.55)
     arm_mount: Pose = Pose(xyz=(0.30, 0.0, 0.55))
     camera: CameraParams = CameraParams()
@@ -176,6 +193,13 @@ class MobileIiwaParams(StrictModel):
     q_home: tuple[float, ...] = _Q_HOME
     qd_max: float = Field(default=1.5, gt=0.0, description="joint speed limit of the arm command (rad/s)")
     dls_damping: float = Field(default=0.02, ge=0.0, description="λ of the damped least-squares J⁺")
+
+    @field_validator("platform_size")
+    @classmethod
+    def _size(cls, v: Vec3) -> Vec3:
+        if not all(x > 0.0 for x in v):
+            raise ValueError(f"platform_size needs 3 lengths > 0 (m), got {v}")
+        return v
 
     @field_validator("q_home")
     @classmethod

@@ -7,6 +7,10 @@ inertial frame at its link frame, so no inertial offset to correct).  The arm jo
 ``POSITION_CONTROL`` (gain 0.3, SIMULATOR_NOTES.md) to a reference that is ramped over each control
 tick.  A force/torque sensor on the fixed ``tool_joint`` measures the screwdriver's load.
 
+Safe stop (:meth:`MobileIiwaBody.brake` and :meth:`MobileIiwaBody.hold`): the platform decelerates to
+exactly zero at the robot's ``brake_decel``, and the arm's reference stops where its ramp is, so the
+position servo brings the joints to rest there.
+
 Joints and links are found by name, never by index.
 """
 
@@ -84,8 +88,10 @@ class MobileIiwaBody:
         self._pose = (float(start[0]), float(start[1]), float(start[2]))
         self._tw = (0.0, 0.0, 0.0)
         self._cmd = (0.0, 0.0, 0.0)
+        self._braking = False
         self.tau = platform_tau
         self.v_max, self.w_max, self.a_max = rp.v_max, rp.w_max, rp.accel_max
+        self.brake_decel = rp.brake_decel
         self.gain = position_gain
         self.max_force = max_force
         self.q_ref = np.array(q0, dtype=np.float64)
@@ -102,21 +108,45 @@ class MobileIiwaBody:
 
     # -- platform -------------------------------------------------------------------------------
     def command_base(self, twist: NDArray[np.float64]) -> None:
+        self._braking = False
         vx, vy, wz = (float(v) for v in twist)
         s = math.hypot(vx, vy)
         if s > self.v_max:
             vx, vy = vx * self.v_max / s, vy * self.v_max / s
         self._cmd = (vx, vy, max(-self.w_max, min(self.w_max, wz)))
 
+    def brake(self) -> None:
+        """Safe stop of the platform: decelerate to rest at the robot's ``brake_decel`` and stay there.
+
+        Unlike a zero twist command (which the first-order lag approaches but never reaches), the twist
+        falls linearly to exactly zero along its own direction: the linear speed at ``brake_decel`` and
+        the yaw rate at ``brake_decel · w_max / v_max`` (a full yaw rate stops as fast as the full
+        speed), so the platform is at rest after ``max(v, |ω| v_max / w_max) / brake_decel`` seconds —
+        0.5 s from the paper's 1 m/s with the default 2 m/s².  A new :meth:`command_base` ends it.
+        """
+        self._braking = True
+        self._cmd = (0.0, 0.0, 0.0)
+
+    def _brake_twist(self, h: float) -> tuple[float, float, float]:
+        tw = self._tw
+        t_stop = max(math.hypot(tw[0], tw[1]), abs(tw[2]) * self.v_max / self.w_max) / self.brake_decel
+        if t_stop <= h:
+            return (0.0, 0.0, 0.0)
+        k = 1.0 - h / t_stop
+        return (tw[0] * k, tw[1] * k, tw[2] * k)
+
     def _step_platform(self, h: float) -> None:
         tw = self._tw
-        cx, cy, cw = self._cmd
-        k = 1.0 / max(self.tau, h)
-        ax, ay, aw = (cx - tw[0]) * k, (cy - tw[1]) * k, (cw - tw[2]) * k
-        lin = math.hypot(ax, ay)
-        if lin > self.a_max:
-            ax, ay = ax * self.a_max / lin, ay * self.a_max / lin
-        new = (tw[0] + ax * h, tw[1] + ay * h, tw[2] + aw * h)
+        if self._braking:
+            new = self._brake_twist(h)
+        else:
+            cx, cy, cw = self._cmd
+            k = 1.0 / max(self.tau, h)
+            ax, ay, aw = (cx - tw[0]) * k, (cy - tw[1]) * k, (cw - tw[2]) * k
+            lin = math.hypot(ax, ay)
+            if lin > self.a_max:
+                ax, ay = ax * self.a_max / lin, ay * self.a_max / lin
+            new = (tw[0] + ax * h, tw[1] + ay * h, tw[2] + aw * h)
         if new == tw == (0.0, 0.0, 0.0):
             return
         mean = (0.5 * (tw[0] + new[0]), 0.5 * (tw[1] + new[1]), 0.5 * (tw[2] + new[2]))
@@ -204,6 +234,13 @@ class MobileIiwaBody:
         """World rotation of a link's URDF frame as of the last ``stepSimulation``."""
         ls = p.getLinkState(self.id, link, physicsClientId=self.client)
         return np.array(p.getMatrixFromQuaternion(ls[5])).reshape(3, 3)
+
+    def sim_base_planar(self) -> tuple[float, float, float]:
+        """The platform's planar pose ``(x, y, yaw)`` as PyBullet has it (ground truth, not the
+        integrator's state)."""
+        pos, orn = p.getBasePositionAndOrientation(self.id, physicsClientId=self.client)
+        yaw = p.getEulerFromQuaternion(orn)[2]
+        return (float(pos[0]), float(pos[1]), float(yaw))
 
     def tool_joint_wrench(self) -> NDArray[np.float64]:
         """Reaction wrench of the fixed ``tool_joint`` (PyBullet's F/T sensor, in the joint frame)."""

@@ -17,6 +17,11 @@ One control tick (``MobilePbvs.step``), with the equation numbers of ``papers/00
 5. the transition metrics of eqs. (9)–(14): ``camera_error.t`` / ``camera_error.r`` and
    ``ee_error.t`` / ``ee_error.r`` (m, rad).
 
+Every integration step (the PIDs' integral and derivative, the compensation ``E' = E − V_be dt`` of
+eq. 35, the arm step of eq. 37, the admittance of eqs. 38–40, :class:`ArmHome`'s joint ramp) uses the
+control period ``TaskContext.dt`` = 1 / ``rate_hz``, the time that passes between two ticks of the
+mission; it is not estimated from observation times.
+
 The PID and admittance states, the nominal joint trajectory ``q*`` and the part-motion history live
 in the mission's shared ``memory``: a state change switches gains and set-points, not the
 controllers' memory (the platform keeps the integral that carries it along with the part).
@@ -48,6 +53,8 @@ from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittan
 from taskflow_tasks.pid import PidProfile, PidState, pid_step
 
 MEM = "screw."  # prefix of this mission's keys in the shared memory
+ODOM_HISTORY_S = 0.5  # odometry kept to place a marker pose at its capture time (latency ≪ this)
+RELAX_TAU = 0.1  # s: a state without an impedance set lets the compliance offset decay with this time constant
 _ZERO3 = np.zeros(3)
 
 
@@ -89,13 +96,14 @@ class ArmParams(StrictModel):
     approach: Pose | None = None
 
 
-def _tick_period(memory: dict, t: float) -> float:
-    """Seconds since the previous tick of any screw task (kept in the shared memory), capped at
-    20 ms so that a gap — a state without a task, e.g. searching — does not count as one long tick;
-    0 on the first tick."""
-    t_prev = memory.get(MEM + "t")
-    memory[MEM + "t"] = t
-    return 0.0 if t_prev is None else min(0.02, max(0.0, t - t_prev))
+def _control_period(ctx: TaskContext, name: str) -> float:
+    """The control period ``ctx.dt`` (1 / rate_hz, set by the framework): the PIDs integrate it, the
+    compensation (eqs. 34–36), the arm step (eq. 37) and the admittance (eqs. 38–40) use it.  A task
+    built without one would integrate nothing and never move the arm, so that is refused."""
+    dt = float(ctx.dt)
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"{name} needs the control period TaskContext.dt > 0 s (1 / rate_hz), got {ctx.dt!r}")
+    return dt
 
 
 def _planar_from_odom(odom: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -134,6 +142,7 @@ class MobilePbvs(Task):
         rp = ctx.robot.params
         if not isinstance(rp, MobileIiwaParams):
             raise TypeError(f"{self.name} drives a mobile_iiwa, got robot parameters {type(rp).__name__}")
+        self.dt = _control_period(ctx, self.name or type(self).__name__)
         self.kin = ctx.robot.kinematics  # type: ignore[attr-defined]
         self.H_bc = rp.H_bc()
         self.R_bc = self.H_bc[:3, :3].copy()
@@ -187,8 +196,9 @@ class MobilePbvs(Task):
         poses: list[tuple[float, float, float]] = m.setdefault(MEM + "odom_p", [])
         times.append(t)
         poses.append((float(odom[0]), float(odom[1]), float(odom[2])))
-        if len(times) > 64:  # over half a second at 100 Hz: enough to reach back over the latency
-            del times[:16], poses[:16]
+        if times[0] < t - 1.5 * ODOM_HISTORY_S:  # trimmed in blocks: keep ODOM_HISTORY_S, at any rate
+            cut = bisect.bisect_left(times, t - ODOM_HISTORY_S)
+            del times[:cut], poses[:cut]
         if marker is None:
             return None, _ZERO3, _ZERO3
         if marker["seq"] != m.get(MEM + "obj_seq"):
@@ -232,7 +242,7 @@ class MobilePbvs(Task):
     def step(self, obs: Observation) -> StepResult:
         m = self.mem
         t = obs.t
-        dt = _tick_period(m, t)
+        dt = self.dt
         q = np.asarray(obs.state["q"], dtype=np.float64)
         q_ref = np.asarray(obs.state["q_ref"], dtype=np.float64)
         q_nom = m.get(MEM + "q_nom")
@@ -282,7 +292,7 @@ class MobilePbvs(Task):
                 if predicting:
                     V_a = V_a + pbvs.arm_feedforward(v_o, w_o, H_bo[:3, 3], H_be_star[:3, 3], V_b_eff)
         # 3. arm twist controller (eq. 37), joint speed limited
-        if dt > 0.0 and not self.arm_gains_zero:
+        if not self.arm_gains_zero:
             dq = pbvs.dls_solve(J, V_a * dt, self.lam)
             lim = self.qd_max * dt
             peak = float(np.max(np.abs(dq)))
@@ -296,7 +306,7 @@ class MobilePbvs(Task):
         if self.g_i is not None:
             adm = admittance_step(force, adm, self.g_i, dt)
         else:  # no compliance in this state: let the offset decay
-            adm = AdmittanceState(adm.x * 0.9, adm.v * 0.0)
+            adm = AdmittanceState(adm.x * math.exp(-dt / RELAX_TAU), adm.v * 0.0)
         m[MEM + "adm"] = adm
         if float(adm.x @ adm.x) > 1e-12:  # displacements under a micrometre (stiff set) are not worth a Jacobian
             dX = np.zeros(6)
@@ -354,13 +364,14 @@ class ArmHome(Task):
 
     def __init__(self, ctx: TaskContext) -> None:
         super().__init__(ctx)
+        self.dt = _control_period(ctx, self.name or type(self).__name__)
         self.home = np.array(ctx.robot.params.q_home)  # type: ignore[attr-defined]
         self.speed = float(ctx.params.speed)  # type: ignore[attr-defined]
         self.mem = ctx.memory
 
     def step(self, obs: Observation) -> StepResult:
         m = self.mem
-        dt = _tick_period(m, obs.t)
+        dt = self.dt
         q_ref = np.asarray(obs.state["q_ref"], dtype=np.float64)
         q_nom = m.get(MEM + "q_nom")
         q_nom = q_ref.copy() if q_nom is None else q_nom

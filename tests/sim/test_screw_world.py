@@ -10,7 +10,7 @@ import pybullet as p
 import pytest
 
 from taskflow_robots.mobile_iiwa import MobileIiwa
-from taskflow_sim.screw_world import ScrewConveyor
+from taskflow_sim.screw_world import ScrewConveyor, ScrewdriverParams
 from taskflow_tasks import pbvs
 from taskflow.registry import WORLDS
 
@@ -47,6 +47,7 @@ def ik(q0: np.ndarray, H_target: np.ndarray) -> np.ndarray:
 def test_registered():
     assert WORLDS.get("screw_conveyor") is ScrewConveyor
     assert ScrewConveyor.actions == {"screwdriver": ("tool_activated", "tool_failed", "screw_done")}
+    assert ScrewConveyor.action_params == {"screwdriver": ScrewdriverParams}
 
 
 def test_conveyor_moves_the_part_at_50_mm_per_s_and_the_platform_follows_its_twist():
@@ -150,10 +151,25 @@ def test_screwdriver_couples_only_when_the_bit_sits_on_the_bolt(offset, expected
             w.start_action("screwdriver", {"phase": "fasten", "duration": 0.5})
             assert [e for _, e in run(w, 0.7)] == ["screw_done"]
         s = w.summary_metrics()
-        assert s["screws_total"] == 4
-        assert s["screws_succeeded"] == (1 if expected == "tool_activated" else 0)
-        assert s["screws_failed"] == (0 if expected == "tool_activated" else 1)
-        assert s["err_t_mean_mm"] == pytest.approx(math.hypot(offset, 0.0005) * 1e3, abs=0.6)
+        ok = expected == "tool_activated"
+        assert (s["operations"], s["operations_fastened"], s["operations_failed"]) == (1, int(ok), int(not ok))
+        assert s["bolts_on_part"] == 4 and s["bolts_fastened"] == int(ok)
+        op = s["operation_log"][0]
+        assert op["outcome"] == ("fastened" if ok else "failed")
+        assert op["nearest_bolt"] == 2 and op["nearest_bolt_mm"] == pytest.approx(math.hypot(offset, 0.0005) * 1e3, abs=0.6)
+        if ok:
+            assert op["bolt"] == 2 and op["failure"] is None
+            assert op["err_t_mean_mm"] == pytest.approx(math.hypot(offset, 0.0005) * 1e3, abs=0.6)
+            assert s["fastened_err_operations"] == s["at_bolt_err_operations"] == 1
+            assert s["fastened_err_t_mean_mm"] == pytest.approx(op["err_t_mean_mm"])
+            # activation started at 0.2 s, fastening at 1.4 s (after the 1.2 s run) for 0.5 s
+            assert op["t_start"] == pytest.approx(0.2, abs=0.02) and op["t_end"] == pytest.approx(1.9, abs=0.02)
+            assert op["screwing_s"] == pytest.approx(1.7, abs=0.02)
+        else:  # 6 mm off the bolt: beyond the 3 mm coupling tolerance from the start, so no bolt was under the bit
+            assert op["bolt"] is None and op["failure"] == "no_bolt" and op["err_t_mean_mm"] is None
+            assert s["operations_no_bolt"] == 1
+            assert s["fastened_err_operations"] == s["at_bolt_err_operations"] == 0
+            assert s["fastened_err_t_mean_mm"] is None and s["at_bolt_err_t_mean_mm"] is None
     finally:
         w.close()
 
@@ -170,3 +186,150 @@ def test_same_seed_same_trolley_and_noise():
 
     assert trace(3) == trace(3)
     assert trace(3) != trace(4)
+
+
+def place_tip(w: ScrewConveyor, bolt: int, offset_in_bolt: tuple[float, float, float]) -> None:
+    """Teleport the arm so the tool tip sits at ``offset_in_bolt`` (m) in bolt ``bolt``'s frame."""
+    bolt_b = pbvs.inv_h(w.body.base_pose()) @ w.bolt_poses()[bolt]
+    w.body.set_joints(ik(np.array(ROBOT.params.q_home), bolt_b @ pbvs.hom(np.eye(3), np.array(offset_in_bolt))))
+
+
+def test_an_operation_with_no_bolt_under_the_tool_fails_and_stays_out_of_the_bolt_error_statistics():
+    """A mission pose where the part has no bolt (here half-way between bolts 0 and 2, 50 mm from each):
+    the activation fails as ``no_bolt``, the operation is in the log with the distance to the nearest
+    bolt, and that miss enters no bolt-error statistic."""
+    w = make(speed=0.0)
+    try:
+        place_tip(w, 0, (0.0, -0.05, 0.0005))  # bolt frame x is −y_P: 50 mm along the part towards bolt 2
+        run(w, 0.2)
+        w.start_action("screwdriver", {"phase": "activate"})
+        events = run(w, 1.2)
+        assert [e for _, e in events] == ["tool_failed"]
+        assert events[0][0] == pytest.approx(0.2 + ROBOT.params.tool.activation_s, abs=0.02)
+        place_tip(w, 3, (0.0, 0.0, 0.0005))  # then a real bolt: coupled and fastened
+        run(w, 0.2)
+        w.start_action("screwdriver", {"phase": "activate"})
+        assert [e for _, e in run(w, 1.1)] == ["tool_activated"]
+        w.start_action("screwdriver", {"phase": "fasten", "duration": 0.5})
+        assert [e for _, e in run(w, 0.6)] == ["screw_done"]
+        s = w.summary_metrics()
+        assert (s["operations"], s["operations_fastened"], s["operations_failed"], s["operations_no_bolt"]) == (2, 1, 1, 1)
+        assert s["operations_unfinished"] == 0
+        miss, ok = s["operation_log"]
+        assert miss["bolt"] is None and miss["outcome"] == "failed" and miss["failure"] == "no_bolt"
+        assert miss["nearest_bolt_mm"] == pytest.approx(50.0, abs=1.0) and miss["err_samples"] == 0
+        assert ok["bolt"] == 3 and ok["outcome"] == "fastened" and ok["failure"] is None
+        # the statistics are over the fastened operation only, and say so
+        assert s["fastened_err_operations"] == 1 and s["at_bolt_err_operations"] == 1
+        assert s["fastened_err_samples"] == ok["err_samples"] > 100
+        assert s["fastened_err_t_max_mm"] < 1.5 and s["at_bolt_err_t_max_mm"] < 1.5
+        assert s["bolts_fastened"] == 1 and s["bolts_on_part"] == 4
+    finally:
+        w.close()
+
+
+def test_a_bit_that_leaves_the_bolt_during_activation_fails_coupling_at_that_bolt():
+    w = make(speed=0.0)
+    try:
+        place_tip(w, 1, (0.0, 0.0, 0.0005))
+        run(w, 0.2)
+        w.start_action("screwdriver", {"phase": "activate"})
+        run(w, 0.3)
+        # move the tool 6 mm sideways while the screwdriver couples
+        bolt_b = pbvs.inv_h(w.body.base_pose()) @ w.bolt_poses()[1]
+        q = ik(w.body.q_ref_target, bolt_b @ pbvs.hom(np.eye(3), np.array([0.006, 0.0, 0.0005])))
+        w.apply({"base_twist": np.zeros(3), "arm_dq": q - w.body.q_ref_target})
+        w.advance(DT)
+        assert [e for _, e in run(w, 0.8)] == ["tool_failed"]
+        s = w.summary_metrics()
+        op = s["operation_log"][0]
+        assert op["bolt"] == 1 and op["failure"] == "coupling" and op["coupling_error_mm"] > 3.0
+        assert (s["operations_failed"], s["operations_no_bolt"], s["operations_fastened"]) == (1, 0, 0)
+        assert s["fastened_err_operations"] == 0 and s["fastened_err_t_max_mm"] is None
+        assert s["at_bolt_err_operations"] == 1 and s["at_bolt_err_t_max_mm"] == pytest.approx(op["err_t_max_mm"])
+        assert s["at_bolt_err_t_max_mm"] > 5.0
+    finally:
+        w.close()
+
+
+@pytest.mark.parametrize("params, field", [
+    ({"phase": "fasten", "duration": -3.0}, "duration"),
+    ({"phase": "fasten", "duration": 0.0}, "duration"),
+    ({"phase": "activate", "duration": float("nan")}, "duration"),
+    ({"phase": "fasten", "duration": float("inf")}, "duration"),
+    ({"phase": "spin"}, "phase"),
+    ({"phase": "fasten", "torque": 2.0}, "torque"),
+])
+def test_screwdriver_refuses_nonsense_parameters(params, field):
+    with pytest.raises(ValueError, match=field):
+        ScrewdriverParams.model_validate(params)
+    w = make(speed=0.0)
+    try:
+        with pytest.raises(ValueError, match=field):
+            w.start_action("screwdriver", params)
+        assert w.summary_metrics()["operations"] == 0 and [e for _, e in run(w, 0.2)] == ["target_found"]
+    finally:
+        w.close()
+
+
+@pytest.mark.parametrize("params", [
+    {"latency": float("inf")}, {"direction": float("nan")}, {"part_start": (0.0, float("inf"), 0.0)},
+    {"occlusions": [(1.0, float("inf"))]}, {"fasten_s": -3.0}, {"fasten_s": 1e9}, {"noise_z": -0.001},
+    {"lost_after": 0.0},
+])
+def test_world_parameters_refuse_nonsense(params):
+    with pytest.raises(ValueError):
+        ScrewConveyor.Params(**params)
+
+
+def test_marker_loss_faster_than_the_camera_is_refused():
+    with pytest.raises(ValueError, match="camera period"):
+        ScrewConveyor(ROBOT, ScrewConveyor.Params(lost_after=0.02), seed=0)  # 40 Hz camera: 25 ms between frames
+
+
+@pytest.mark.parametrize("tool", [{"slip_t": 0.002}, {"tol_t": -0.001}, {"activation_s": float("inf")}, {"tol_r": 2.0}])
+def test_tool_tolerances_refuse_nonsense(tool):
+    with pytest.raises(ValueError):
+        MobileIiwa.Params.model_validate({"tool": tool})
+
+
+def test_safe_stop_brings_the_platform_and_the_arm_to_rest_from_full_speed():
+    """From the 1 m/s speed limit and a full yaw rate, with the arm moving: within 1 s of safe_stop (the
+    runtime's stop time) the platform is at rest by PyBullet's base pose and the arm joints by
+    PyBullet's joint speeds."""
+    w = make(speed=0.0)
+    try:
+        rng = np.random.default_rng(0)
+        for _ in range(150):  # 1.5 s: full speed, full yaw rate, the arm swinging at up to ~1 rad/s
+            w.apply({"base_twist": np.array([0.8, 0.6, 1.0]), "arm_dq": rng.uniform(-0.01, 0.01, 7)})
+            w.advance(DT)
+        gt = w.ground_truth()
+        assert gt["base_speed"] == pytest.approx(1.0, abs=1e-3)  # measured from PyBullet's base pose
+        assert gt["base_yaw_rate"] == pytest.approx(1.0, abs=1e-3)
+        assert gt["arm_speed"] > 0.05
+        for _ in range(round(0.6 / DT)):  # 1 m/s at the 2 m/s² brake deceleration: at rest after 0.5 s
+            w.safe_stop()
+            w.advance(DT)
+        gt = w.ground_truth()
+        assert gt["base_speed"] < 1e-9 and abs(gt["base_yaw_rate"]) < 1e-9
+        for _ in range(round(0.4 / DT)):
+            w.safe_stop()
+            w.advance(DT)
+        gt = w.ground_truth()
+        assert gt["base_speed"] < 1e-9 and abs(gt["base_yaw_rate"]) < 1e-9
+        assert gt["arm_speed"] < 1e-3
+        pose = (gt["base_x"], gt["base_y"], gt["base_yaw"])
+        for _ in range(50):
+            w.safe_stop()
+            w.advance(DT)
+        gt = w.ground_truth()
+        assert (gt["base_x"], gt["base_y"], gt["base_yaw"]) == pose
+        s = w.summary_metrics()
+        assert s["final_base_speed_mps"] < 1e-9 and s["final_arm_speed_radps"] < 1e-3
+        # a command after the stop drives again
+        for _ in range(50):
+            w.apply({"base_twist": np.array([0.2, 0.0, 0.0]), "arm_dq": np.zeros(7)})
+            w.advance(DT)
+        assert w.ground_truth()["base_speed"] > 0.1
+    finally:
+        w.close()

@@ -1,0 +1,112 @@
+"""The screw tasks integrate over the control period ``TaskContext.dt`` (1 / rate_hz) — never a period
+estimated from observation times — checked by hand at the paper's 40 Hz control rate."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from taskflow.api import Observation, TaskContext
+from taskflow_robots.mobile_iiwa import MobileIiwa
+from taskflow_tasks import pbvs
+from taskflow_tasks.impedance import ImpedanceProfile
+from taskflow_tasks.pid import PidProfile
+from taskflow_tasks.screw_tasks import MEM, ArmHome, ArmParams, HomeParams, PbvsArm, PbvsPlatform, PlatformParams
+
+ROBOT = MobileIiwa(MobileIiwa.Params())
+DT = 1.0 / 40.0  # the paper's control rate
+CAMERA_TARGET = {"xyz": [0.0, -0.0003, 0.6711], "rpy_deg": [145.008, -24.644, -30.782]}
+NO_LIMITS = {"u_max": [math.inf] * 6, "i_limit": [math.inf] * 6}
+
+
+def obs(t: float, H_co: np.ndarray, q: np.ndarray, force=(0.0, 0.0, 0.0)) -> Observation:
+    return Observation(t, state={"q": q, "qd": np.zeros(7), "q_ref": q, "odom": np.zeros(3), "base_twist": np.zeros(3)},
+                       sensors={"marker": {"H_co": H_co, "t": t - 0.025, "seq": 1},
+                                "wrench": np.array([*force, 0.0, 0.0, 0.0])})
+
+
+def marker_offset_along_base_x(H_co_star: np.ndarray, d: float) -> np.ndarray:
+    """The marker seen ``d`` metres off its target along the platform's x: ``E_co = T(R_cb (d, 0, 0))``,
+    so the camera error vector in the base frame (eqs. 25–32) is exactly ``[0, 0, 0, d, 0, 0]``."""
+    R_bc = ROBOT.params.H_bc()[:3, :3]
+    H = H_co_star.copy()
+    H[:3, 3] += R_bc.T @ np.array([d, 0.0, 0.0])
+    return H
+
+
+def test_platform_pid_integrates_the_control_period_at_40_hz():
+    pid = PidProfile(kp=[0, 0, 0, 2.0, 0, 0], ki=[0, 0, 0, 1.5, 0, 0], **NO_LIMITS)
+    zero = PidProfile(kp=[0] * 6)
+    params = PlatformParams.model_validate({"camera_target": CAMERA_TARGET})
+    memory: dict = {}
+    task = PbvsPlatform(TaskContext(0.0, params, {"platform": pid, "arm": zero}, memory, ROBOT, dt=DT))
+    H_co = marker_offset_along_base_x(params.camera_target.matrix(), 0.01)
+    q = np.array(ROBOT.params.q_home)
+    np.testing.assert_allclose(pbvs.camera_error_vector(H_co @ pbvs.inv_h(params.camera_target.matrix()),
+                                                        ROBOT.params.H_bc()[:3, :3]), [0, 0, 0, 0.01, 0, 0], atol=1e-12)
+    for k in range(1, 4):
+        r = task.step(obs(k * DT, H_co, q))
+        # ∫e dt grows by e · 0.025 s per tick, from the first tick on (1 cm error → 0.25 mm·s per tick)
+        assert memory[MEM + "pid_b"].integral[3] == pytest.approx(k * 0.01 * 0.025, rel=1e-9)
+        # v_x = kp e + ki ∫e dt
+        assert r.command["base_twist"][0] == pytest.approx(2.0 * 0.01 + 1.5 * k * 0.01 * 0.025, rel=1e-9)
+
+
+def test_the_period_does_not_come_from_observation_times():
+    """Irregular observation stamps (a late first tick, a gap) change nothing: each tick is 1 / rate_hz."""
+    pid = PidProfile(kp=[0] * 6, ki=[0, 0, 0, 1.0, 0, 0], **NO_LIMITS)
+    params = PlatformParams.model_validate({"camera_target": CAMERA_TARGET})
+    memory: dict = {}
+    task = PbvsPlatform(TaskContext(0.0, params, {"platform": pid, "arm": PidProfile(kp=[0] * 6)}, memory, ROBOT, dt=DT))
+    H_co = marker_offset_along_base_x(params.camera_target.matrix(), 0.02)
+    q = np.array(ROBOT.params.q_home)
+    for t in (3.0, 3.025, 7.0):  # e.g. after a searching state without a task
+        task.step(obs(t, H_co, q))
+    assert memory[MEM + "pid_b"].integral[3] == pytest.approx(3 * 0.02 * 0.025, rel=1e-9)
+
+
+def test_arm_step_and_admittance_use_the_control_period_at_40_hz():
+    arm = PidProfile(kp=[5.0] * 6, **NO_LIMITS)
+    imp = ImpedanceProfile(K=[1000.0, 1000.0, 600.0], D=[120.0, 120.0, 80.0], M=[1.0, 1.0, 1.0], force=[0.0, 0.0, 3.0])
+    params = ArmParams.model_validate({"camera_target": CAMERA_TARGET,
+                                       "target": {"xyz": [0.14, 0.06, 0.0075], "rpy_deg": [180, 0, -90]}})
+    memory: dict = {}
+    task = PbvsArm(TaskContext(0.0, params, {"platform": PidProfile(kp=[0] * 6), "arm": arm, "impedance": imp},
+                               memory, ROBOT, dt=DT))
+    q = np.array(ROBOT.params.q_home)
+    f = np.array([0.5, -0.2, -1.0])
+    task.step(obs(0.0, params.camera_target.matrix(), q, force=f))
+    # eq. 37 with the joint-speed limit: the tool starts ~0.3 m from the bolt, so the step is the limit
+    # qd_max · dt = 1.5 rad/s · 0.025 s on the fastest joint
+    dq = memory[MEM + "q_nom"] - q
+    assert float(np.max(np.abs(dq))) == pytest.approx(ROBOT.params.qd_max * 0.025, rel=1e-9)
+    # eq. 39 as meant, from rest, one implicit-Euler step of 25 ms: x = ΔF / (M/dt² + D/dt + K)
+    dF = f + np.array([0.0, 0.0, 3.0])
+    x = dF / (np.array([1.0, 1.0, 1.0]) / 0.025**2 + np.array([120.0, 120.0, 80.0]) / 0.025 + np.array([1000.0, 1000.0, 600.0]))
+    np.testing.assert_allclose(memory[MEM + "adm"].x, x, rtol=1e-12)
+
+
+def test_arm_home_ramps_at_its_speed_over_the_control_period():
+    memory: dict = {}
+    task = ArmHome(TaskContext(0.0, HomeParams(speed=0.6), {}, memory, ROBOT, dt=DT))
+    home = np.array(ROBOT.params.q_home)
+    q0 = home + np.array([0.0, 0.3, 0.0, -0.1, 0.0, 0.0, 0.0])
+    q_ref = q0.copy()
+    for k in range(1, 4):
+        r = task.step(Observation(k * DT, state={"q": q0, "q_ref": q_ref}))
+        q_ref = q_ref + r.command["arm_dq"]
+        # the farthest joint (0.3 rad away) moves 0.6 rad/s · 0.025 s = 15 mrad per tick
+        assert q_ref[1] == pytest.approx(q0[1] - k * 0.015, abs=1e-12)
+        assert q_ref[3] == pytest.approx(q0[3] + k * 0.005, abs=1e-12)
+
+
+@pytest.mark.parametrize("cls, params", [
+    (PbvsPlatform, PlatformParams.model_validate({"camera_target": CAMERA_TARGET})),
+    (ArmHome, HomeParams()),
+])
+def test_a_task_without_a_control_period_is_refused(cls, params):
+    profiles = {"platform": PidProfile(kp=[1.0] * 6), "arm": PidProfile(kp=[0] * 6)} if cls is PbvsPlatform else {}
+    with pytest.raises(ValueError, match="TaskContext.dt"):
+        cls(TaskContext(0.0, params, profiles, {}, ROBOT))
