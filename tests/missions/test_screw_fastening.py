@@ -147,3 +147,13 @@ def test_one_second_of_safe_stop_after_success_leaves_the_robot_at_rest():
         assert gt["arm_speed"] < 1e-3
     finally:
         world.disconnect()
+
+
+@pytest.mark.parametrize("eps_t", ["1 m", "-1 mm"])
+def test_thresholds_that_fasten_nothing_end_failed(eps_t):
+    """A 1 m threshold lets every screw start far off its bolt (the coupling fails); −1 mm never lets one
+    start (each approach times out). Both used to end `succeeded` with 0 of 4 bolts fastened."""
+    r = run_on_world(load_mission(CONVEYOR, [f"parameters.eps_t={eps_t}"]), seed=0)
+    assert_outcome(r, "failed")
+    assert r.summary["items"]["operate.screws"]["succeeded"] == 0
+    assert r.summary["metrics"]["operations_fastened"] == 0 and r.summary["metrics"]["bolts_fastened"] == 0
