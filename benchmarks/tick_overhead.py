@@ -39,6 +39,7 @@ class BenchRobot(Robot):
 class BenchWorld(World):
     events = ("ping", "never")
     metrics = {"flag": ""}
+    physics_hz = 100.0  # one step per 100 Hz tick (the loader requires whole steps)
 
     def observe(self) -> Observation:  # pragma: no cover - not used: observations are prebuilt
         raise NotImplementedError
