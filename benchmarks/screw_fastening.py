@@ -165,14 +165,16 @@ def fmt(x: float | None, d: int = 2) -> str:
 
 
 def table(rows: list[tuple[str, dict[str, Any]]]) -> str:
-    out = ["Table 1 — time per screw, screwing time, success (the mission's screws); screwdriver operations",
-           f"{'scenario':38s} {'time/screw (s)':>16s} {'screwing (s)':>15s} {'success':>9s}  {'sequences':>9s}  "
+    out = ["Table 1 — time per screw, screwing time, success (the mission's screws); sequences that met the mission's "
+           "rule (every screw fastened: outcome succeeded); screwdriver operations",
+           f"{'scenario':38s} {'time/screw (s)':>16s} {'screwing (s)':>15s} {'success':>9s}  {'sequences ok':>12s}  "
            "operations fastened / started (no bolt)"]
     for name, a in rows:
         tp, sc = a["time_per_screw"], a["screwing"]
         ops = (f"{a['operations_fastened']} / {a['operations']} ({a['operations_no_bolt']})" if "operations" in a else "—")
+        seqs = (f"{a['outcomes'].count('succeeded')} / {a['sequences']}" if "outcomes" in a else "—")
         out.append(f"{name:38s} {fmt(tp[0]):>7s} ± {fmt(tp[1]):<6s} {fmt(sc[0]):>6s} ± {fmt(sc[1]):<6s} "
-                   f"{fmt(a['success'], 1):>7s} %  {a.get('sequences', '—'):>9}  {ops}")
+                   f"{fmt(a['success'], 1):>7s} %  {seqs:>12s}  {ops}")
     for key, title in (("", "over the fastened operations"),
                        ("at_bolt_", "over every operation with a bolt under the tool (fastened or failed)")):
         out += ["", f"Table 2{'b' if key else ''} — tool error to the bolt while the screwdriver runs (activation + "
