@@ -53,6 +53,11 @@ Choices where the paper is silent or its reading would not work (each marked in 
   patch (``anchor``): the current image is warped into the keyframe's geometry through the plane's
   homography and LK finds the keyframe patch in it (:meth:`PointTracker.refine`); H is then computed
   from the anchored points.
+* **Re-matching with a larger budget.**  ``matchingKeyPoints`` keeps the ``n_features`` strongest
+  keypoints of each whole image; when the view shares only a part of the keyframe (the drone off the
+  taught path, e.g. cutting a curve) too few of them fall in the shared part and the keyframe is
+  lost although it is in view.  Matching that finds fewer than ``min_points`` inliers detects again
+  with ``retry_scale`` times the budget (:func:`match_with_retry`, also in ``visual_path_rematch``).
 * ``sigma`` may be set per keyframe (§5.2 uses 0.13 then 0.06 for its two obstacles).
 """
 
@@ -208,6 +213,9 @@ class VisualPathParams(StrictModel):
                             description="transfer error beyond which a tracked point leaves the plane of H (px)")
     anchor: bool = Field(default=True, description="re-anchor the tracked points on their keyframe patches every frame "
                                                    "(through the homography of the tracked plane)")
+    retry_scale: int = Field(default=4, ge=1, le=20,
+                             description="when matching finds fewer than min_points, detect again with retry_scale x "
+                                         "n_features keypoints (a view sharing only part of the keyframe); 1: no retry")
 
     @model_validator(mode="after")
     def _consistent(self) -> VisualPathParams:
@@ -235,6 +243,9 @@ class RematchParams(StrictModel):
     features: Literal["orb", "sift"] = "orb"
     n_features: int = Field(default=1000, ge=50, le=20000)
     min_points: int = Field(default=16, ge=8, le=10000)
+    retry_scale: int = Field(default=4, ge=1, le=20,
+                             description="when matching finds fewer than min_points, detect again with retry_scale x "
+                                         "n_features keypoints; 1: no retry")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -247,6 +258,27 @@ def _keyframe_features(memory: dict[str, Any], image: NDArray[np.uint8], kf_id: 
     if key not in cache:
         cache[key] = detect(make_detector(kind, n), to_grey(image), kind)
     return cache[key]
+
+
+def match_with_retry(memory: dict[str, Any], kf_image: NDArray[np.uint8], kf_id: int, grey: NDArray[np.uint8],
+                     p: VisualPathParams | RematchParams, model: str = "homography") -> tuple[NDArray[np.float32],
+                                                                                            NDArray[np.float32]]:
+    """``matchingKeyPoints`` of the current frame against keyframe ``kf_id``, with ``p.n_features``
+    keypoints per image and, when that gives fewer than ``p.min_points`` inliers, once more with
+    ``p.retry_scale`` times as many.
+
+    Each image keeps its strongest keypoints over its whole area; when the view shares only a part of
+    the keyframe (the drone off the taught pose, e.g. cutting a curve), few of those fall in the shared
+    part of both images, and a larger budget finds the matches that are there (ORB at an oval's last
+    keyframes: 9 RANSAC inliers with 1000 keypoints, 34 with 3000)."""
+    budgets = [p.n_features] + ([p.n_features * p.retry_scale] if p.retry_scale > 1 else [])
+    cur = kfp = np.zeros((0, 2), np.float32)
+    for n in budgets:
+        kf = _keyframe_features(memory, kf_image, kf_id, p.features, n)
+        cur, kfp = match_keyframe(kf, detect(make_detector(p.features, n), grey, p.features), model=model)
+        if len(cur) >= p.min_points:
+            break
+    return cur, kfp
 
 
 def segment_velocities(keyframes: tuple[NDArray[np.uint8], ...], K: NDArray[np.float64], eTc: NDArray[np.float64],
@@ -473,7 +505,6 @@ class VisualPathServo(Task):
         self.eTc = ctx.robot.eTc()  # type: ignore[attr-defined]
         self.size = (cam.width, cam.height)
         self.t_enter = ctx.t
-        self.detector = make_detector(p.features, p.n_features)
         self.tracker: PointTracker | None = None
         self.law: ServoLaw | None = None
         self.last_frame = -1
@@ -525,10 +556,8 @@ class VisualPathServo(Task):
         grey = to_grey(image)
         p = self.p
         if self.tracker is None:
-            kf = _keyframe_features(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, p.features,
-                                    p.n_features)
-            cur, kfp = match_keyframe(kf, detect(self.detector, grey, p.features),
-                                      model="homography" if p.homography == "ransac" else "fundamental")
+            cur, kfp = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, grey, p,
+                                        "homography" if p.homography == "ransac" else "fundamental")
             if len(cur) < p.min_points:
                 self.metrics_out = {"n_points": float(len(cur)), "keyframe": float(p.keyframe.id)}
                 return self._hover(("features_lost",))
@@ -645,7 +674,6 @@ class VisualPathRematch(Task):
             raise TypeError(f"visual_path_rematch needs RematchParams, got {type(p).__name__}")
         _robot_params(ctx)
         self.p = p
-        self.detector = make_detector(p.features, p.n_features)
         self.last_frame = -1
         self.n = 0
 
@@ -660,10 +688,9 @@ class VisualPathRematch(Task):
                 self.n = int(estimate_homography(cur, kfp, _robot_params(self.ctx).camera.K())[1].sum()) \
                     if len(cur) >= 8 else len(cur)
             else:
-                kf = _keyframe_features(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id,
-                                        p.features, p.n_features)
-                cur, _ = match_keyframe(kf, detect(self.detector, to_grey(obs.sensors["image"]), p.features))
-                self.n = len(cur)
+                matched, _ = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id,
+                                              to_grey(obs.sensors["image"]), p)
+                self.n = len(matched)
             if self.n >= p.min_points:
                 events = ("features_found",)
         return StepResult({"nu": np.zeros(4)}, {"n_points": float(self.n), "keyframe": float(self.p.keyframe.id)},

@@ -23,9 +23,11 @@ from taskflow_tasks.visual_path import (
     HierarchyGains,
     KeyframeRef,
     PathGains,
+    RematchParams,
     ServoLaw,
     VisualGains,
     VisualPathParams,
+    match_with_retry,
     segment_velocities,
     segment_velocities_from_points,
 )
@@ -145,6 +147,21 @@ def test_refine_through_the_plane_homography_removes_drift_far_from_the_keyframe
     assert len(warped) == len(k) - len(slipped)
     assert not np.isin(k[slipped], warped.kf).all(axis=1).any()
     assert moved >= 0.9 * len(warped) and error(warped) < 0.1
+
+
+def test_matching_retries_with_a_larger_budget_when_the_view_shares_little(texture):
+    """A view turned 29° and moved 1.2 m sideways shares a corner of the keyframe: the 1000 strongest
+    keypoints of each image give fewer than min_points matches, the retry with 4x the budget finds
+    enough, and they are right."""
+    G0, G1 = plane_map(0.0, 0.0, 0.0), plane_map(0.5, 1.2, 0.0)
+    kf_img, cur = view(texture, G0), to_grey(view(texture, G1))
+    p = RematchParams(keyframe=KeyframeRef(id=0), n_features=1000, retry_scale=4)
+    c, _ = match_with_retry({}, kf_img, 0, cur, p.model_copy(update={"retry_scale": 1}))
+    assert len(c) < p.min_points
+    c, k = match_with_retry({}, kf_img, 0, cur, p)
+    assert len(c) >= p.min_points
+    truth = cv2.perspectiveTransform(k.reshape(-1, 1, 2).astype(np.float64), G1 @ np.linalg.inv(G0)).reshape(-1, 2)
+    assert np.median(np.linalg.norm(c - truth, axis=1)) < 1.0
 
 
 def test_obstacle_segmentation_edges(texture):
