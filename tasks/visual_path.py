@@ -17,9 +17,10 @@ mission iterates it over the path with ``foreach`` and switches keyframes on its
   shrinks), neither of Alg. 2's rules fires and the drone hovers there.  A guard such as
   ``epsilon_progress < 0.5 px`` ends that stall.
 
-Fewer than ``min_points`` matched or tracked points (the paper needs ≥ 16 for a well-conditioned
-homography) raise the ``features_lost`` event and command a hover; ``visual_path_rematch`` hovers and
-re-matches until it raises ``features_found``.
+Fewer than ``min_points`` matched points (the paper needs ≥ 16 for a well-conditioned homography), or
+tracked points that a new matching of the keyframe cannot bring back to ``min_points``, raise the
+``features_lost`` event and command a hover; ``visual_path_rematch`` hovers and re-matches until it
+raises ``features_found``.
 
 Only images are used: the current frame (``obs.sensors["image"]``) and the keyframe images
 (``obs.sensors["keyframes"]``); the keyframe poses in the parameters are ground truth for the world's
@@ -58,6 +59,14 @@ Choices where the paper is silent or its reading would not work (each marked in 
   taught path, e.g. cutting a curve) too few of them fall in the shared part and the keyframe is
   lost although it is in view.  Matching that finds fewer than ``min_points`` inliers detects again
   with ``retry_scale`` times the budget (:func:`match_with_retry`, also in ``visual_path_rematch``).
+* **Matching again while tracking.**  Alg. 1 matches once per keyframe and then only tracks, so the
+  set only shrinks (points leave the view or stop fitting the plane).  A keyframe entered far from
+  its pose (feed-forward cutting a curve) kept the 16–40 points of that first view, a cluster from
+  which H is ill-conditioned, while the view closed in on the keyframe.  Once the set has shrunk
+  below ``refresh_fraction`` of the last matching, or below ``min_points``, the keyframe is matched
+  again and the new matches are added (:meth:`VisualPathServo._track`); ε is a mean over the set, so
+  its history is rescaled to the new set on that frame (:meth:`ServoLaw.rebase`) and the rising
+  count and the progress do not read the change of set as motion.
 * ``sigma`` may be set per keyframe (§5.2 uses 0.13 then 0.06 for its two obstacles).
 """
 
@@ -216,6 +225,9 @@ class VisualPathParams(StrictModel):
     retry_scale: int = Field(default=4, ge=1, le=20,
                              description="when matching finds fewer than min_points, detect again with retry_scale x "
                                          "n_features keypoints (a view sharing only part of the keyframe); 1: no retry")
+    refresh_fraction: float = Field(default=0.5, ge=0.0, lt=1.0,
+                                    description="match the keyframe again (adding the new matches) when the tracked set "
+                                                "has shrunk below this fraction of the last matching; 0: only below min_points")
 
     @model_validator(mode="after")
     def _consistent(self) -> VisualPathParams:
@@ -469,6 +481,18 @@ class ServoLaw:
         }
         return nu_e, metrics
 
+    def rebase(self, ratio: float | None) -> None:
+        """The point set changed (re-matched points added): rescale the ε history by ``ratio`` (ε of
+        the new set / ε of the old one, on the same frame) so that the rising count and the progress
+        compare like with like; ``None`` (no old point left) forgets it."""
+        if ratio is None:
+            self.last_eps, self.rising = None, 0
+            self.eps_history.clear()
+            return
+        if self.last_eps is not None:
+            self.last_eps *= ratio
+        self.eps_history = deque((t, e * ratio) for t, e in self.eps_history)
+
     def _progress(self, t: float, eps: float) -> float:
         """ε a window ago minus ε now (px); NaN until the window has been observed."""
         hist, window = self.eps_history, self.p.progress_window_s
@@ -506,6 +530,7 @@ class VisualPathServo(Task):
         self.size = (cam.width, cam.height)
         self.t_enter = ctx.t
         self.tracker: PointTracker | None = None
+        self.n_matched = 0
         self.law: ServoLaw | None = None
         self.last_frame = -1
         self.command = np.zeros(4)
@@ -562,9 +587,10 @@ class VisualPathServo(Task):
                 self.metrics_out = {"n_points": float(len(cur)), "keyframe": float(p.keyframe.id)}
                 return self._hover(("features_lost",))
             self.tracker = PointTracker(grey, cur, kfp)
+            self.n_matched = len(cur)
             self.law = ServoLaw(self.K, self.eTc, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
                                 self._feedforward(obs))
-        elif self.tracker.track(grey) < p.min_points:
+        elif self._track(obs, grey) < p.min_points:
             self.metrics_out.update(n_points=float(len(self.tracker)))
             return self._hover(("features_lost",))
         tr = self.tracker
@@ -589,6 +615,32 @@ class VisualPathServo(Task):
         hier = self.hier
         obstacle = obstacle_edges(image, hier.hsv_low, hier.hsv_high, hier.min_obstacle_px) if hier.collision else None
         return self._control(obs, tic, tr.cur, tr.kf, obstacle, H)
+
+    def _track(self, obs: Observation, grey: NDArray[np.uint8]) -> int:
+        """Track into ``grey``; once the set has shrunk below ``refresh_fraction`` of what the last
+        matching gave (points left the view or stopped fitting the plane), match the keyframe again and
+        add the new matches, so the set keeps covering what the view shares with the keyframe (entered
+        far from it, the drone keeps the few points of that first view otherwise, and H from a small
+        cluster is ill-conditioned).  Returns the number of points."""
+        tr, p = self.tracker, self.p
+        if tr is None:
+            raise RuntimeError("visual_path_servo: tracking before matching (internal error)")
+        n = tr.track(grey)
+        if n >= p.min_points and n >= p.refresh_fraction * self.n_matched:
+            return n
+        eps_old = mean_pixel_error(tr.cur, tr.kf) if n else 0.0
+        cur, kfp = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, grey, p,
+                                    "homography" if p.homography == "ransac" else "fundamental")
+        if len(kfp) and n:
+            new = np.min(np.linalg.norm(kfp[:, None, :] - tr.kf[None, :, :], axis=2), axis=1) > 2.0
+            cur, kfp = cur[new], kfp[new]
+        if len(kfp):
+            tr.add(cur, kfp)
+            if self.law is not None:
+                # ε is a mean over the point set: keep its history on the scale of the new set
+                self.law.rebase(mean_pixel_error(tr.cur, tr.kf) / eps_old if eps_old > 1e-6 else None)
+        self.n_matched = len(tr)
+        return len(tr)
 
     def _step_points(self, obs: Observation) -> StepResult:
         """One frame of the geometric camera: correspondences by landmark id instead of ORB + LK.

@@ -168,6 +168,15 @@ class PointTracker:
             return
         self.cur, self.kf = self.cur[order], self.kf[order]
 
+    def add(self, cur_px: ArrayLike, kf_px: ArrayLike) -> None:
+        """Append correspondences after the tracked ones (the largest-triangle points stay first; with
+        fewer than three tracked points the triangle is chosen again)."""
+        short = len(self.cur) < 3
+        self.cur = np.vstack((self.cur, np.asarray(cur_px, dtype=np.float32).reshape(-1, 2)))
+        self.kf = np.vstack((self.kf, np.asarray(kf_px, dtype=np.float32).reshape(-1, 2)))
+        if short:
+            self._restore_triangle()
+
     def prune(self, keep: NDArray[np.bool_]) -> None:
         """Drop the points where ``keep`` is false (e.g. off the tracked plane); the largest-triangle
         order is restored if one of its vertices goes."""
@@ -225,17 +234,20 @@ def anchor_on_keyframe(kf_grey: NDArray[np.uint8], grey: NDArray[np.uint8], kf_p
     ``W`` is black fill)."""
     k = np.asarray(kf_px, dtype=np.float32).reshape(-1, 2)
     if len(k) == 0:
-        return np.zeros((0, 2)), np.zeros(0, dtype=bool)
+        return np.zeros((0, 2), dtype=np.float64), np.zeros(0, dtype=bool)
     Gm = np.asarray(G, dtype=np.float64).reshape(3, 3)
     G_inv = np.linalg.inv(Gm)
     h, w = kf_grey.shape[:2]
     target = np.asarray(cv2.warpPerspective(grey, Gm, (w, h), flags=cv2.INTER_LINEAR), dtype=np.uint8)
-    lk = {"winSize": (win, win), "maxLevel": 1, "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03),
-          "flags": cv2.OPTFLOW_USE_INITIAL_FLOW}
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
     p0 = k.reshape(-1, 1, 2)
-    p1, st, _ = cv2.calcOpticalFlowPyrLK(kf_grey, target, p0, p0.copy(), **lk)
-    back, st2, _ = cv2.calcOpticalFlowPyrLK(target, kf_grey, p1, p0.copy(), **lk)
-    found = cv2.perspectiveTransform(p1.reshape(-1, 1, 2).astype(np.float64), G_inv).reshape(-1, 2)
+    p1, st, _ = cv2.calcOpticalFlowPyrLK(kf_grey, target, p0, p0.copy(), winSize=(win, win), maxLevel=1,
+                                         criteria=criteria, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+    back, st2, _ = cv2.calcOpticalFlowPyrLK(target, kf_grey, np.asarray(p1, dtype=np.float32), p0.copy(),
+                                            winSize=(win, win), maxLevel=1, criteria=criteria,
+                                            flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+    found = np.asarray(cv2.perspectiveTransform(np.asarray(p1, dtype=np.float64).reshape(-1, 1, 2), G_inv),
+                       dtype=np.float64).reshape(-1, 2)
     ok = _window_inside(k, G_inv, 0.5 * win + 1.0, grey.shape[:2]) & (st.ravel() == 1) & (st2.ravel() == 1)
     ok &= np.all(np.isfinite(found), axis=1) & (np.linalg.norm(back.reshape(-1, 2) - k, axis=1) < fb_px)
     return found, ok

@@ -251,6 +251,37 @@ def test_epsilon_progress_is_the_drop_of_epsilon_over_its_window():
             assert eps == pytest.approx(2.0) and p == pytest.approx(0.0, abs=1e-9)
 
 
+def test_rebase_keeps_the_epsilon_rules_on_the_scale_of_a_grown_point_set():
+    """Re-matched points join the set at t = 1.5 s and raise ε by half on that frame: rebased, the
+    history still reads as ε falling (progress > 0, no rising count); not rebased, the jump would
+    read as ε rising and progress would turn negative for a window."""
+    rob = Quadcopter(QuadcopterParams())
+    rng = np.random.default_rng(1)
+    kf = rng.uniform([20, 20], [300, 220], (40, 2))
+    extra = rng.uniform([20, 20], [300, 220], (40, 2))
+    params = VisualPathParams(keyframe=KeyframeRef(id=0, pose=None), path=[KeyframeRef(id=0), KeyframeRef(id=1)],
+                              progress_window_s=1.0, feedforward=True)
+    runs = {}
+    for rebase in (True, False):
+        law = ServoLaw(K, rob.eTc(), (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
+        out = []
+        for i in range(100):
+            t = i * 0.04
+            shift = 20.0 - 4.0 * t
+            cur, ref = kf + [shift, 0.0], kf
+            if t >= 1.5 - 1e-9:
+                cur, ref = np.vstack((cur, extra + [2.0 * shift, 0.0])), np.vstack((kf, extra))
+                if rebase and abs(t - 1.52) < 1e-9:
+                    law.rebase(1.5)  # (40 shift + 40 x 2 shift) / 80 over shift, on this frame
+            _, m = law(t, cur, ref, None, H=np.eye(3))
+            out.append((t, m["epsilon_rising"], m["epsilon_progress"]))
+        runs[rebase] = out
+    after = [(r, p) for t, r, p in runs[True] if t >= 1.52 - 1e-9]
+    assert all(r == 0.0 for r, _ in after) and all(p > 0.0 for _, p in after)
+    assert any(r > 0.0 for t, r, _ in runs[False] if t >= 1.52 - 1e-9)
+    assert any(p < 0.0 for t, _, p in runs[False] if t >= 1.52 - 1e-9)
+
+
 def test_segment_velocities_from_landmark_views_point_along_the_path():
     """Feed-forward (eq. 32) from the geometric camera's keyframe views (correspondence by id):
     keyframes 0.3 m apart straight ahead give a forward ``nu_p``; a yawed keyframe a turn."""
