@@ -17,9 +17,10 @@ mission iterates it over the path with ``foreach`` and switches keyframes on its
   shrinks), neither of Alg. 2's rules fires and the drone hovers there.  A guard such as
   ``epsilon_progress < 0.5 px`` ends that stall.
 
-Fewer than ``min_points`` matched or tracked points (the paper needs ≥ 16 for a well-conditioned
-homography) raise the ``features_lost`` event and command a hover; ``visual_path_rematch`` hovers and
-re-matches until it raises ``features_found``.
+Fewer than ``min_points`` matched points (the paper needs ≥ 16 for a well-conditioned homography), or
+tracked points that a new matching of the keyframe cannot bring back to ``min_points``, raise the
+``features_lost`` event and command a hover; ``visual_path_rematch`` hovers and re-matches until it
+raises ``features_found``.
 
 Only images are used: the current frame (``obs.sensors["image"]``) and the keyframe images
 (``obs.sensors["keyframes"]``); the keyframe poses in the parameters are ground truth for the world's
@@ -44,9 +45,28 @@ Choices where the paper is silent or its reading would not work (each marked in 
 * **Plane of H.**  Matching keeps the RANSAC inliers of one plane; every frame H is RANSAC + least
   squares on the tracked points and the points that stop fitting (parallax grows, mistracking) are
   dropped for good, so H does not jump between inlier subsets.
-* **Sub-pixel anchoring.**  Once ε < ``refine_below_px`` the tracked points are re-anchored on the
-  keyframe texture with LK (keyframe image → current image): detector keypoints (ORB pyramid levels)
-  carry ~1 px biases that otherwise leave a steady-state pose offset of several cm.
+* **Anchoring on the keyframe.**  Frame-to-frame LK drifts (a few points reach 2–3.5 px after 10 s,
+  growing smoothly, as the scale of the view changes), and detector keypoints (ORB pyramid levels)
+  carry ~1 px biases.  With the tracked points on one wall a few metres away, a sideways offset and
+  a yaw that cancel in the image change its points by ~1 px only, so those errors tilt the
+  perspective row of H enough to hold the drone several cm to the side while the tracked ε says it
+  has converged.  Every frame, after tracking, each point is therefore re-anchored on its keyframe
+  patch (``anchor``): the current image is warped into the keyframe's geometry through the plane's
+  homography and LK finds the keyframe patch in it (:meth:`PointTracker.refine`); H is then computed
+  from the anchored points.
+* **Re-matching with a larger budget.**  ``matchingKeyPoints`` keeps the ``n_features`` strongest
+  keypoints of each whole image; when the view shares only a part of the keyframe (the drone off the
+  taught path, e.g. cutting a curve) too few of them fall in the shared part and the keyframe is
+  lost although it is in view.  Matching that finds fewer than ``min_points`` inliers detects again
+  with ``retry_scale`` times the budget (:func:`match_with_retry`, also in ``visual_path_rematch``).
+* **Matching again while tracking.**  Alg. 1 matches once per keyframe and then only tracks, so the
+  set only shrinks (points leave the view or stop fitting the plane).  A keyframe entered far from
+  its pose (feed-forward cutting a curve) kept the 16–40 points of that first view, a cluster from
+  which H is ill-conditioned, while the view closed in on the keyframe.  Once the set has shrunk
+  below ``refresh_fraction`` of the last matching, or below ``min_points``, the keyframe is matched
+  again and the new matches are added (:meth:`VisualPathServo._track`); ε is a mean over the set, so
+  its history is rescaled to the new set on that frame (:meth:`ServoLaw.rebase`) and the rising
+  count and the progress do not read the change of set as motion.
 * ``sigma`` may be set per keyframe (§5.2 uses 0.13 then 0.06 for its two obstacles).
 """
 
@@ -200,8 +220,14 @@ class VisualPathParams(StrictModel):
     homography: Literal["ransac", "virtual_plane"] = "ransac"
     plane_px: float = Field(default=3.0, gt=0.0, le=100.0,
                             description="transfer error beyond which a tracked point leaves the plane of H (px)")
-    refine_below_px: float = Field(default=20.0, ge=0.0, le=1000.0,
-                                   description="re-anchor tracked points on the keyframe texture when ε is below this (px); 0: never")
+    anchor: bool = Field(default=True, description="re-anchor the tracked points on their keyframe patches every frame "
+                                                   "(through the homography of the tracked plane)")
+    retry_scale: int = Field(default=4, ge=1, le=20,
+                             description="when matching finds fewer than min_points, detect again with retry_scale x "
+                                         "n_features keypoints (a view sharing only part of the keyframe); 1: no retry")
+    refresh_fraction: float = Field(default=0.5, ge=0.0, lt=1.0,
+                                    description="match the keyframe again (adding the new matches) when the tracked set "
+                                                "has shrunk below this fraction of the last matching; 0: only below min_points")
 
     @model_validator(mode="after")
     def _consistent(self) -> VisualPathParams:
@@ -229,6 +255,9 @@ class RematchParams(StrictModel):
     features: Literal["orb", "sift"] = "orb"
     n_features: int = Field(default=1000, ge=50, le=20000)
     min_points: int = Field(default=16, ge=8, le=10000)
+    retry_scale: int = Field(default=4, ge=1, le=20,
+                             description="when matching finds fewer than min_points, detect again with retry_scale x "
+                                         "n_features keypoints; 1: no retry")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -241,6 +270,27 @@ def _keyframe_features(memory: dict[str, Any], image: NDArray[np.uint8], kf_id: 
     if key not in cache:
         cache[key] = detect(make_detector(kind, n), to_grey(image), kind)
     return cache[key]
+
+
+def match_with_retry(memory: dict[str, Any], kf_image: NDArray[np.uint8], kf_id: int, grey: NDArray[np.uint8],
+                     p: VisualPathParams | RematchParams, model: str = "homography") -> tuple[NDArray[np.float32],
+                                                                                            NDArray[np.float32]]:
+    """``matchingKeyPoints`` of the current frame against keyframe ``kf_id``, with ``p.n_features``
+    keypoints per image and, when that gives fewer than ``p.min_points`` inliers, once more with
+    ``p.retry_scale`` times as many.
+
+    Each image keeps its strongest keypoints over its whole area; when the view shares only a part of
+    the keyframe (the drone off the taught pose, e.g. cutting a curve), few of those fall in the shared
+    part of both images, and a larger budget finds the matches that are there (ORB at an oval's last
+    keyframes: 9 RANSAC inliers with 1000 keypoints, 34 with 3000)."""
+    budgets = [p.n_features] + ([p.n_features * p.retry_scale] if p.retry_scale > 1 else [])
+    cur = kfp = np.zeros((0, 2), np.float32)
+    for n in budgets:
+        kf = _keyframe_features(memory, kf_image, kf_id, p.features, n)
+        cur, kfp = match_keyframe(kf, detect(make_detector(p.features, n), grey, p.features), model=model)
+        if len(cur) >= p.min_points:
+            break
+    return cur, kfp
 
 
 def segment_velocities(keyframes: tuple[NDArray[np.uint8], ...], K: NDArray[np.float64], eTc: NDArray[np.float64],
@@ -429,6 +479,18 @@ class ServoLaw:
         }
         return nu_e, metrics
 
+    def rebase(self, ratio: float | None) -> None:
+        """The point set changed (re-matched points added): rescale the ε history by ``ratio`` (ε of
+        the new set / ε of the old one, on the same frame) so that the rising count and the progress
+        compare like with like; ``None`` (no old point left) forgets it."""
+        if ratio is None:
+            self.last_eps, self.rising = None, 0
+            self.eps_history.clear()
+            return
+        if self.last_eps is not None:
+            self.last_eps *= ratio
+        self.eps_history = deque((t, e * ratio) for t, e in self.eps_history)
+
     def _progress(self, t: float, eps: float) -> float:
         """ε a window ago minus ε now (px); NaN until the window has been observed."""
         hist, window = self.eps_history, self.p.progress_window_s
@@ -465,8 +527,8 @@ class VisualPathServo(Task):
         self.eTc = ctx.robot.eTc()  # type: ignore[attr-defined]
         self.size = (cam.width, cam.height)
         self.t_enter = ctx.t
-        self.detector = make_detector(p.features, p.n_features)
         self.tracker: PointTracker | None = None
+        self.n_matched = 0
         self.law: ServoLaw | None = None
         self.last_frame = -1
         self.command = np.zeros(4)
@@ -517,24 +579,21 @@ class VisualPathServo(Task):
         grey = to_grey(image)
         p = self.p
         if self.tracker is None:
-            kf = _keyframe_features(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, p.features,
-                                    p.n_features)
-            cur, kfp = match_keyframe(kf, detect(self.detector, grey, p.features),
-                                      model="homography" if p.homography == "ransac" else "fundamental")
+            cur, kfp = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, grey, p,
+                                        "homography" if p.homography == "ransac" else "fundamental")
             if len(cur) < p.min_points:
                 self.metrics_out = {"n_points": float(len(cur)), "keyframe": float(p.keyframe.id)}
                 return self._hover(("features_lost",))
             self.tracker = PointTracker(grey, cur, kfp)
+            self.n_matched = len(cur)
             self.law = ServoLaw(self.K, self.eTc, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
                                 self._feedforward(obs))
-        elif self.tracker.track(grey) < p.min_points:
+        elif self._track(obs, grey) < p.min_points:
             self.metrics_out.update(n_points=float(len(self.tracker)))
             return self._hover(("features_lost",))
         tr = self.tracker
         if self.law is None:
             raise RuntimeError("visual_path_servo: tracker without a law (internal error)")
-        if p.refine_below_px > 0.0 and self.metrics_out.get("epsilon", np.inf) < p.refine_below_px:
-            tr.refine(self._kf_grey(obs), grey)
         try:
             # RANSAC + least-squares refit; points that stop fitting the plane (off-plane as parallax
             # grows, or mistracked) are dropped for good, so the set settles on one plane and H does not
@@ -542,11 +601,44 @@ class VisualPathServo(Task):
             H, fits = estimate_homography(tr.cur, tr.kf, self.K, p.homography, p.plane_px)
             if not fits.all() and fits.sum() >= p.min_points:
                 tr.prune(fits)
+            if p.anchor:
+                # re-anchor every point on its keyframe patch through the plane's homography (drift of
+                # frame-to-frame LK would otherwise add up), then H from the anchored points
+                Hp = H if p.homography == "ransac" else estimate_homography(tr.cur, tr.kf, self.K, "ransac", p.plane_px)[0]
+                G = self.K @ Hp @ np.linalg.inv(self.K)
+                tr.refine(self._kf_grey(obs), grey, G)
+                H, _ = estimate_homography(tr.cur, tr.kf, self.K, p.homography, p.plane_px)
         except ValueError:
             return self._hover(("features_lost",))
         hier = self.hier
         obstacle = obstacle_edges(image, hier.hsv_low, hier.hsv_high, hier.min_obstacle_px) if hier.collision else None
         return self._control(obs, tic, tr.cur, tr.kf, obstacle, H)
+
+    def _track(self, obs: Observation, grey: NDArray[np.uint8]) -> int:
+        """Track into ``grey``; once the set has shrunk below ``refresh_fraction`` of what the last
+        matching gave (points left the view or stopped fitting the plane), match the keyframe again and
+        add the new matches, so the set keeps covering what the view shares with the keyframe (entered
+        far from it, the drone keeps the few points of that first view otherwise, and H from a small
+        cluster is ill-conditioned).  Returns the number of points."""
+        tr, p = self.tracker, self.p
+        if tr is None:
+            raise RuntimeError("visual_path_servo: tracking before matching (internal error)")
+        n = tr.track(grey)
+        if n >= p.min_points and n >= p.refresh_fraction * self.n_matched:
+            return n
+        eps_old = mean_pixel_error(tr.cur, tr.kf) if n else 0.0
+        cur, kfp = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, grey, p,
+                                    "homography" if p.homography == "ransac" else "fundamental")
+        if len(kfp) and n:
+            new = np.min(np.linalg.norm(kfp[:, None, :] - tr.kf[None, :, :], axis=2), axis=1) > 2.0
+            cur, kfp = cur[new], kfp[new]
+        if len(kfp):
+            tr.add(cur, kfp)
+            if self.law is not None:
+                # ε is a mean over the point set: keep its history on the scale of the new set
+                self.law.rebase(mean_pixel_error(tr.cur, tr.kf) / eps_old if eps_old > 1e-6 else None)
+        self.n_matched = len(tr)
+        return len(tr)
 
     def _step_points(self, obs: Observation) -> StepResult:
         """One frame of the geometric camera: correspondences by landmark id instead of ORB + LK.
@@ -631,7 +723,6 @@ class VisualPathRematch(Task):
             raise TypeError(f"visual_path_rematch needs RematchParams, got {type(p).__name__}")
         _robot_params(ctx)
         self.p = p
-        self.detector = make_detector(p.features, p.n_features)
         self.last_frame = -1
         self.n = 0
 
@@ -646,10 +737,9 @@ class VisualPathRematch(Task):
                 self.n = int(estimate_homography(cur, kfp, _robot_params(self.ctx).camera.K())[1].sum()) \
                     if len(cur) >= 8 else len(cur)
             else:
-                kf = _keyframe_features(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id,
-                                        p.features, p.n_features)
-                cur, _ = match_keyframe(kf, detect(self.detector, to_grey(obs.sensors["image"]), p.features))
-                self.n = len(cur)
+                matched, _ = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id,
+                                              to_grey(obs.sensors["image"]), p)
+                self.n = len(matched)
             if self.n >= p.min_points:
                 events = ("features_found",)
         return StepResult({"nu": np.zeros(4)}, {"n_points": float(self.n), "keyframe": float(self.p.keyframe.id)},

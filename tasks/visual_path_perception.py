@@ -4,7 +4,9 @@
   Lowe's ratio test, RANSAC on a homography (planar / small-parallax scenes) or on the fundamental
   matrix (general scenes) to keep the inliers — :func:`match_keyframe`.
 * ``sortPoints``: the three points of the largest triangle first (:func:`taskflow_tasks.homography.sort_points`).
-* ``tracking``: pyramidal Lucas–Kanade with a forward–backward check — :class:`PointTracker`.
+* ``tracking``: pyramidal Lucas–Kanade with a forward–backward check, each point re-anchored on its
+  keyframe patch through the homography of the tracked plane, so frame-to-frame drift does not add
+  up — :class:`PointTracker`.
 * ``computeHomography``: the Euclidean homography (current → keyframe) from the tracked points, either
   the RANSAC homography of the dominant plane or the generic homography of the virtual plane through
   the three points (Malis & Chaumette 2000) — :func:`estimate_homography`.
@@ -35,6 +37,7 @@ __all__ = [
     "Features",
     "ObstacleDetection",
     "PointTracker",
+    "anchor_on_keyframe",
     "detect",
     "estimate_homography",
     "make_detector",
@@ -165,6 +168,15 @@ class PointTracker:
             return
         self.cur, self.kf = self.cur[order], self.kf[order]
 
+    def add(self, cur_px: ArrayLike, kf_px: ArrayLike) -> None:
+        """Append correspondences after the tracked ones (the largest-triangle points stay first; with
+        fewer than three tracked points the triangle is chosen again)."""
+        short = len(self.cur) < 3
+        self.cur = np.vstack((self.cur, np.asarray(cur_px, dtype=np.float32).reshape(-1, 2)))
+        self.kf = np.vstack((self.kf, np.asarray(kf_px, dtype=np.float32).reshape(-1, 2)))
+        if short:
+            self._restore_triangle()
+
     def prune(self, keep: NDArray[np.bool_]) -> None:
         """Drop the points where ``keep`` is false (e.g. off the tracked plane); the largest-triangle
         order is restored if one of its vertices goes."""
@@ -174,16 +186,28 @@ class PointTracker:
         if tri_lost:
             self._restore_triangle()
 
-    def refine(self, kf_grey: NDArray[np.uint8], grey: NDArray[np.uint8], max_shift: float = 2.0,
-               fb_px: float = 0.3) -> int:
-        """Re-anchor the current points on the keyframe's texture: LK from the keyframe image to
-        ``grey`` started at the tracked positions; a point moves when the correction is below
-        ``max_shift`` px and tracking back lands within ``fb_px`` of its keyframe location.  Removes
-        the drift of frame-to-frame tracking and the keypoint quantisation of the detector (ORB
-        pyramid levels) once the view is close to the keyframe.  Returns the number of points moved."""
+    def refine(self, kf_grey: NDArray[np.uint8], grey: NDArray[np.uint8], G: ArrayLike | None = None,
+               max_shift: float = 2.0, fb_px: float = 0.3, win: int = 15) -> int:
+        """Re-anchor the current points on the keyframe's texture: removes the drift that frame-to-frame
+        tracking accumulates and the keypoint quantisation of the detector (ORB pyramid levels).
+
+        With ``G`` (current px → keyframe px, the homography of the tracked plane) each point is found
+        again by :func:`anchor_on_keyframe`; a point whose keyframe patch is found more than
+        ``max_shift`` px from where it is tracked is dropped (its track has slipped, or the patch is
+        ambiguous: either way the correspondence is not trusted).  Without ``G`` the keyframe patches
+        are searched in ``grey`` itself from the tracked positions (valid near the keyframe view only)
+        and a point moves when the correction is below ``max_shift`` px.  Returns the number of points
+        moved."""
         if len(self.cur) == 0:
             return 0
-        lk = {**self.lk, "winSize": (15, 15), "maxLevel": 1}
+        if G is not None:
+            found, ok = anchor_on_keyframe(kf_grey, grey, self.kf, G, fb_px=fb_px, win=win)
+            near = np.linalg.norm(found - self.cur, axis=1) < max_shift
+            self.cur[ok & near] = found[ok & near]
+            if np.any(ok & ~near):
+                self.prune(~(ok & ~near))
+            return int(np.sum(ok & near))
+        lk = {**self.lk, "winSize": (win, win), "maxLevel": 1}
         p0 = self.kf.reshape(-1, 1, 2)
         p1, st, _ = cv2.calcOpticalFlowPyrLK(kf_grey, grey, p0, self.cur.reshape(-1, 1, 2).copy(),
                                              flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **lk)
@@ -194,6 +218,52 @@ class PointTracker:
         ok &= np.linalg.norm(back.reshape(-1, 2) - self.kf, axis=1) < fb_px
         self.cur[ok] = p1[ok]
         return int(ok.sum())
+
+
+def anchor_on_keyframe(kf_grey: NDArray[np.uint8], grey: NDArray[np.uint8], kf_px: ArrayLike, G: ArrayLike,
+                       fb_px: float = 0.3, win: int = 15) -> tuple[Array, NDArray[np.bool_]]:
+    """Where the keyframe patches around ``kf_px`` are in the current image ``grey``, through the
+    homography ``G`` (current px → keyframe px) of the plane they lie on.
+
+    ``grey`` is warped into the keyframe's geometry, ``W(x) = grey(G⁻¹ x)``: around a point of that
+    plane ``W`` shows the keyframe's scale, rotation and perspective, so pyramidal LK (keyframe image
+    → ``W``, started at the keyframe location) only has a small translation left to find, at any
+    distance from the keyframe view, and ``G`` need not be exact.  Returns the current pixels
+    (``G⁻¹`` of what LK found) and which are valid: LK converged both ways, tracking back lands within
+    ``fb_px`` of the keyframe location, and the window lies inside the current image (past its border
+    ``W`` is black fill)."""
+    k = np.asarray(kf_px, dtype=np.float32).reshape(-1, 2)
+    if len(k) == 0:
+        return np.zeros((0, 2), dtype=np.float64), np.zeros(0, dtype=bool)
+    Gm = np.asarray(G, dtype=np.float64).reshape(3, 3)
+    G_inv = np.linalg.inv(Gm)
+    h, w = kf_grey.shape[:2]
+    target = np.asarray(cv2.warpPerspective(grey, Gm, (w, h), flags=cv2.INTER_LINEAR), dtype=np.uint8)
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
+    p0 = k.reshape(-1, 1, 2)
+    p1, st, _ = cv2.calcOpticalFlowPyrLK(kf_grey, target, p0, p0.copy(), winSize=(win, win), maxLevel=1,
+                                         criteria=criteria, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+    back, st2, _ = cv2.calcOpticalFlowPyrLK(target, kf_grey, np.asarray(p1, dtype=np.float32), p0.copy(),
+                                            winSize=(win, win), maxLevel=1, criteria=criteria,
+                                            flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+    found = np.asarray(cv2.perspectiveTransform(np.asarray(p1, dtype=np.float64).reshape(-1, 1, 2), G_inv),
+                       dtype=np.float64).reshape(-1, 2)
+    ok = _window_inside(k, G_inv, 0.5 * win + 1.0, grey.shape[:2]) & (st.ravel() == 1) & (st2.ravel() == 1)
+    ok &= np.all(np.isfinite(found), axis=1) & (np.linalg.norm(back.reshape(-1, 2) - k, axis=1) < fb_px)
+    return found, ok
+
+
+def _window_inside(kf_px: ArrayLike, G_inv: ArrayLike, half: float, shape: tuple[int, ...]) -> NDArray[np.bool_]:
+    """Whether the square of half-size ``half`` around each keyframe point, mapped by ``G_inv`` into the
+    current image, lies inside it (a window reaching past the border would see the warp's black fill)."""
+    d = np.array([[-half, -half], [half, -half], [half, half], [-half, half]])
+    corners = (np.asarray(kf_px, dtype=np.float64).reshape(-1, 1, 2) + d[None, :, :]).reshape(-1, 1, 2)
+    q = cv2.perspectiveTransform(corners, np.asarray(G_inv, dtype=np.float64)).reshape(-1, 4, 2)
+    h, w = shape
+    ok = np.all(np.isfinite(q), axis=(1, 2))
+    with np.errstate(invalid="ignore"):
+        ok &= np.all((q[..., 0] >= 0.0) & (q[..., 0] <= w - 1) & (q[..., 1] >= 0.0) & (q[..., 1] <= h - 1), axis=1)
+    return ok
 
 
 def transfer_errors(G: NDArray[np.float64], cur_px: ArrayLike, kf_px: ArrayLike) -> NDArray[np.float64]:

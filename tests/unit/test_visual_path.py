@@ -23,9 +23,11 @@ from taskflow_tasks.visual_path import (
     HierarchyGains,
     KeyframeRef,
     PathGains,
+    RematchParams,
     ServoLaw,
     VisualGains,
     VisualPathParams,
+    match_with_retry,
     segment_velocities,
     segment_velocities_from_points,
 )
@@ -113,6 +115,55 @@ def test_lk_tracking_follows_a_small_motion_and_refine_removes_offsets(texture):
     assert tr.track(np.zeros_like(f2)) < 16  # a black frame loses the points
 
 
+def test_refine_through_the_plane_homography_removes_drift_far_from_the_keyframe(texture):
+    """Up to 1.5 px of drift on every point of a view 0.7 m nearer and 9° turned: searched in the raw
+    image the keyframe patches differ in scale and the drift stays; searched in the image warped into
+    the keyframe's geometry through the plane's homography, it goes.  Points tracked 5 px off their
+    keyframe patch are dropped."""
+    G0, G1 = plane_map(0.0, 0.0, 0.0), plane_map(0.15, 0.3, 0.7)
+    kf, cur = to_grey(view(texture, G0)), to_grey(view(texture, G1))
+    det = make_detector("orb", 800)
+    _, k = match_keyframe(detect(det, kf, "orb"), detect(det, cur, "orb"))
+    assert len(k) >= 40
+    T = G1 @ np.linalg.inv(G0)  # keyframe px → current px
+
+    def truth(kf_px: np.ndarray) -> np.ndarray:
+        return cv2.perspectiveTransform(kf_px.reshape(-1, 1, 2).astype(np.float64), T).reshape(-1, 2)
+
+    rng = np.random.default_rng(0)
+    angle, size = rng.uniform(0.0, 2.0 * math.pi, len(k)), rng.uniform(0.5, 1.5, len(k))
+    drifted = truth(k) + np.column_stack((size * np.cos(angle), size * np.sin(angle)))
+    slipped = np.arange(3, 8)
+    drifted[slipped] += 5.0
+
+    def error(tr: PointTracker) -> float:
+        return float(np.median(np.linalg.norm(tr.cur - truth(tr.kf), axis=1)))
+
+    raw = PointTracker(cur, drifted, k)
+    raw.refine(kf, cur)
+    assert len(raw) == len(k) and error(raw) > 0.8
+    warped = PointTracker(cur, drifted, k)
+    moved = warped.refine(kf, cur, np.linalg.inv(T))
+    assert len(warped) == len(k) - len(slipped)
+    assert not np.isin(k[slipped], warped.kf).all(axis=1).any()
+    assert moved >= 0.9 * len(warped) and error(warped) < 0.1
+
+
+def test_matching_retries_with_a_larger_budget_when_the_view_shares_little(texture):
+    """A view turned 29° and moved 1.2 m sideways shares a corner of the keyframe: the 1000 strongest
+    keypoints of each image give fewer than min_points matches, the retry with 4x the budget finds
+    enough, and they are right."""
+    G0, G1 = plane_map(0.0, 0.0, 0.0), plane_map(0.5, 1.2, 0.0)
+    kf_img, cur = view(texture, G0), to_grey(view(texture, G1))
+    p = RematchParams(keyframe=KeyframeRef(id=0), n_features=1000, retry_scale=4)
+    c, _ = match_with_retry({}, kf_img, 0, cur, p.model_copy(update={"retry_scale": 1}))
+    assert len(c) < p.min_points
+    c, k = match_with_retry({}, kf_img, 0, cur, p)
+    assert len(c) >= p.min_points
+    truth = cv2.perspectiveTransform(k.reshape(-1, 1, 2).astype(np.float64), G1 @ np.linalg.inv(G0)).reshape(-1, 2)
+    assert np.median(np.linalg.norm(c - truth, axis=1)) < 1.0
+
+
 def test_obstacle_segmentation_edges(texture):
     img = view(texture, plane_map(0, 0, 0)).copy()
     assert obstacle_edges(img) is None  # textures carry no obstacle green
@@ -198,6 +249,37 @@ def test_epsilon_progress_is_the_drop_of_epsilon_over_its_window():
             assert p == pytest.approx(4.0, abs=1e-6)  # 4 px over the last second
         if t >= 3.0:
             assert eps == pytest.approx(2.0) and p == pytest.approx(0.0, abs=1e-9)
+
+
+def test_rebase_keeps_the_epsilon_rules_on_the_scale_of_a_grown_point_set():
+    """Re-matched points join the set at t = 1.5 s and raise ε by half on that frame: rebased, the
+    history still reads as ε falling (progress > 0, no rising count); not rebased, the jump would
+    read as ε rising and progress would turn negative for a window."""
+    rob = Quadcopter(QuadcopterParams())
+    rng = np.random.default_rng(1)
+    kf = rng.uniform([20, 20], [300, 220], (40, 2))
+    extra = rng.uniform([20, 20], [300, 220], (40, 2))
+    params = VisualPathParams(keyframe=KeyframeRef(id=0, pose=None), path=[KeyframeRef(id=0), KeyframeRef(id=1)],
+                              progress_window_s=1.0, feedforward=True)
+    runs = {}
+    for rebase in (True, False):
+        law = ServoLaw(K, rob.eTc(), (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
+        out = []
+        for i in range(100):
+            t = i * 0.04
+            shift = 20.0 - 4.0 * t
+            cur, ref = kf + [shift, 0.0], kf
+            if t >= 1.5 - 1e-9:
+                cur, ref = np.vstack((cur, extra + [2.0 * shift, 0.0])), np.vstack((kf, extra))
+                if rebase and abs(t - 1.52) < 1e-9:
+                    law.rebase(1.5)  # (40 shift + 40 x 2 shift) / 80 over shift, on this frame
+            _, m = law(t, cur, ref, None, H=np.eye(3))
+            out.append((t, m["epsilon_rising"], m["epsilon_progress"]))
+        runs[rebase] = out
+    after = [(r, p) for t, r, p in runs[True] if t >= 1.52 - 1e-9]
+    assert all(r == 0.0 for r, _ in after) and all(p > 0.0 for _, p in after)
+    assert any(r > 0.0 for t, r, _ in runs[False] if t >= 1.52 - 1e-9)
+    assert any(p < 0.0 for t, _, p in runs[False] if t >= 1.52 - 1e-9)
 
 
 def test_segment_velocities_from_landmark_views_point_along_the_path():
