@@ -44,7 +44,7 @@ class RunResult:
     outcome: str
     summary: dict[str, Any]
     run_dir: Path | None
-    executor: Executor
+    executor: Executor | None  # None when the run could not start (its world could not be built)
     timing: dict[str, Any]  # wall-clock figures (timing.json): never part of the summary
 
     @property
@@ -100,18 +100,33 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     seed = mission.spec.seed if seed is None else int(seed)
     max_time = float(mission.spec.max_time) if max_time is None else parse_max_time(max_time)
     robot = mission.build_robot()
-    world_params = mission.world_params(seed)
-    if world is None:
-        world = mission.world_cls(robot, world_params, seed, gui)
     dt = 1.0 / mission.spec.rate_hz
     recorder: RunRecorder | None = None
     if record:
         run_dir = Path(out_dir) if out_dir is not None else default_run_dir(mission, seed)
-        recorder = RunRecorder(run_dir, sorted(mission.metric_units), robot.command_keys, world.ground_truth_keys)
-        resolved = dict(mission.raw)
-        resolved["seed"] = seed
+        gt_keys = world.ground_truth_keys if world is not None else mission.world_cls.ground_truth_keys
+        recorder = RunRecorder(run_dir, sorted(mission.metric_units), robot.command_keys, gt_keys)
+    summary: dict[str, Any] = {"mission": mission.name, "file": mission.file, "seed": seed, "outcome": "aborted",
+                               "reason": "run did not finish", "versions": versions()}
+    resolved = dict(mission.raw)
+    resolved["seed"] = seed
+    try:
+        world_params = mission.world_params(seed)
         if isinstance(resolved.get("world"), dict):
             resolved["world"] = {**resolved["world"], "params": world_params.model_dump(mode="json")}
+        if world is None:
+            world = mission.world_cls(robot, world_params, seed, gui)
+    except Exception as exc:  # noqa: BLE001 - a run that cannot start still leaves its record
+        summary.update(reason=f"the world could not be built: {type(exc).__name__}: {exc}", final_state="",
+                       states_visited=[], sim_time_s=0.0, ticks=0, time_in_state_s={}, iterations=[], items={},
+                       transitions=0, metrics={}, stopped_at_s=0.0)
+        if recorder is not None:
+            recorder.write_mission(resolved, seed)
+            (recorder.dir / "error.txt").write_text(traceback.format_exc())
+            recorder.summary(summary)
+            recorder.close()
+        return RunResult("aborted", summary, recorder.dir if recorder else None, None, {})
+    if recorder is not None:
         recorder.write_mission(resolved, seed)
 
     def on_transition(rec: TransitionRecord) -> None:
@@ -121,8 +136,6 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     executor = Executor(mission, world, robot, task_factory=task_factory, on_transition=on_transition)
     if on_start is not None:
         on_start(executor)
-    summary: dict[str, Any] = {"mission": mission.name, "file": mission.file, "seed": seed, "outcome": "aborted",
-                               "reason": "run did not finish", "versions": versions()}
     if recorder is not None:
         recorder.summary(summary)
     timing = TimingRecord()

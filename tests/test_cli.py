@@ -279,3 +279,18 @@ def test_validate_in_a_fresh_process_prints_only_its_answer() -> None:
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip().splitlines() == [r.stdout.strip()] and r.stdout.startswith("missions/viki_hyco.yaml: ok")
     assert r.stderr == ""
+
+
+def test_a_world_that_cannot_be_built_ends_the_run_aborted_with_its_record(tmp_path: Path,
+                                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """A world check that needs the robot (here: the marker timeout shorter than the camera period) can only
+    run when the world is built; the run then ends `aborted` with the reason, and its record is on disk."""
+    mission = str(HERE.parent / "missions" / "screw_fastening.yaml")
+    out = tmp_path / "run"
+    assert main(["run", mission, "--set", "world.params.lost_after=0.01", "--out", str(out), "--quiet"]) == 1
+    stdout, err = capsys.readouterr()
+    _no_traceback(stdout, err)
+    assert "outcome: aborted (the world could not be built: ValueError" in stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "aborted" and "lost_after" in summary["reason"] and summary["ticks"] == 0
+    assert (out / "error.txt").read_text().startswith("Traceback") and (out / "mission.yaml").exists()
