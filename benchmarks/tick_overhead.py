@@ -116,7 +116,7 @@ def main() -> None:
     world = BenchWorld(robot, mission.world_params(0), 0)  # type: ignore[attr-defined]
     tmp = Path(tempfile.mkdtemp())
     rec = RunRecorder(tmp, sorted(mission.metric_units), robot.command_keys, ())  # type: ignore[attr-defined]
-    ex = Executor(mission, world, robot, on_transition=lambda r: rec.transition(r.t, r.source, r.target, r.trigger))  # type: ignore[arg-type]
+    ex = Executor(mission, world, robot, on_transition=lambda r: rec.transition(r.as_dict()))  # type: ignore[arg-type]
     ex.start(0.0)
     obs = Observation(0.0, metrics={"flag": 0.0})
     k = [0]

@@ -25,8 +25,9 @@ from typing import Any, Callable, Collection
 from transitions.extensions.nesting import HierarchicalMachine, NestedState
 
 from .api import Command, Observation, Robot, Task, TaskContext, World
+from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode, TimeoutTransition,
+                    Transition, has_refs, resolve_refs)
 from .shaping import activation
-from .loader import CompiledMission, CompiledTransition, StateNode, resolve_refs
 
 START = "__start__"
 
@@ -43,12 +44,45 @@ blend_weight = activation
 """The papers' activation ``h(t)`` (quadcopter paper eq. 20), used by ``blend:``."""
 
 
+START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM = "start", "guard", "timeout", "event", "done", "next_item"
+CAUSES = (START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM)
+
+
 @dataclass
 class TransitionRecord:
+    """One change of the active leaf, with what caused it as fields (``transitions.jsonl`` holds them).
+
+    ``cause`` is one of :data:`CAUSES`: ``start``; ``guard`` (a ``when`` held: ``metrics`` has the values
+    of its metrics that tick), ``timeout`` (an ``after`` ran out), ``event`` (``event``; with a condition,
+    ``metrics`` too), ``done`` (the sub-machine of ``state`` finished with ``outcome``) or ``next_item``
+    (the loop ``state`` moved to item ``item`` after an item that ended ``outcome``).  ``state`` and
+    ``label`` name the declaring state and the transition as written; ``index`` is the transition's index
+    in the mission; ``resumed`` says a history state was resumed where it was left."""
+
     t: float
-    source: str
-    target: str
-    trigger: str
+    source: str  # the leaf left ("__start__" for the first record)
+    target: str  # the leaf entered
+    cause: str
+    state: str = ""
+    label: str = ""
+    index: int | None = None
+    metrics: dict[str, float] | None = None
+    event: str | None = None
+    outcome: str | None = None
+    item: int | None = None
+    resumed: bool = False
+
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON object of ``transitions.jsonl``: the fields that apply to this cause."""
+        out: dict[str, Any] = {"t": round(self.t, 9), "from": self.source, "to": self.target, "cause": self.cause,
+                               "state": self.state, "label": self.label}
+        for key in ("index", "metrics", "event", "outcome", "item"):
+            value = getattr(self, key)
+            if value is not None:
+                out[key] = value
+        if self.resumed:
+            out["resumed"] = True
+        return out
 
 
 @dataclass
@@ -131,13 +165,13 @@ class Executor:
         self._running_actions: set[str] = set()
         self._resuming = False
         self._leaf_since = 0.0
-        self._tables: dict[str, list[CompiledTransition]] = {
-            leaf.path: [t for a in leaf.ancestors() for t in a.transitions if t.kind != "done"]
+        self._tables: dict[str, list[Transition]] = {
+            leaf.path: [t for a in leaf.ancestors() for t in a.transitions if not isinstance(t, DoneTransition)]
             for leaf in mission.states.values() if leaf.is_leaf
         }
         # per-leaf: a validated parameter model when the task's params hold no $reference
         self._static_params: dict[str, Any] = {}
-        self._scoped: set[str] = {n.path for n in mission.states.values() if any(a.foreach for a in n.ancestors())}
+        self._scoped: set[str] = {n.path for n in mission.states.values() if any(a.loop for a in n.ancestors())}
         self._below: dict[str, list[str]] = {n.path: [d.path for d in n.walk() if d is not n]
                                              for n in mission.states.values() if n.children}
         self._model = _Model()
@@ -170,16 +204,16 @@ class Executor:
         if node.path not in self._scoped:
             return out
         for a in node.ancestors():
-            if a.foreach:
-                lst = self.params[a.foreach[0]]
-                out[a.foreach[1]] = lst[min(self.iteration.get(a.path, 0), len(lst) - 1)]
+            if a.loop:
+                lst = self.params[a.loop.items]
+                out[a.loop.item] = lst[min(self.iteration.get(a.path, 0), len(lst) - 1)]
         return out
 
     # -- start -------------------------------------------------------------------------------------
     def start(self, t: float) -> None:
         self.t = t
         first = self.mission.root.children[self.mission.root.initial]  # type: ignore[index]
-        self._go(first.initial_leaf(), None, "start", resume=False)
+        self._go(first.initial_leaf(), START_CAUSE, resume=False)
 
     # -- entering and leaving -----------------------------------------------------------------------------
     def _enter(self, node: StateNode) -> None:
@@ -190,7 +224,7 @@ class Executor:
             self.dwell_since.pop(tr.index, None)
         if not self._resuming and node.children:
             self._forget_first_entries(node)
-        if node.foreach and not self._resuming:
+        if node.loop and not self._resuming:
             self.iteration[node.path] = 0
             self.iteration_start[node.path] = t
             self.loop_succeeded[node.path] = 0
@@ -208,7 +242,7 @@ class Executor:
                 params = self._static_params.get(node.path)
                 if params is None:
                     params = node.task_cls.Params.model_validate(resolve_refs(node.task_params, self.params, items))
-                    if not _has_refs(node.task_params):
+                    if not has_refs(node.task_params):
                         self._static_params[node.path] = params
                 ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self.memory,
                                   robot=self.robot, items=items, dt=self._dt)
@@ -237,8 +271,8 @@ class Executor:
             return self.mission.states[self.history[target.path]], True
         return target.initial_leaf(), False
 
-    def _go(self, leaf: StateNode, tr: CompiledTransition | None, trigger: str, resume: bool,
-            domain: StateNode | None = None) -> None:
+    def _go(self, leaf: StateNode, cause: str, resume: bool, domain: StateNode | None = None,
+            **why: Any) -> None:
         """Make ``leaf`` active.  States below ``domain`` on both sides are exited and entered (UML
         external semantics: a transition into its own source or an ancestor re-enters it); the
         ``transitions`` machine does the work unless its own least common ancestor would leave a
@@ -254,7 +288,7 @@ class Executor:
                 self._model.trigger(f"to_{leaf.path}")  # type: ignore[attr-defined]
         finally:
             self._resuming = False
-        rec = TransitionRecord(self.t, source, leaf.path, trigger)
+        rec = TransitionRecord(self.t, source, leaf.path, cause, resumed=resume, **why)
         self.transitions_fired.append(rec)
         if self.on_transition is not None:
             self.on_transition(rec)
@@ -270,12 +304,20 @@ class Executor:
         for n in entering:
             self._enter(n)
 
-    def fire(self, tr: CompiledTransition) -> None:
+    def fire(self, tr: Transition, metrics: dict[str, float] | None = None) -> None:
+        """Fire ``tr`` (declared on an active state); ``metrics`` are the tick's, for the record."""
         leaf, resumed = self._destination(tr.target, tr.resume)
         if tr.blend > 0.0:
             self._blend = _Blend(self.t, tr.blend, self.last_command)
-        label = f"{tr.source.path}: {tr.label}" + (" (resume)" if resumed else "")
-        self._go(leaf, tr, label, resume=resumed, domain=_domain(tr.source, tr.target))
+        kind = type(tr)
+        why: dict[str, Any] = {"state": tr.source.path, "label": tr.label, "index": tr.index}
+        guard = tr.guard if kind is GuardTransition or kind is EventTransition else None  # type: ignore[attr-defined]
+        if guard is not None and metrics is not None:
+            why["metrics"] = {m: metrics.get(m) for m in sorted(guard.metrics)}
+        if kind is EventTransition:
+            why["event"] = tr.event  # type: ignore[attr-defined]
+        cause = GUARD if kind is GuardTransition else EVENT if kind is EventTransition else TIMEOUT
+        self._go(leaf, cause, resume=resumed, domain=_domain(tr.source, tr.target), **why)
 
     def _finished(self, leaf: StateNode) -> None:
         """A final state was entered: finish its parent (foreach step, done transition or the run)."""
@@ -289,41 +331,41 @@ class Executor:
                 why += "; " + "; ".join(self.loop_failures)
             self.reason = self.reason or why
             return
-        if parent.foreach:
-            lst_name, item_name, on_failure = parent.foreach
-            lst = self.params[lst_name]
+        if parent.loop:
+            loop = parent.loop
+            lst = self.params[loop.items]
             i = self.iteration.get(parent.path, 0)
             self.iterations.append(IterationRecord(parent.path, i, lst[i], outcome,
                                                    self.iteration_start.get(parent.path, self.t), self.t,
                                                    self.world.ground_truth()))
-            count = self.item_counts.setdefault(parent.path, ItemCount(required=parent.require, rule=parent.require_text))
+            count = self.item_counts.setdefault(parent.path, ItemCount(required=loop.required, rule=loop.rule))
             count.attempted += 1
             if outcome == "succeeded":
                 count.succeeded += 1
                 self.loop_succeeded[parent.path] = self.loop_succeeded.get(parent.path, 0) + 1
-            if outcome == "succeeded" or on_failure == "continue":
+            if outcome == "succeeded" or loop.on_failure == "continue":
                 if i + 1 < len(lst):
                     self.iteration[parent.path] = i + 1
                     self.iteration_start[parent.path] = self.t
                     self._forget_first_entries(parent)
                     # a new item enters the sub-machine afresh (no history, nested loops restart)
-                    self._go(parent.initial_leaf(), None, f"{parent.path}: next {item_name} ({i + 2}/{len(lst)})",
-                             resume=False)
+                    self._go(parent.initial_leaf(), NEXT_ITEM, resume=False, state=parent.path, outcome=outcome,
+                             item=i + 1)
                     return
                 # the last item: the loop's own success rule decides
                 done = self.loop_succeeded.get(parent.path, 0)
-                outcome = "succeeded" if done >= parent.require else "failed"
+                outcome = "succeeded" if done >= loop.required else "failed"
                 if outcome == "failed":
                     self.loop_failures.append(f"{parent.path!r} finished failed: {done} of {len(lst)} items "
-                                              f"succeeded, its rule requires {parent.require} ({parent.require_text})")
+                                              f"succeeded, its rule requires {loop.required} ({loop.rule})")
         self._complete(parent, outcome)
 
     def _complete(self, node: StateNode, outcome: str) -> None:
         for tr in node.transitions:
-            if tr.kind == "done" and (tr.done is True or tr.done == outcome):
+            if isinstance(tr, DoneTransition) and tr.handles(outcome):
                 leaf, resumed = self._destination(tr.target, tr.resume)
-                self._go(leaf, tr, f"{node.path}: {tr.label} ({outcome})", resume=resumed,
-                         domain=_domain(tr.source, tr.target))
+                self._go(leaf, DONE, resume=resumed, domain=_domain(tr.source, tr.target), state=node.path,
+                         label=tr.label, index=tr.index, outcome=outcome)
                 return
         # nobody handles this outcome: the run ends with it
         self.outcome = outcome
@@ -360,39 +402,40 @@ class Executor:
             return command
         return {k: h * v + (1.0 - h) * b.old[k] if k in b.old else v for k, v in command.items()}
 
-    def check(self, t: float, metrics: dict[str, float], events: Collection[str]) -> CompiledTransition | None:
+    def check(self, t: float, metrics: dict[str, float], events: Collection[str]) -> Transition | None:
         """Evaluate the active leaf's table; fire the first transition that holds."""
         if self.leaf is None or self.outcome is not None:
             return None
         entered = self.entered_at
         table = self._tables[self.leaf.path]
         for i, tr in enumerate(table):
-            kind = tr.kind
-            if kind == "when":
-                if tr.predicate(metrics):  # type: ignore[misc]
-                    if tr.dwell > 0.0:
+            kind = type(tr)
+            if kind is GuardTransition:
+                if tr.predicate(metrics):  # type: ignore[attr-defined]
+                    if tr.dwell > 0.0:  # type: ignore[attr-defined]
                         since = self.dwell_since.setdefault(tr.index, t)
-                        if t - since + 1e-9 < tr.dwell:
+                        if t - since + 1e-9 < tr.dwell:  # type: ignore[attr-defined]
                             continue
                     return self._fire_from(table, i, metrics)
-                if tr.dwell > 0.0:
+                if tr.dwell > 0.0:  # type: ignore[attr-defined]
                     self.dwell_since.pop(tr.index, None)
-            elif kind == "on":
-                if tr.event in events and (tr.predicate is None or tr.predicate(metrics)):
+            elif kind is EventTransition:
+                if tr.event in events and (tr.predicate is None or tr.predicate(metrics)):  # type: ignore[attr-defined]
                     return self._fire_from(table, i, metrics)
-            elif kind == "after":
-                since = (self.first_entered if tr.since_first else entered)[tr.since.path]  # type: ignore[union-attr]
-                if t - since + 1e-9 >= tr.after:
+            elif kind is TimeoutTransition:
+                clocks = self.first_entered if tr.since_first else entered  # type: ignore[attr-defined]
+                if t - clocks[tr.since.path] + 1e-9 >= tr.after:  # type: ignore[attr-defined]
                     return self._fire_from(table, i, metrics)
         return None
 
-    def _fire_from(self, table: list[CompiledTransition], i: int, metrics: dict[str, float]) -> CompiledTransition:
+    def _fire_from(self, table: list[Transition], i: int, metrics: dict[str, float]) -> Transition:
         """Fire ``table[i]``; dwell timers of the guards not evaluated this tick still see this tick's
         metrics (a break in their condition must not go unnoticed if their state stays active)."""
         for later in table[i + 1:]:
-            if later.dwell > 0.0 and later.index in self.dwell_since and not later.predicate(metrics):  # type: ignore[misc]
+            if (type(later) is GuardTransition and later.dwell > 0.0 and later.index in self.dwell_since  # type: ignore[attr-defined]
+                    and not later.predicate(metrics)):  # type: ignore[attr-defined]
                 del self.dwell_since[later.index]
-        self.fire(table[i])
+        self.fire(table[i], metrics)
         return table[i]
 
     def close(self, t: float) -> None:
@@ -434,13 +477,3 @@ def _domain(source: StateNode, target: StateNode) -> StateNode:
     if common is source or common is target:
         return common.parent if common.parent is not None else common
     return common
-
-
-def _has_refs(value: Any) -> bool:
-    if isinstance(value, str):
-        return value.startswith("$")
-    if isinstance(value, dict):
-        return any(_has_refs(v) for v in value.values())
-    if isinstance(value, list):
-        return any(_has_refs(v) for v in value)
-    return False

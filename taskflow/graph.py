@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .loader import CompiledMission, StateNode
+from .model import CompiledMission, StateNode
 
 
 def _mid(node: StateNode) -> str:
@@ -19,8 +19,8 @@ def to_mermaid(m: CompiledMission) -> str:
             label = child.name
             if child.task_cls is not None and child.is_leaf and not child.final:
                 label += f" ({child.task_cls.name})"
-            if child.foreach:
-                label += f" [foreach {child.foreach[1]} in {child.foreach[0]}]"
+            if child.loop:
+                label += f" [foreach {child.loop.item} in {child.loop.items}]"
             if child.history:
                 label += " [H]"
             if child.final:
@@ -49,8 +49,8 @@ def to_dot(m: CompiledMission) -> str:
             if child.children:
                 lines.append(f'{indent}subgraph "cluster_{_mid(child)}" {{')
                 extra = []
-                if child.foreach:
-                    extra.append(f"foreach {child.foreach[1]} in {child.foreach[0]}")
+                if child.loop:
+                    extra.append(f"foreach {child.loop.item} in {child.loop.items}")
                 if child.history:
                     extra.append("history")
                 lines.append(f'{indent}    label="{child.name}{" (" + ", ".join(extra) + ")" if extra else ""}";')

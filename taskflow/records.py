@@ -3,7 +3,11 @@
 ``RUN_DIR/``
   ``mission.yaml``        the mission as resolved (overrides applied, world parameters drawn)
   ``seed``                the seed, alone on a line
-  ``transitions.jsonl``   one JSON object per fired transition: ``t``, ``from``, ``to``, ``trigger``
+  ``transitions.jsonl``   one JSON object per change of the active leaf: ``t``, ``from``, ``to``, ``cause``
+                          (start, guard, timeout, event, done, next_item), ``state`` and ``label`` (the
+                          declaring state and the transition as written), and as they apply ``index``,
+                          ``metrics`` (the guard's metric values when it fired), ``event``, ``outcome``,
+                          ``item``, ``resumed`` — :class:`taskflow.executor.TransitionRecord`
   ``trace.csv``           one row per control tick: ``t``, ``state``, ``events``, metric columns
                           ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
                           (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it; ``nan``
@@ -90,8 +94,8 @@ class RunRecorder:
         (self.dir / "seed").write_text(f"{seed}\n")
 
     # -- as the run goes ---------------------------------------------------------------------
-    def transition(self, t: float, source: str, target: str, trigger: str) -> None:
-        self._transitions.write(json.dumps({"t": round(t, 9), "from": source, "to": target, "trigger": trigger}) + "\n")
+    def transition(self, record: dict[str, Any]) -> None:
+        self._transitions.write(json.dumps(clean_floats(record)) + "\n")
 
     def tick(self, t: float, state: str, events: Iterable[str], metrics: dict[str, float],
              command: dict[str, Any], gt: dict[str, float]) -> None:

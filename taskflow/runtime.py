@@ -31,7 +31,7 @@ from typing import Any, Callable
 
 from .api import World
 from .executor import Executor, TaskFactory, TransitionRecord
-from .loader import CompiledMission
+from .model import CompiledMission
 from .provenance import versions
 from .records import RunRecorder, TimingRecord, clean_floats
 from .units import parse_max_time
@@ -131,7 +131,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
 
     def on_transition(rec: TransitionRecord) -> None:
         if recorder is not None:
-            recorder.transition(rec.t, rec.source, rec.target, rec.trigger)
+            recorder.transition(rec.as_dict())
 
     executor = Executor(mission, world, robot, task_factory=task_factory, on_transition=on_transition)
     if on_start is not None:

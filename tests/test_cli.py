@@ -185,8 +185,11 @@ def test_run_toy_mission(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert np.allclose(arr["t"], trace["t"])
 
     recs = [json.loads(line) for line in (out_dir / "transitions.jsonl").read_text().splitlines()]
-    assert recs[0]["trigger"] == "start" and recs[0]["to"] == "search"
-    assert all(set(r) == {"t", "from", "to", "trigger"} for r in recs)
+    assert recs[0]["cause"] == "start" and recs[0]["to"] == "search"
+    assert all({"t", "from", "to", "cause", "state", "label"} <= set(r) for r in recs)
+    guard = [r for r in recs if r["cause"] == "guard"]
+    assert guard and all(set(r["metrics"]) == {"pos_error"} and r["metrics"]["pos_error"] < 0.02 for r in guard)
+    assert [r["item"] for r in recs if r["cause"] == "next_item"] == [1, 2]
     assert [r["to"] for r in recs] == summary["states_visited"]
     assert all(a["to"] == b["from"] for a, b in itertools.pairwise(recs))
 

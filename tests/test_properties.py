@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import random
-import re
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +28,10 @@ from hypothesis import HealthCheck, event, given, note, settings
 from hypothesis import strategies as st
 
 from taskflow.errors import MissionError
-from taskflow.loader import CompiledMission, StateNode, load_mission_text
+from taskflow.executor import CAUSES
+from taskflow.loader import load_mission_text
+from taskflow.model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode,
+                            TimeoutTransition)
 from taskflow.runtime import OUTCOMES
 from taskflow.testing import Script, drive
 from taskflow.yamlsrc import MissionLoader
@@ -209,10 +211,6 @@ def scripts(draw: Any) -> Script:
 
 # -- invariants ----------------------------------------------------------------------------------------
 
-_NEXT = re.compile(r"^(?P<src>[\w.-]+): next (?P<item>\w+) \((?P<i>\d+)/(?P<n>\d+)\)$")
-_DONE = re.compile(r"^(?P<src>[\w.-]+): (?P<label>done(?: \w+)?) \((?P<outcome>\w+)\)$")
-
-
 def _is_under(node: StateNode, ancestor: StateNode) -> bool:
     return ancestor in node.ancestors()
 
@@ -261,7 +259,7 @@ def check_run(m: CompiledMission, result: Any, script: Script) -> None:
     ex = result.executor
     recs = ex.transitions_fired
     leaves = {p for p, n in m.states.items() if n.is_leaf}
-    assert recs and recs[0].trigger == "start" and recs[0].source == "__start__"
+    assert recs and recs[0].cause == "start" and recs[0].source == "__start__"
     entered: dict[str, float] = {}  # state path -> time it was last entered
     previous = "__start__"
     for rec in recs:
@@ -272,53 +270,60 @@ def check_run(m: CompiledMission, result: Any, script: Script) -> None:
         tick = round(rec.t * RATE_HZ)
         assert rec.t == pytest.approx(tick / RATE_HZ, abs=1e-9)
         domain: Any = m.root  # the state whose descendants this record exits and enters
-        if rec.trigger != "start":
+        assert rec.cause in CAUSES, rec
+        if rec.cause != "start":
             src_leaf = m.states[rec.source]
-            src, _, label = rec.trigger.partition(": ")
-        if rec.trigger == "start":
+            src, label = rec.state, rec.label
+        if rec.cause == "start":
             assert rec is recs[0]
-        elif _NEXT.match(rec.trigger):
+        elif rec.cause == "next_item":
             parent = m.states[src]
-            assert parent.foreach and _is_under(src_leaf, parent) and src_leaf.final, rec
-            assert rec.target == parent.initial_leaf().path, rec
+            assert parent.loop and _is_under(src_leaf, parent) and src_leaf.final, rec
+            assert rec.target == parent.initial_leaf().path and not rec.resumed, rec
+            assert rec.outcome == src_leaf.final and rec.item is not None and rec.item >= 1, rec
             domain = parent
-        elif _DONE.match(rec.trigger):
-            d = _DONE.match(rec.trigger)
-            node = m.states[d["src"]]
+        elif rec.cause == "done":
+            node = m.states[src]
             assert src_leaf.final and src_leaf.parent is node, rec
-            done = [t for t in node.transitions if t.kind == "done" and t.label == d["label"]]
-            assert done, rec
+            done = [t for t in node.transitions if isinstance(t, DoneTransition) and t.label == label]
+            assert done and done[0].index == rec.index and done[0].handles(rec.outcome), rec
             domain = _domain_of(done[0])
-            if node.foreach:
-                assert d["outcome"] == _loop_outcome(m, result.summary["iterations"], node, rec.t), rec
+            if node.loop:
+                assert rec.outcome == _loop_outcome(m, result.summary["iterations"], node, rec.t), rec
+            else:
+                assert rec.outcome == src_leaf.final, rec
         else:
-            label = label.removesuffix(" (resume)")
             assert not src_leaf.final, f"{rec}: left a final state"
             # the executor's table: outermost state first, each state's transitions in order
-            table = [t for a in src_leaf.ancestors() for t in a.transitions if t.kind != "done"]
+            table = [t for a in src_leaf.ancestors() for t in a.transitions if not isinstance(t, DoneTransition)]
             pos = next((i for i, t in enumerate(table) if (t.source.path, t.label) == (src, label)), None)
             assert pos is not None, f"{rec}: no declared transition {src!r}: {label!r} on the active path"
             tr = table[pos]
+            assert tr.index == rec.index, rec
             assert _is_under(src_leaf, tr.source), f"{rec}: {src!r} is not an ancestor of {rec.source!r}"
             assert _is_under(m.states[rec.target], tr.target), f"{rec}: target outside {tr.target.path!r}"
             domain = _domain_of(tr)
             metrics, events = _metrics_at(script, tick), _script_events_at(script, tick)
             # the transition that fired holds ...
-            if tr.kind == "when":
+            if isinstance(tr, GuardTransition):
+                assert rec.cause == "guard", rec
                 guard = GUARDS[label.split(" for ")[0]]
+                assert rec.metrics == {k: metrics.get(k) for k in sorted(tr.guard.metrics)}, rec
                 first = tick - round(tr.dwell * RATE_HZ)
                 assert first >= round(entered[tr.source.path] * RATE_HZ), f"{rec}: dwell longer than the stay"
                 for k in range(first, tick + 1):
                     assert guard(_metrics_at(script, k)), f"{rec}: guard false at t={k / RATE_HZ}"
-            elif tr.kind == "after":
+            elif isinstance(tr, TimeoutTransition):
+                assert rec.cause == "timeout", rec
                 assert rec.t - entered[tr.source.path] >= tr.after - 1e-9, f"{rec}: fired early"
             else:
+                assert isinstance(tr, EventTransition) and rec.cause == "event" and rec.event == tr.event, rec
                 assert tr.event in events or tr.event in ("tool_done", "tool_failed"), f"{rec}: {tr.event} not emitted"
             # ... and none checked before it did (outer first, then in order)
             for t in table[:pos]:
-                if t.kind == "when" and t.dwell == 0:
+                if isinstance(t, GuardTransition) and t.dwell == 0:
                     assert not GUARDS[t.label](metrics), f"{rec}: earlier {t.source.path}: {t.label!r} held"
-                elif t.kind == "on":
+                elif isinstance(t, EventTransition):
                     assert t.event not in events, f"{rec}: earlier {t.source.path}: on {t.event} was due"
         # entry times: every state below the transition's domain on the target side is (re-)entered;
         # the machine library's own least common ancestor of the two leaves may be deeper (a transition
@@ -347,15 +352,17 @@ def test_random_valid_machines_keep_invariants(doc: dict[str, Any], script: Scri
     note(text)
     m = load_mission_text(text, "generated.yaml")  # generated to be valid: a MissionError is a finding
     result = drive(m, script, max_time=MAX_TIME)
-    note(str([(r.t, r.source, r.target, r.trigger) for r in result.executor.transitions_fired]))
+    note(str([(r.t, r.source, r.target, r.cause, r.state, r.label) for r in result.executor.transitions_fired]))
     check_run(m, result, script)
-    triggers = [r.trigger for r in result.executor.transitions_fired]
+    causes = [r.cause for r in result.executor.transitions_fired]
     event(f"outcome {result.outcome}")
     event(f"depth {max(n.depth for n in m.states.values())}")
-    event(f"transitions fired {min(len(triggers) // 10 * 10, 50)}+")
-    for what in (" next ", "(resume)", ": done"):
-        if any(what in t for t in triggers):
-            event(f"fired a {what.strip(' :()')} transition")
+    event(f"transitions fired {min(len(causes) // 10 * 10, 50)}+")
+    for cause in ("next_item", "done"):
+        if cause in causes:
+            event(f"fired a {cause} transition")
+    if any(r.resumed for r in result.executor.transitions_fired):
+        event("resumed a history state")
 
 
 # -- executor bugs the exploration above ran into (deterministic, strict xfail) ------------------------
@@ -390,7 +397,7 @@ machine:
 def test_composite_self_transition_restarts_its_timer() -> None:
     m = load_mission_text(_LOCAL % "        - {to: s, after: 1 s}\n        - {to: done, on: arrived}", "local.yaml")
     r = drive(m, Script(), max_time=5)
-    times = [round(rec.t, 2) for rec in r.executor.transitions_fired if rec.trigger == "s: after 1 s"]
+    times = [round(rec.t, 2) for rec in r.executor.transitions_fired if (rec.state, rec.label) == ("s", "after 1 s")]
     assert times == [1.0, 2.0, 3.0, 4.0]
 
 

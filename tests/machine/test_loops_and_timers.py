@@ -146,7 +146,8 @@ def test_since_bounds_time_across_re_entries(since: str, fires_at: float) -> Non
     assert_outcome(r, "failed")
     stuck = [rec for rec in r.executor.transitions_fired if rec.target == "stuck"]
     # 0-12 work, 12-13 pause, 13-25 work, 25-26 pause, 26-30 work → stuck at 30 s from the first entry
-    assert stuck[0].t == pytest.approx(fires_at) and "since" in stuck[0].trigger
+    assert stuck[0].t == pytest.approx(fires_at) and stuck[0].cause == "timeout"
+    assert stuck[0].state == "job.work" and stuck[0].label == f"after 30 s since {since}"
 
 
 def test_since_first_entry_is_kept_across_a_history_resume_and_reset_by_a_fresh_entry() -> None:
@@ -210,7 +211,9 @@ def test_an_event_with_a_condition_fires_only_when_both_hold() -> None:
     assert_outcome(r, "succeeded")
     fired = [rec for rec in r.executor.transitions_fired if rec.target == "done"]
     assert fired[0].t == pytest.approx(4.0)  # the events at 1 and 2.5 s found the condition false
-    assert "on target_found when pos_error < 5 cm" in fired[0].trigger
+    assert (fired[0].cause, fired[0].event, fired[0].label) == ("event", "target_found",
+                                                                "on target_found when pos_error < 5 cm")
+    assert fired[0].metrics == {"pos_error": pytest.approx(0.01)}  # the value that satisfied the condition
     # the condition alone does not fire it either
     r = drive(m, Script(metrics=lambda s: near), max_time=5)
     assert_outcome(r, "timeout")

@@ -52,7 +52,8 @@ def test_unreachable_goal_ends_in_error_through_its_timeout_and_exits_nonzero(tm
     assert summary["final_state"] == "error"
     assert summary["sim_time_s"] == pytest.approx(20.0, abs=0.06)
     transitions = [json.loads(line) for line in (tmp_path / "run" / "transitions.jsonl").read_text().splitlines()]
-    assert transitions[-1]["to"] == "error" and "after 20 s" in transitions[-1]["trigger"]
+    assert transitions[-1]["to"] == "error" and transitions[-1]["label"] == "after 20 s"
+    assert transitions[-1]["cause"] == "timeout" and transitions[-1]["state"] == "drive"
     # the car was commanded to a safe stop: ground-truth speed is (almost) zero at the end
     assert summary["metrics"]["gt_speed_mps"] < 0.05
 

@@ -133,7 +133,7 @@ OVAL_FF_TUNED = MISSIONS / "visual_path_oval_feedforward_tuned.yaml"
 def _switch_rules(run_dir: Path) -> list[str]:
     """The guard of every keyframe switch out of ``follow.servo``, from the run's transitions.jsonl."""
     rows = [json.loads(line) for line in (run_dir / "transitions.jsonl").read_text().splitlines()]
-    return [r["trigger"].split(":", 1)[1].strip() for r in rows if r["trigger"].startswith("follow.servo:")]
+    return [r["label"] for r in rows if r["state"] == "follow.servo"]
 
 
 def test_oval_with_feedforward_on_rendered_frames(tmp_path):

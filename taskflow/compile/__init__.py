@@ -1,0 +1,47 @@
+"""The mission compiler: a validated document in, a :class:`~taskflow.model.CompiledMission` out.
+
+Passes, in order (each a function over one :class:`~taskflow.compile.context.Compilation`; the driver
+stops after a pass that found problems, so later passes see a consistent tree):
+
+1. ``components`` — robot, world, their parameters, distributions, rates;
+2. ``tree`` — the state tree with inherited tasks and bindings, then the catalogue of metrics and events;
+3. ``bindings`` — profiles, task and action parameters for every ``foreach`` item, loop rules;
+4. ``transitions`` — typed transition records, guards, events, clocks;
+5. ``structure`` — ``done`` coverage, a way to end, reachability, ways out.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..model import CompiledMission
+from ..schema import Mission
+from ..yamlsrc import SourceMap
+from .bindings import bind_profiles, check_parameters, profile_kind
+from .components import resolve_components
+from .context import Compilation
+from .structure import check_structure, finishing_outcomes
+from .transitions import compile_transitions
+from .tree import build_tree, catalogue
+
+__all__ = ["compile_document", "finishing_outcomes", "profile_kind"]
+
+
+def compile_document(data: dict[str, Any], spec: Mission, smap: SourceMap) -> CompiledMission:
+    c = Compilation(data, spec, smap)
+    resolve_components(c)
+    c.fail_if_problems()
+    assert c.robot_cls is not None and c.world_cls is not None and c.robot_params is not None
+    root = build_tree(c)
+    c.fail_if_problems()
+    metric_units, events = catalogue(c, root)
+    bind_profiles(c, root)
+    check_parameters(c, root)
+    compile_transitions(c, root, events)
+    c.fail_if_problems()
+    check_structure(c, root)
+    c.fail_if_problems()
+    return CompiledMission(
+        file=smap.file, raw=data, spec=spec, root=root, states=c.states, transitions=c.transitions,
+        robot_cls=c.robot_cls, robot_params=c.robot_params, world_cls=c.world_cls,
+        world_params_raw=c.world_params_raw, metric_units=metric_units, events=events)

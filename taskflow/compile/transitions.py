@@ -1,0 +1,135 @@
+"""Compile pass: every transition as a typed record (:mod:`taskflow.model`) — its target resolved
+(sibling, ancestor's sibling, or dotted path), its guard parsed, checked against the metrics published
+where it is declared, converted to base units and compiled, its event known, its clock named."""
+
+from __future__ import annotations
+
+from ..guards import Guard, GuardSyntaxError, Predicate, bind_units, compile_guard, parse_guard
+from ..model import DoneTransition, EventTransition, GuardTransition, StateNode, TimeoutTransition, Transition, YPath
+from ..registry import describe_choices
+from ..schema import SINCE_ENTRY, SINCE_FIRST_ENTRY, State
+from ..schema import Transition as TransitionSpec
+from ..units import UnitError, parse_quantity
+from .context import Compilation
+from .tree import metrics_under
+
+
+def compile_transitions(c: Compilation, root: StateNode, events: set[str]) -> None:
+    quantities, not_quantities = _guard_params(c)
+    for n in root.walk():
+        if n.parent is None:
+            continue
+        spec = c.spec_of(n)
+        assert isinstance(spec, State)
+        for i, tr in enumerate(spec.transitions):
+            where = n.ypath + ("transitions", i)
+            target = _resolve_target(c, n, tr.to)
+            if target is None:
+                valid = sorted({s for a in [n.parent, *n.parent.ancestors()] for s in a.children} | set(c.states))
+                c.err(where + ("to",), f"unknown target state {tr.to!r}", describe_choices(tr.to, valid))
+                continue
+            compiled = _compile_one(c, n, target, tr, where, events, quantities, not_quantities)
+            if compiled is not None:
+                n.transitions.append(compiled)
+                c.transitions.append(compiled)
+
+
+def _compile_one(c: Compilation, n: StateNode, target: StateNode, tr: TransitionSpec, where: YPath, events: set[str],
+                 quantities: dict[str, tuple[float, str]], not_quantities: dict[str, str]) -> Transition | None:
+    common = {"index": len(c.transitions), "source": n, "target": target, "resume": tr.resume, "blend": tr.blend or 0.0}
+    guard: tuple[Guard, Predicate] | None = None
+    if tr.when is not None:
+        guard = _compile_guard(c, n, tr.when, where + ("when",), quantities, not_quantities)
+        if guard is None:
+            return None
+    if tr.on is not None:
+        if tr.on not in events:
+            c.err(where + ("on",), f"unknown event {tr.on!r}: no world, sensor, action or task of this mission emits it",
+                  describe_choices(tr.on, sorted(events)))
+            return None
+        label = f"on {tr.on}" + (f" when {tr.when}" if tr.when else "")
+        return EventTransition(**common, label=label, event=tr.on, guard=guard[0] if guard else None,
+                               predicate=guard[1] if guard else None)
+    if guard is not None:
+        dwell = float(tr.for_ or 0.0)
+        label = tr.when + (f" for {dwell:g} s" if dwell else "")  # type: ignore[operator]
+        return GuardTransition(**common, label=label, guard=guard[0], predicate=guard[1], dwell=dwell)
+    if tr.after is not None:
+        after = float(tr.after)
+        label = f"after {after:g} s"
+        since, first = n, False
+        if tr.since is not None and tr.since != SINCE_ENTRY:
+            label += f" since {tr.since}"
+            first = tr.since == SINCE_FIRST_ENTRY
+            if not first:
+                found = _enclosing(n, tr.since)
+                if found is None:
+                    valid = [SINCE_ENTRY, SINCE_FIRST_ENTRY] + [a.name for a in n.ancestors()[1:]]
+                    c.err(where + ("since",), f"since {tr.since!r}: neither 'entry', 'first_entry' nor a state "
+                          f"enclosing {n.path!r}", describe_choices(tr.since, valid))
+                    return None
+                since = found
+        return TimeoutTransition(**common, label=label, after=after, since=since, since_first=first)
+    if n.is_leaf:
+        c.err(where + ("done",), "`done` waits for a sub-machine to finish, but this state has no sub-states",
+              "use `when`, `after` or `on`")
+        return None
+    outcome = None if tr.done is True else str(tr.done)
+    return DoneTransition(**common, label="done" if outcome is None else f"done {outcome}", outcome=outcome)
+
+
+def _resolve_target(c: Compilation, source: StateNode, name: str) -> StateNode | None:
+    if "." in name:
+        return c.states.get(name)
+    scope: StateNode | None = source.parent
+    while scope is not None:
+        if name in scope.children:
+            return scope.children[name]
+        scope = scope.parent
+    return None
+
+
+def _enclosing(n: StateNode, name: str) -> StateNode | None:
+    """``n`` or the ancestor of ``n`` called ``name`` (a bare name or a dotted path)."""
+    for a in n.ancestors()[1:]:
+        if name in (a.name, a.path):
+            return a
+    return None
+
+
+def _guard_params(c: Compilation) -> tuple[dict[str, tuple[float, str]], dict[str, str]]:
+    """Parameters usable in guards (quantities), and why each other parameter is not."""
+    out: dict[str, tuple[float, str]] = {}
+    bad: dict[str, str] = {}
+    for k, v in c.spec.parameters.items():
+        try:
+            if isinstance(v, bool) or not isinstance(v, (str, int, float)):
+                raise UnitError(f"it is {type(v).__name__} {v!r}")
+            out[k] = parse_quantity(v)
+        except UnitError as exc:
+            bad[k] = f"${k} is not a quantity like '2 mm' ({exc})"
+    return out, bad
+
+
+def _compile_guard(c: Compilation, n: StateNode, text: str, where: YPath, quantities: dict[str, tuple[float, str]],
+                   not_quantities: dict[str, str]) -> tuple[Guard, Predicate] | None:
+    """Parse, check and compile the guard ``text`` of a transition of ``n`` (None: reported)."""
+    try:
+        guard = parse_guard(text)
+    except GuardSyntaxError as exc:
+        c.err(where, f"guard {text!r}: {exc} (at character {exc.offset + 1})", exc.hint)
+        return None
+    available = metrics_under(c, n)
+    unknown = [m for m in sorted(guard.metrics) if m not in available]
+    for m in unknown:
+        c.err(where, f"metric {m!r} is not published in state {n.path!r}", describe_choices(m, list(available)))
+    if unknown:
+        return None
+    for cmp in guard.comparisons():
+        if cmp.param is not None and cmp.param in not_quantities:
+            c.err(where, f"guard {text!r}: {not_quantities[cmp.param]}", "give the parameter a number with a unit")
+    for msg in bind_units(guard, available, quantities, skip=set(not_quantities)):
+        c.err(where, f"guard {text!r}: {msg}")
+    if any(cmp.value is None for cmp in guard.comparisons()):
+        return None
+    return guard, compile_guard(guard)

@@ -1,0 +1,102 @@
+"""Compile pass: the state tree — one :class:`~taskflow.model.StateNode` per state, with its effective
+task and bindings (inherited down the tree, overridden where a state gives its own), its loop, action
+and final outcome; then the catalogue of what the mission's tasks and world publish."""
+
+from __future__ import annotations
+
+from ..model import Loop, StateNode, YPath
+from ..registry import TASKS, RegistryError, UnknownName, describe_choices
+from ..schema import Machine, State
+from .context import Compilation
+
+
+def build_tree(c: Compilation) -> StateNode:
+    root = StateNode("", "", None, ("machine",))
+    _build(c, root, c.spec.machine, ("machine",))
+    return root
+
+
+def _build(c: Compilation, node: StateNode, spec: State | Machine, ypath: YPath) -> None:
+    parent = node.parent
+    if spec.task is not None:  # the task: inherited unless given
+        tname, tparams = (spec.task, {}) if isinstance(spec.task, str) else (spec.task.name, spec.task.params)
+        tpath = ypath + ("task",) if isinstance(spec.task, str) else ypath + ("task", "name")
+        try:
+            cls = TASKS.get(tname)
+            if cls.robots and c.robot.name not in cls.robots:
+                c.err(tpath, f"task {tname!r} cannot drive robot {c.robot.name!r}", f"robots it drives: {', '.join(cls.robots)}")
+            node.task_cls, node.task_params = cls, dict(tparams)
+            node.task_ypath = ypath + ("task",)
+        except UnknownName as exc:
+            c.err(tpath, f"unknown task {tname!r}", describe_choices(tname, exc.valid))
+        except RegistryError as exc:
+            c.err(tpath, str(exc))
+    elif parent is not None:
+        node.task_cls, node.task_params, node.task_ypath = parent.task_cls, parent.task_params, parent.task_ypath
+    node.bind = dict(parent.bind) if parent is not None else {}
+    for slot, ref in spec.bind.items():
+        node.bind[slot] = ("", ref, ypath + ("bind", slot))
+    if isinstance(spec, State):
+        _state_keys(c, node, spec, ypath)
+    if spec.states:
+        if spec.initial is None:
+            c.err(ypath, "a state with sub-states needs `initial`", f"one of: {', '.join(spec.states)}")
+        elif spec.initial not in spec.states:
+            c.err(ypath + ("initial",), f"initial state {spec.initial!r} is not a sub-state",
+                  describe_choices(spec.initial, list(spec.states)))
+        node.initial = spec.initial
+        for name, child_spec in spec.states.items():
+            if "." in name or not name.replace("_", "a").replace("-", "a").isalnum():
+                c.err(ypath + ("states", name), f"state name {name!r} must be letters, digits, '_' or '-'")
+                continue
+            child = StateNode(name, f"{node.path}.{name}" if node.path else name, node, ypath + ("states", name),
+                              depth=node.depth + 1)
+            node.children[name] = child
+            c.states[child.path] = child
+            _build(c, child, child_spec, ypath + ("states", name))
+    elif isinstance(spec, State) and spec.initial is not None:
+        c.err(ypath + ("initial",), "`initial` given but the state has no sub-states")
+    elif isinstance(spec, Machine):
+        c.err(ypath + ("states",), "the machine has no states", "declare at least one state and a final one")
+
+
+def _state_keys(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> None:
+    node.history = spec.history
+    node.final = "succeeded" if spec.final is True else (spec.final or None)
+    if spec.foreach is not None:
+        fe = spec.foreach
+        items = c.spec.parameters.get(fe.in_)
+        required = fe.required(len(items)) if isinstance(items, list) and items else 0  # the list is checked later
+        node.loop = Loop(fe.in_, fe.as_, fe.on_failure, required, str(fe.require))
+    if spec.action is not None:
+        node.action = (spec.action.name, dict(spec.action.params))
+    if spec.final and (spec.states or spec.task or spec.transitions or spec.action):
+        c.err(ypath + ("final",), "a final state ends its machine: it has no task, action, sub-states or transitions",
+              "remove them or drop `final`")
+    if spec.history and not spec.states:
+        c.err(ypath + ("history",), "history only applies to a state with sub-states")
+    if spec.foreach is not None and not spec.states:
+        c.err(ypath + ("foreach",), "foreach repeats a sub-machine: give the state `states` and `initial`")
+
+
+def catalogue(c: Compilation, root: StateNode) -> tuple[dict[str, str], set[str]]:
+    """Every metric (→ unit) and every event the mission's world, actions and tasks publish."""
+    world = c.world
+    units: dict[str, str] = dict(world.metrics)
+    events: set[str] = set(world.events)
+    for evs in world.actions.values():
+        events.update(evs)
+    for n in root.walk():
+        if n.task_cls is not None:
+            units.update(n.task_cls.metrics)
+            events.update(n.task_cls.events)
+    return units, events
+
+
+def metrics_under(c: Compilation, node: StateNode) -> dict[str, str]:
+    """The metrics a guard on ``node`` may read: the world's and those of every task at or below it."""
+    units = dict(c.world.metrics)
+    for n in node.walk():
+        if n.task_cls is not None:
+            units.update(n.task_cls.metrics)
+    return units

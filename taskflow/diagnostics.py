@@ -1,0 +1,114 @@
+"""Pydantic's validation errors as mission problems: each error's location mapped back to the file's
+line and column (through the source map), union-member noise dropped, unknown keys answered with the
+valid ones."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from .errors import Problem
+from .model import YPath
+from .registry import describe_choices
+from .schema import Mission, State
+from .yamlsrc import SourceMap
+
+_UNION_TAGS = ("str", "TaskRef", "ComponentRef", "bool", "float", "int", "list", "dict")
+
+
+def clean_loc(loc: tuple[Any, ...]) -> tuple[Any, ...]:
+    """Drop pydantic's union-member tags from an error location; map aliases back."""
+    out: list[Any] = []
+    for part in loc:
+        if isinstance(part, str) and (part in _UNION_TAGS or "[" in part or part.startswith("function-")
+                                      or part in ("literal['succeeded','failed','aborted']",)):
+            continue
+        out.append({"for_": "for", "in_": "in", "as_": "as"}.get(part, part) if isinstance(part, str) else part)
+    return tuple(out)
+
+
+_UNION_NOISE = ("bool_type", "bool_parsing", "string_type", "float_type", "float_parsing", "int_type",
+                "int_parsing", "dict_type", "list_type", "model_type", "model_attributes_type")
+
+
+def pydantic_problems(exc: ValidationError, smap: SourceMap, base: YPath, model: type[BaseModel] | None = None) -> list[Problem]:
+    errors = [(base + clean_loc(tuple(e["loc"])), e) for e in exc.errors()]
+    # a value that fails a union (e.g. `final: crashed` against bool | Literal[...]) produces one error per
+    # member: keep the most telling ones (the literal's choices) and drop the members' type noise
+    informative = {p for p, e in errors if e["type"] not in _UNION_NOISE}
+    problems: list[Problem] = []
+    seen: set[tuple[Any, ...]] = set()
+    for path, err in errors:
+        etype = err["type"]
+        if etype in _UNION_NOISE and path in informative:
+            continue
+        loc = path[len(base):]
+        msg = err["msg"].removeprefix("Value error, ")
+        hint = ""
+        if etype == "extra_forbidden":
+            key = loc[-1] if loc else "?"
+            valid = _allowed_keys(model or Mission, loc[:-1])
+            msg = f"unknown key {key!r}"
+            hint = describe_choices(str(key), valid) if valid else ""
+        elif etype == "missing":
+            msg = f"missing required key {loc[-1]!r}" if loc else "missing value"
+            path = path[:-1]
+        elif etype.startswith("literal_error"):
+            hint = msg
+            msg = f"invalid value {err.get('input')!r}"
+        elif etype in ("bool_type", "bool_parsing"):
+            msg = f"{err.get('input')!r}: {msg[0].lower()}{msg[1:]}"
+            hint = "write true or false (YAML 1.2: yes/no/on/off are strings)"
+        key = (path, msg)
+        if key in seen:
+            continue
+        seen.add(key)
+        problems.append(smap.problem(path, msg, hint))
+    return dedupe(problems)
+
+
+def dedupe(problems: list[Problem]) -> list[Problem]:
+    out: list[Problem] = []
+    for p in problems:
+        if any(q.line == p.line and q.col == p.col and q.message == p.message for q in out):
+            continue
+        out.append(p)
+    return sorted(out, key=lambda p: (p.line, p.col))
+
+
+def _allowed_keys(model: type[BaseModel], loc: tuple[Any, ...]) -> list[str]:
+    """Field names (aliases) of the model found at ``loc`` inside ``model``."""
+
+    current: Any = model
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        fields = getattr(current, "model_fields", None)
+        if fields is None:
+            return []
+        name = {"for": "for_", "in": "in_", "as": "as_"}.get(part, part)
+        if name in fields:
+            current = _inner_model(fields[name].annotation)
+        else:  # dict[str, Model] value
+            continue
+        if current is None:
+            return []
+    fields = getattr(current, "model_fields", None)
+    if not fields:
+        return []
+    return [f.alias or n for n, f in fields.items()]
+
+
+def _inner_model(annotation: Any) -> Any:
+    import typing
+
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in typing.get_args(annotation):
+        m = _inner_model(arg)
+        if m is not None:
+            return m
+    if isinstance(annotation, str):
+        return {"State": State}.get(annotation)
+    return None

@@ -1,0 +1,227 @@
+"""The compiled mission: the state tree, its transitions as typed records, and the references
+(``$name``) its parameters hold.  The compiler (:mod:`taskflow.compile`) builds it; the engine
+(:mod:`taskflow.executor`) runs it and never calls back into the compiler.
+
+A transition is one of four record types — :class:`GuardTransition` (``when``),
+:class:`TimeoutTransition` (``after``), :class:`EventTransition` (``on``, with an optional ``when``
+condition) and :class:`DoneTransition` (``done``) — each carrying only the fields its trigger needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Iterator
+
+from pydantic import BaseModel
+
+from .api import Robot, Task, World
+from .distributions import sample, world_rng
+from .guards import Guard, Predicate
+from .schema import Mission
+
+YPath = tuple[Any, ...]
+"""A path into the mission document (keys and list indices), as the source map records them."""
+
+
+@dataclass(eq=False, kw_only=True)
+class Transition:
+    """What every transition has: where it is declared, where it leads, and how it enters the target."""
+
+    index: int  # position among the mission's transitions (dwell timers are keyed by it)
+    source: "StateNode"
+    target: "StateNode"
+    label: str  # the trigger as written, for records and diagrams
+    resume: bool = True  # re-enter a history target where it was left
+    blend: float = 0.0  # seconds of command blending after it fires
+
+
+@dataclass(eq=False, kw_only=True)
+class GuardTransition(Transition):
+    """``when: EXPR`` (``for: T``): the guard holds, for ``dwell`` seconds without a break."""
+
+    guard: Guard
+    predicate: Predicate
+    dwell: float = 0.0
+
+
+@dataclass(eq=False, kw_only=True)
+class TimeoutTransition(Transition):
+    """``after: T`` (``since: …``): ``after`` seconds since ``since`` was (first, with ``since_first``) entered."""
+
+    after: float
+    since: "StateNode"
+    since_first: bool = False
+
+
+@dataclass(eq=False, kw_only=True)
+class EventTransition(Transition):
+    """``on: EVENT`` (``when: EXPR``): the event was emitted this tick, and the condition (if any) holds."""
+
+    event: str
+    guard: Guard | None = None
+    predicate: Predicate | None = None
+
+
+@dataclass(eq=False, kw_only=True)
+class DoneTransition(Transition):
+    """``done: true | OUTCOME``: the source's sub-machine finished (with ``outcome``; None: any)."""
+
+    outcome: str | None = None
+
+    def handles(self, outcome: str) -> bool:
+        return self.outcome is None or self.outcome == outcome
+
+
+@dataclass(frozen=True)
+class Loop:
+    """A ``foreach``: the list parameter it iterates, the item's name, what a failed item does, and its
+    success rule resolved against the list (``required`` items must succeed; ``rule`` as written)."""
+
+    items: str
+    item: str
+    on_failure: str  # "stop" | "continue"
+    required: int = 0
+    rule: str = "all"
+
+
+@dataclass(eq=False)
+class StateNode:
+    """One state of the compiled machine."""
+
+    name: str
+    path: str  # dotted from the root; "" for the root
+    parent: "StateNode | None"
+    ypath: YPath
+    children: dict[str, "StateNode"] = field(default_factory=dict)
+    initial: str | None = None
+    task_cls: type[Task] | None = None  # effective (inherited)
+    task_params: dict[str, Any] = field(default_factory=dict)  # raw, may hold $refs
+    task_ypath: YPath = ()
+    bind: dict[str, tuple[str, Any, YPath]] = field(default_factory=dict)  # slot → (kind, name|inline, where)
+    profiles: dict[str, BaseModel] = field(default_factory=dict)  # resolved for a leaf
+    transitions: list[Transition] = field(default_factory=list)
+    history: bool = False
+    loop: Loop | None = None  # foreach
+    action: tuple[str, dict[str, Any]] | None = None
+    final: str | None = None  # outcome
+    depth: int = 0
+
+    @property
+    def is_leaf(self) -> bool:
+        return not self.children
+
+    def ancestors(self) -> list["StateNode"]:
+        """Root first, self last."""
+        out: list[StateNode] = []
+        n: StateNode | None = self
+        while n is not None:
+            out.append(n)
+            n = n.parent
+        return out[::-1]
+
+    def walk(self) -> Iterator["StateNode"]:
+        yield self
+        for c in self.children.values():
+            yield from c.walk()
+
+    def initial_leaf(self) -> "StateNode":
+        n = self
+        while n.children:
+            n = n.children[n.initial]  # type: ignore[index]
+        return n
+
+    def scope_items(self) -> list[tuple[str, str]]:
+        """(item name, list parameter) of every enclosing foreach, outermost first."""
+        return [(a.loop.item, a.loop.items) for a in self.ancestors() if a.loop]
+
+
+@dataclass
+class CompiledMission:
+    """A validated mission: the raw document, its shape, and the compiled machine."""
+
+    file: str
+    raw: dict[str, Any]
+    spec: Mission
+    root: StateNode
+    states: dict[str, StateNode]  # path → node (root excluded)
+    transitions: list[Transition]
+    robot_cls: type[Robot]
+    robot_params: BaseModel
+    world_cls: type[World]
+    world_params_raw: dict[str, Any]
+    metric_units: dict[str, str]  # every metric any task or the world publishes
+    events: set[str]
+
+    @property
+    def name(self) -> str:
+        return self.spec.mission
+
+    def world_params(self, seed: int) -> BaseModel:
+        """World parameters with every distribution drawn from ``seed``."""
+        drawn = sample(self.world_params_raw, world_rng(seed))
+        return self.world_cls.Params.model_validate(with_model_defaults(self.world_cls.Params, drawn))
+
+    def build_robot(self) -> Robot:
+        return self.robot_cls(self.robot_params)
+
+    def description_of(self, node: StateNode) -> str:
+        """The ``description`` written on a state (empty when none)."""
+        spec: Any = self.spec.machine
+        for a in node.ancestors()[1:]:
+            spec = spec.states[a.name]
+        return getattr(spec, "description", "") or ""
+
+    def leaves(self) -> list[StateNode]:
+        return [n for n in self.states.values() if n.is_leaf]
+
+
+def with_model_defaults(model: type[BaseModel], values: Any) -> Any:
+    """``values`` with every partial mapping given for a field whose default is a model completed
+    from that default, recursively: ``front_camera: {width: 640}`` (or ``--set
+    robot.params.front_camera.width=640``) changes one field of the default camera instead of
+    replacing the camera by one with only a width."""
+    if not isinstance(values, dict):
+        return values
+    out = dict(values)
+    for name, fld in model.model_fields.items():
+        key = fld.alias if fld.alias is not None and fld.alias in out else name
+        default = fld.default
+        if key in out and isinstance(out[key], dict) and isinstance(default, BaseModel):
+            sub = type(default)
+            out[key] = {**default.model_dump(by_alias=True), **with_model_defaults(sub, out[key])}
+    return out
+
+
+class UnknownRef(KeyError):
+    """A ``$name`` that is neither a foreach item in scope nor a mission parameter."""
+
+    def __init__(self, name: str, path: YPath) -> None:
+        super().__init__(name)
+        self.name, self.path = name, path
+
+
+def resolve_refs(value: Any, params: dict[str, Any], items: dict[str, Any], path: YPath = ()) -> Any:
+    """Replace every ``"$name"`` string by the foreach item or mission parameter of that name."""
+    if isinstance(value, str) and value.startswith("$") and value[1:].isidentifier():
+        key = value[1:]
+        if key in items:
+            return items[key]
+        if key in params:
+            return params[key]
+        raise UnknownRef(key, path)
+    if isinstance(value, dict):
+        return {k: resolve_refs(v, params, items, path + (k,)) for k, v in value.items()}
+    if isinstance(value, list):
+        return [resolve_refs(v, params, items, path + (i,)) for i, v in enumerate(value)]
+    return value
+
+
+def has_refs(value: Any) -> bool:
+    """Whether ``value`` holds a ``$reference`` anywhere (so it must be resolved on every entry)."""
+    if isinstance(value, str):
+        return value.startswith("$")
+    if isinstance(value, dict):
+        return any(has_refs(v) for v in value.values())
+    if isinstance(value, list):
+        return any(has_refs(v) for v in value)
+    return False
