@@ -9,6 +9,7 @@ condition) and :class:`DoneTransition` (``done``) — each carrying only the fie
 
 from __future__ import annotations
 
+from functools import cached_property
 from dataclasses import dataclass, field
 from typing import Any, Iterator
 
@@ -33,6 +34,26 @@ class Transition:
     label: str  # the trigger as written, for records and diagrams
     resume: bool = True  # re-enter a history target where it was left
     blend: float = 0.0  # seconds of command blending after it fires
+
+    @cached_property
+    def domain(self) -> "StateNode":
+        """The state whose descendants this transition exits and enters (UML external semantics): the
+        deepest common ancestor of source and target, or its parent when one of them contains the other
+        (so that one is left and re-entered)."""
+        pa, pb = self.source.ancestors(), self.target.ancestors()
+        common = pa[0]
+        for x, y in zip(pa, pb):
+            if x is not y:
+                break
+            common = x
+        if (common is self.source or common is self.target) and common.parent is not None:
+            return common.parent
+        return common
+
+    @cached_property
+    def domain_depth(self) -> int:
+        """Depth of :attr:`domain` (0: the root): how many levels of the new leaf's path stay active."""
+        return self.domain.depth
 
 
 @dataclass(eq=False, kw_only=True)

@@ -7,7 +7,7 @@
                           (start, guard, timeout, event, done, next_item), ``state`` and ``label`` (the
                           declaring state and the transition as written), and as they apply ``index``,
                           ``metrics`` (the guard's metric values when it fired), ``event``, ``outcome``,
-                          ``item``, ``resumed`` — :class:`taskflow.executor.TransitionRecord`
+                          ``item``, ``resumed`` — :class:`TransitionRecord`
   ``trace.csv``           one row per control tick: ``t``, ``state``, ``events``, metric columns
                           ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
                           (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it; ``nan``
@@ -30,11 +30,80 @@ from __future__ import annotations
 import json
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
 import yaml
+
+
+START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM = "start", "guard", "timeout", "event", "done", "next_item"
+CAUSES = (START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM)
+
+
+@dataclass
+class TransitionRecord:
+    """One change of the active leaf, with what caused it as fields (``transitions.jsonl`` holds them).
+
+    ``cause`` is one of :data:`CAUSES`: ``start``; ``guard`` (a ``when`` held: ``metrics`` has the values
+    of its metrics that tick), ``timeout`` (an ``after`` ran out), ``event`` (``event``; with a condition,
+    ``metrics`` too), ``done`` (the sub-machine of ``state`` finished with ``outcome``) or ``next_item``
+    (the loop ``state`` moved to item ``item`` after an item that ended ``outcome``).  ``state`` and
+    ``label`` name the declaring state and the transition as written; ``index`` is the transition's index
+    in the mission; ``resumed`` says a history state was resumed where it was left."""
+
+    t: float
+    source: str  # the leaf left ("__start__" for the first record)
+    target: str  # the leaf entered
+    cause: str
+    state: str = ""
+    label: str = ""
+    index: int | None = None
+    metrics: dict[str, float] | None = None
+    event: str | None = None
+    outcome: str | None = None
+    item: int | None = None
+    resumed: bool = False
+
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON object of ``transitions.jsonl``: the fields that apply to this cause."""
+        out: dict[str, Any] = {"t": round(self.t, 9), "from": self.source, "to": self.target, "cause": self.cause,
+                               "state": self.state, "label": self.label}
+        for key in ("index", "metrics", "event", "outcome", "item"):
+            value = getattr(self, key)
+            if value is not None:
+                out[key] = value
+        if self.resumed:
+            out["resumed"] = True
+        return out
+
+
+@dataclass
+class ItemCount:
+    """A foreach loop's items over a whole run: attempted, succeeded, and its success rule."""
+
+    required: int  # per run of the loop
+    rule: str  # as written: "all", "3", "75 %"
+    attempted: int = 0
+    succeeded: int = 0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"attempted": self.attempted, "succeeded": self.succeeded, "failed": self.attempted - self.succeeded,
+                "success_rate": self.succeeded / self.attempted if self.attempted else None,
+                "required": self.required, "rule": self.rule}
+
+
+@dataclass
+class IterationRecord:
+    state: str
+    index: int
+    item: Any
+    outcome: str
+    t_start: float
+    t_end: float
+    ground_truth: dict[str, float]
+
 
 
 def _json_default(o: Any) -> Any:

@@ -30,7 +30,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .api import World
-from .executor import Executor, TaskFactory, TransitionRecord
+from .executor import Executor, TaskFactory
+from .records import TransitionRecord
 from .model import CompiledMission
 from .provenance import versions
 from .records import RunRecorder, TimingRecord, clean_floats

@@ -336,7 +336,9 @@ def check_run(m: CompiledMission, result: Any, script: Script) -> None:
     assert result.outcome != "aborted" or "final state" in result.summary["reason"] \
         or "finished aborted" in result.summary["reason"], result.summary["reason"]  # no exception
     assert ex.leaf is not None and ex.leaf.path == previous == result.summary["final_state"]
-    assert ex._model.state == ex.leaf.path  # the `transitions` machine agrees
+    assert ex.engine.mission_model.state == ex.leaf.path  # the leaf is the `transitions` machine's state
+    for a in ex.leaf.ancestors()[1:]:  # its entry clocks (which `after` reads) are the oracle's
+        assert ex.entered_at(a) == pytest.approx(entered[a.path]), a.path
     if result.outcome != "timeout":
         assert ex.leaf.final, f"ended {result.outcome} in non-final {ex.leaf.path!r}"
     else:
