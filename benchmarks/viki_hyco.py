@@ -93,9 +93,9 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
     """µs per call: eq. 19–26 + eq. 5 (visual tick, kinematic tick) and the whole task step."""
     robot = Racecar(Racecar.Params())
     rp = robot.params
-    T = rp.rear_camera.optical_transform()
+    T = rp.rear_camera.T_robot_camera()
     K = (rp.rear_camera.focal_px(),) * 2 + (320.0, 179.0)
-    kw = dict(intrinsics=K, T_rc=T, lam=np.array([0.85, 1.05, 1.0, 1.0, 1.0]), k1=np.array([1.0, 2.0]), d=rp.wheelbase,
+    kw = dict(intrinsics=K, T_robot_camera=T, lam=np.array([0.85, 1.05, 1.0, 1.0, 1.0]), k1=np.array([1.0, 2.0]), d=rp.wheelbase,
               wheelbase=rp.wheelbase, v_max=rp.v_max, psi_max=rp.psi_max)
     out = {}
     for name, seen in (("law_visual_tick_us", True), ("law_kinematic_tick_us", False)):
@@ -130,7 +130,7 @@ def render_costs(sizes: tuple[tuple[int, int], ...] = ((320, 180), (640, 360)), 
             try:
                 w.observe()
                 per = w._perceptor(cam)
-                T_wr = w.robot_pose_matrix()
+                T_wr = w.T_world_robot()
                 T_wc = w.cameras[cam].pose(T_wr)
                 ts = []
                 for _ in range(frames):

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from taskflow.spatial import rotation_angle
 from taskflow_robots.racecar import CameraMount
 
 
@@ -56,13 +57,13 @@ class CameraModel:
         f = self.fy
         return (f, f, 0.5 * self.width, 0.5 * self.height - 1.0)
 
-    def T_rc(self) -> NDArray[np.float64]:
+    def T_robot_camera(self) -> NDArray[np.float64]:
         """Robot ← optical frame (4x4)."""
-        return self.mount.optical_transform()
+        return self.mount.T_robot_camera()
 
     def pose(self, T_wr: NDArray[np.float64]) -> NDArray[np.float64]:
         """World ← optical frame for a robot pose ``T_wr`` (4x4)."""
-        return T_wr @ self.T_rc()
+        return T_wr @ self.T_robot_camera()
 
     def project(self, T_wc: NDArray[np.float64], P_w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Pixels ``(N, 2)`` and camera depths ``(N,)`` of world points ``(N, 3)``."""
@@ -83,20 +84,6 @@ class CameraModel:
         dc = np.column_stack([(np.asarray(u, float) - cu) / fx, (np.asarray(v, float) - cv) / fy,
                               np.ones(np.size(u))])
         return T_wc[:3, 3].copy(), dc @ T_wc[:3, :3].T
-
-
-def pose_matrix(position: tuple[float, ...], quaternion: tuple[float, ...]) -> NDArray[np.float64]:
-    """4x4 from a position and an ``(x, y, z, w)`` quaternion (numpy only)."""
-    x, y, z, w = quaternion
-    R = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = position
-    return T
 
 
 def quantise_box(u0: float, v0: float, u2: float, v2: float) -> tuple[float, float, float, float]:
@@ -164,6 +151,5 @@ class DropoutModel:
         if self.static_m <= 0.0:
             return False
         dt = float(np.linalg.norm(a[:3, 3] - b[:3, 3]))
-        c = (np.trace(a[:3, :3].T @ b[:3, :3]) - 1.0) * 0.5
-        ang = math.acos(min(1.0, max(-1.0, c)))
+        ang = rotation_angle(a[:3, :3].T @ b[:3, :3])
         return dt < self.static_m and ang < self.static_rad

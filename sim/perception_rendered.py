@@ -67,7 +67,7 @@ class LidarScanner:
             return
         self.next_scan = t + 1.0 / self.mount.rate_hz
         t0 = time.perf_counter()
-        T_wl = T_wr @ self.mount.transform()
+        T_wl = T_wr @ self.mount.T_robot_mount()
         R, o = T_wl[:3, :3], T_wl[:3, 3]
         rng = self.mount.max_range
         ends = o + (self._dirs @ R.T) * rng
@@ -90,7 +90,7 @@ class RenderedPerception:
         self._proj = p.computeProjectionMatrixFOV(math.degrees(m.fov), camera.width / camera.height, m.near, m.far)
         self._mask: NDArray[np.bool_] | None = None
         if lidar is not None:
-            T_cl = np.linalg.inv(camera.T_rc()) @ lidar.mount.transform()
+            T_cl = np.linalg.inv(camera.T_robot_camera()) @ lidar.mount.T_robot_mount()
             self._mask = blind_spot_mask(T_cl, camera.intrinsics, camera.width, camera.height,
                                          lidar_height=lidar.mount.xyz[2], lowest_beam=lidar.mount.v_fov[0])
         self.render_s = 0.0

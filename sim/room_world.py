@@ -166,15 +166,6 @@ class QuadRoomParams(StrictModel):
         return self
 
 
-def camera_pose_matrices(pose: Sequence[float], R_bc: NDArray[np.float64],
-                         t_bc: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """World ← camera rotation and camera position for the body at ``pose = (x, y, z, yaw)``."""
-    x, y, z, yaw = pose
-    c, s = math.cos(yaw), math.sin(yaw)
-    Rb = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return Rb @ R_bc, np.array([x, y, z]) + Rb @ t_bc
-
-
 @register_world("quad_room")
 class QuadRoom(World):
     """A textured room, green columns and the quadcopter with its forward camera."""
@@ -289,7 +280,7 @@ class QuadRoom(World):
                                                           tuple[int, int]]:
         """World ← optical rotation, camera position, intrinsics and image size at ``pose``."""
         cam = self.robot.params.camera
-        R, t = camera_pose_matrices(pose, cam.R(), cam.t())
+        R, t = cam.pose_in_world(pose)
         return R, t, cam.K(), (cam.width, cam.height)
 
     def _point_view(self, pose: Sequence[float]) -> PointView:
@@ -428,9 +419,9 @@ class QuadRoom(World):
         cam = self.robot.params.camera
         K = cam.K()
         if self.params.perception == "geometric":  # the landmarks the keyframe sees, exact
-            Rk, tk = camera_pose_matrices(kf.pose, cam.R(), cam.t())
+            Rk, tk = cam.pose_in_world(kf.pose)
             ids, uv_k = visible_landmarks(self.landmarks, self.columns, Rk, tk, K, (cam.width, cam.height))
-            R, t = camera_pose_matrices(self.pose if pose is None else pose, cam.R(), cam.t())
+            R, t = cam.pose_in_world(self.pose if pose is None else pose)
             z, uv = project(self.landmarks[ids], R, t, K)
             front = z > 0.05
             return float(np.mean(np.linalg.norm(uv[front] - uv_k[front], axis=1))) if np.any(front) else math.nan
@@ -445,9 +436,9 @@ class QuadRoom(World):
         ok = Z < 0.99 * cam.far
         uv, Z = uv[ok], Z[ok]
         Xc = np.column_stack(((uv[:, 0] - K[0, 2]) / K[0, 0] * Z, (uv[:, 1] - K[1, 2]) / K[1, 1] * Z, Z))
-        Rk, tk = camera_pose_matrices(kf.pose, cam.R(), cam.t())
+        Rk, tk = cam.pose_in_world(kf.pose)
         Xw = Xc @ Rk.T + tk
-        R, t = camera_pose_matrices(self.pose if pose is None else pose, cam.R(), cam.t())
+        R, t = cam.pose_in_world(self.pose if pose is None else pose)
         Xn = (Xw - t) @ R
         front = Xn[:, 2] > 0.05
         if not np.any(front):

@@ -26,6 +26,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from taskflow.spatial import rotation_angle, transform
 from taskflow_robots.mobile_iiwa import CameraParams
 from taskflow_sim.screw_scene import MARKER_DICT, MARKER_ID, MARKER_SIZE
 
@@ -234,18 +235,15 @@ class RenderedDetector:
             return None, math.inf
         cands = []
         for rv, tv, e in zip(rvecs, tvecs, np.ravel(errs), strict=False):
-            R, _ = cv2.Rodrigues(rv)
-            H = np.eye(4)
-            H[:3, :3] = R
-            H[:3, 3] = tv.ravel()
-            cands.append((float(e), H))
+            R_cm, _ = cv2.Rodrigues(rv)
+            cands.append((float(e), transform(R_cm, tv.ravel())))
         cands.sort(key=lambda c: c[0])
         best = cands[0]
         if len(cands) > 1 and self.last is not None and cands[1][0] < 1.5 * cands[0][0] + 0.05:
             last = self.last
 
             def dist(H: NDArray[np.float64]) -> float:
-                return float(np.arccos(np.clip((np.trace(H[:3, :3].T @ last[:3, :3]) - 1) / 2, -1, 1)))
+                return rotation_angle(H[:3, :3].T @ last[:3, :3])
 
             best = min(cands[:2], key=lambda c: dist(c[1]))
         return best[1], best[0]

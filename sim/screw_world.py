@@ -82,6 +82,7 @@ from taskflow_sim.screw_perception import Detection, PoseNoise, RenderedDetector
 from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow.api import Command, Observation, Robot, StrictModel, World
 from taskflow.registry import register_world
+from taskflow.spatial import rotation_angle
 
 GRAVITY = 9.81
 
@@ -295,7 +296,7 @@ class ScrewConveyor(World):
         axial = float(d @ z)
         lateral = float(np.linalg.norm(d - axial * z))
         Rrel = B[:3, :3].T @ tip[:3, :3]
-        rot = math.acos(max(-1.0, min(1.0, 0.5 * (np.trace(Rrel) - 1.0))))
+        rot = rotation_angle(Rrel)
         tilt = math.acos(max(-1.0, min(1.0, float(tip[:3, 2] @ z))))
         return bolt, float(np.linalg.norm(d)), rot, lateral, axial, tilt
 
@@ -384,8 +385,7 @@ class ScrewConveyor(World):
             truth = self.true_H_co()
             d = det.H_co[:3, 3] - truth[:3, 3]
             R = det.H_co[:3, :3] @ truth[:3, :3].T
-            self._perr.append((math.hypot(d[0], d[1]), abs(d[2]),
-                               math.acos(max(-1.0, min(1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0))))))
+            self._perr.append((math.hypot(d[0], d[1]), abs(d[2]), rotation_angle(R)))
         self._queue.append(det)
 
     def _deliver(self, t: float) -> None:

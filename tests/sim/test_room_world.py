@@ -148,14 +148,13 @@ def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, p
     """Every landmark the geometric camera reports is on the surface PyBullet renders at its pixel
     (rendered depth = landmark depth): projection, intrinsics and column occlusion agree."""
     from taskflow_sim.room_landmarks import project
-    from taskflow_sim.room_world import camera_pose_matrices
 
     cam = geo_world.robot.params.camera
     geo_world.pose[:] = pose
     view = geo_world._point_view(pose)
     assert len(view) > 50
     _, depth = geo_world._require_scene().render_with_depth(pose)
-    R, t = camera_pose_matrices(pose, cam.R(), cam.t())
+    R, t = cam.pose_in_world(pose)
     z, uv = project(geo_world.landmarks[view.ids], R, t, cam.K())
     assert np.allclose(uv, view.uv)
     px = np.round(uv).astype(int)
