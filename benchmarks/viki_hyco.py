@@ -130,14 +130,14 @@ def render_costs(sizes: tuple[tuple[int, int], ...] = ((320, 180), (640, 360)), 
             try:
                 w.observe()
                 per = w._perceptor(cam)
-                T_wr = w.T_world_robot()
-                T_wc = w.cameras[cam].pose(T_wr)
+                T_world_robot = w.T_world_robot()
+                T_world_camera = w.cameras[cam].pose(T_world_robot)
                 ts = []
                 for _ in range(frames):
                     if w._lidar is not None:
                         w._lidar.next_scan = 0.0
                     t0 = time.perf_counter()
-                    per.detect(T_wc, 0.0, T_wr)
+                    per.detect(T_world_camera, 0.0, T_world_robot)
                     ts.append(time.perf_counter() - t0)
                 out[f"render_{cam}_{w_}x{h_}_ms"] = 1e3 * statistics.median(ts)
             finally:

@@ -61,13 +61,13 @@ class CameraModel:
         """Robot ← optical frame (4x4)."""
         return self.mount.T_robot_camera()
 
-    def pose(self, T_wr: NDArray[np.float64]) -> NDArray[np.float64]:
-        """World ← optical frame for a robot pose ``T_wr`` (4x4)."""
-        return T_wr @ self.T_robot_camera()
+    def pose(self, T_world_robot: NDArray[np.float64]) -> NDArray[np.float64]:
+        """World ← optical frame for a robot pose ``T_world_robot`` (4x4)."""
+        return T_world_robot @ self.T_robot_camera()
 
-    def project(self, T_wc: NDArray[np.float64], P_w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def project(self, T_world_camera: NDArray[np.float64], P_w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Pixels ``(N, 2)`` and camera depths ``(N,)`` of world points ``(N, 3)``."""
-        R, t = T_wc[:3, :3], T_wc[:3, 3]
+        R, t = T_world_camera[:3, :3], T_world_camera[:3, 3]
         Pc = (np.asarray(P_w, dtype=float) - t) @ R  # R^T (P - t), row-wise
         fx, fy, cu, cv = self.intrinsics
         z = Pc[:, 2]
@@ -75,7 +75,7 @@ class CameraModel:
             uv = np.column_stack([fx * Pc[:, 0] / z + cu, fy * Pc[:, 1] / z + cv])
         return uv, z
 
-    def rays(self, T_wc: NDArray[np.float64], u: NDArray[np.float64], v: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def rays(self, T_world_camera: NDArray[np.float64], u: NDArray[np.float64], v: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World origin and (N, 3) directions of pixel rays, scaled so the camera-Z component is 1.
 
         With that scaling the ray parameter of a hit *is* the camera depth ``Z``.
@@ -83,7 +83,7 @@ class CameraModel:
         fx, fy, cu, cv = self.intrinsics
         dc = np.column_stack([(np.asarray(u, float) - cu) / fx, (np.asarray(v, float) - cv) / fy,
                               np.ones(np.size(u))])
-        return T_wc[:3, 3].copy(), dc @ T_wc[:3, :3].T
+        return T_world_camera[:3, 3].copy(), dc @ T_world_camera[:3, :3].T
 
 
 def quantise_box(u0: float, v0: float, u2: float, v2: float) -> tuple[float, float, float, float]:
@@ -128,16 +128,16 @@ class DropoutModel:
         self.missing = False
         self._last_pose = None
 
-    def frame(self, T_wc: NDArray[np.float64]) -> bool:
-        """Advance one frame taken from camera pose ``T_wc``; True if this frame's detection is dropped."""
+    def frame(self, T_world_camera: NDArray[np.float64]) -> bool:
+        """Advance one frame taken from camera pose ``T_world_camera``; True if this frame's detection is dropped."""
         if self.miss <= 0.0:
             return False
         u = float(self.rng.random())  # one draw per frame whatever the branch: the stream stays aligned
-        last, self._last_pose = self._last_pose, T_wc.copy()
+        last, self._last_pose = self._last_pose, T_world_camera.copy()
         if last is None:  # a stream's first frame is a detection (the experiment starts from one)
             self.missing = False
             return False
-        if self._static(last, T_wc):
+        if self._static(last, T_world_camera):
             if u < self.static_flip:
                 self.missing = not self.missing
             return self.missing

@@ -211,16 +211,16 @@ class VikiGround(FlatGround):
     def _new_frame(self, name: str) -> float:
         """Capture and detect on camera ``name``; returns the wall-clock seconds perception took."""
         cam = self.cameras[name]
-        T_wr = self.T_world_robot()
-        T_wc = cam.pose(T_wr)
+        T_world_robot = self.T_world_robot()
+        T_world_camera = cam.pose(T_world_robot)
         t0 = time.perf_counter()
         per = self._perceptor(name)
         if self.params.perception == "geometric":
-            bbox, depth, depth_at, depth_in = per.detect(T_wc)
+            bbox, depth, depth_at, depth_in = per.detect(T_world_camera)
         else:
-            bbox, depth, depth_at, depth_in = per.detect(T_wc, self.t, T_wr)
+            bbox, depth, depth_at, depth_in = per.detect(T_world_camera, self.t, T_world_robot)
         perception_s = time.perf_counter() - t0
-        dropped = self._dropout.frame(T_wc) if self._dropout is not None else False
+        dropped = self._dropout.frame(T_world_camera) if self._dropout is not None else False
         self.frames += 1
         if bbox is not None:
             if dropped:
