@@ -117,7 +117,7 @@ class RenderedPerception:
         depth = np.where((d < 1.0 - 1e-7) & (depth <= cam.depth_max), depth, 0.0)
         if self.lidar is not None and self._mask is not None:
             self.lidar.maybe_scan(t, T_world_robot)
-            dI_l = project_lidar_points(self.lidar.points_w, np.linalg.inv(T_world_camera), cam.intrinsics, W, H,
+            dI_l = project_lidar_points(self.lidar.points_w, inverse(T_world_camera), cam.intrinsics, W, H,
                                         value="camera_z")
             depth = fuse_depth(dI_l, depth, self._mask)
         self.last_depth = depth
