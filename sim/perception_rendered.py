@@ -33,7 +33,6 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
-from taskflow.spatial import inverse
 from taskflow_robots.racecar import LidarMount
 from taskflow_sim.car_depth import (
     blind_spot_mask,
@@ -91,7 +90,9 @@ class RenderedPerception:
         self._proj = p.computeProjectionMatrixFOV(math.degrees(m.fov), camera.width / camera.height, m.near, m.far)
         self._mask: NDArray[np.bool_] | None = None
         if lidar is not None:
-            T_camera_lidar = inverse(camera.T_robot_camera()) @ lidar.mount.T_robot_mount()
+            # numpy's general (LU) inverses here, not spatial.inverse: the closed form differs in the last bits
+            # (kept so the rendered runs' records stay the same)
+            T_camera_lidar = np.linalg.inv(camera.T_robot_camera()) @ lidar.mount.T_robot_mount()
             self._mask = blind_spot_mask(T_camera_lidar, camera.intrinsics, camera.width, camera.height,
                                          lidar_height=lidar.mount.xyz[2], lowest_beam=lidar.mount.v_fov[0])
         self.render_s = 0.0
@@ -117,7 +118,8 @@ class RenderedPerception:
         depth = np.where((d < 1.0 - 1e-7) & (depth <= cam.depth_max), depth, 0.0)
         if self.lidar is not None and self._mask is not None:
             self.lidar.maybe_scan(t, T_world_robot)
-            dI_l = project_lidar_points(self.lidar.points_w, inverse(T_world_camera), cam.intrinsics, W, H,
+            # (numpy inverse kept: see __init__)
+            dI_l = project_lidar_points(self.lidar.points_w, np.linalg.inv(T_world_camera), cam.intrinsics, W, H,
                                         value="camera_z")
             depth = fuse_depth(dI_l, depth, self._mask)
         self.last_depth = depth

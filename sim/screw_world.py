@@ -82,7 +82,7 @@ from taskflow_sim.screw_perception import Detection, PoseNoise, RenderedDetector
 from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow.api import Command, Observation, Robot, StrictModel, World
 from taskflow.registry import register_world
-from taskflow.spatial import inverse, rotation_angle
+from taskflow.spatial import rotation_angle
 
 GRAVITY = 9.81
 
@@ -213,7 +213,9 @@ class ScrewConveyor(World):
         self.noise = PoseNoise(r_sense, wp.noise_xy, wp.noise_z, wp.noise_r, wp.noise_tau)
         self.detector = RenderedDetector(c, rp.camera, roi=wp.roi_px) if wp.perception == "rendered" else None
         self.H_bc = rp.H_bc()
-        self._H_cb = inverse(self.H_bc)
+        # numpy's general (LU) inverse, not spatial.inverse: the closed form differs in the last bits and
+        # those propagate into the screw missions' traces (they were recorded with this one)
+        self._H_cb = np.linalg.inv(self.H_bc)
         self._H_Pm = sc.marker_in_P()
         self._cam_K = rp.camera.K()
         self._steps = 0
