@@ -30,6 +30,7 @@ from pydantic import ConfigDict, Field, field_validator, model_validator
 from taskflow_robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
+from taskflow_robots.camera import focal_px, tinyrenderer_K
 from taskflow.spatial import rpy_from_rotation, transform_from_xyz_rpy
 
 Vec3 = tuple[float, float, float]
@@ -116,16 +117,11 @@ class CameraParams(StrictModel):
 
     def focal_px(self) -> float:
         """``fx = fy = H / (2 tan(fovy / 2))`` (the FOV is vertical)."""
-        return self.height / (2.0 * math.tan(0.5 * self.fov))
-
-    def principal_point(self) -> tuple[float, float]:
-        """TinyRenderer's principal point ``(W/2, H/2 − 1)`` (SIMULATOR_NOTES.md)."""
-        return (0.5 * self.width, 0.5 * self.height - 1.0)
+        return focal_px(self.height, self.fov)
 
     def K(self) -> NDArray[np.float64]:
-        f = self.focal_px()
-        cx, cy = self.principal_point()
-        return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+        """TinyRenderer's intrinsics (principal point ``(W/2, H/2 − 1)``, SIMULATOR_NOTES.md)."""
+        return tinyrenderer_K(self.width, self.height, self.fov)
 
 
 class ToolParams(StrictModel):

@@ -21,6 +21,7 @@ from pydantic import Field, model_validator
 
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
+from taskflow_robots.camera import tinyrenderer_K
 from taskflow.spatial import R_FLU_OPTICAL, rotation_y, rotation_z, transform
 
 
@@ -50,8 +51,7 @@ class QuadCamera(StrictModel):
 
     def K(self) -> NDArray[np.float64]:
         """3x3 intrinsic matrix in pixels."""
-        f = self.height / (2.0 * math.tan(0.5 * self.fovy))
-        return np.array([[f, 0.0, self.width / 2.0], [0.0, f, self.height / 2.0 - 1.0], [0.0, 0.0, 1.0]])
+        return tinyrenderer_K(self.width, self.height, self.fovy)
 
     def R_body_camera(self) -> NDArray[np.float64]:
         """``eR_c``: rotation body ← optical frame (the optical axis pitched down by ``pitch``)."""

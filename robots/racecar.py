@@ -19,6 +19,7 @@ from pydantic import Field, field_validator
 
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
+from taskflow_robots.camera import focal_px
 from taskflow.spatial import R_body_optical, rotation_from_rpy, transform
 
 Vec3 = tuple[float, float, float]
@@ -67,7 +68,7 @@ class CameraMount(Mount):
 
     def focal_px(self) -> float:
         """Focal length in pixels, ``fx = fy = H / (2 tan(fovy / 2))``."""
-        return self.height / (2.0 * math.tan(0.5 * self.fov))
+        return focal_px(self.height, self.fov)
 
 
 class LidarMount(Mount):

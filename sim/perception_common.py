@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from taskflow_robots.camera import tinyrenderer_intrinsics
 from taskflow.spatial import rotation_angle
 from taskflow_robots.racecar import CameraMount
 
@@ -48,14 +49,9 @@ class CameraModel:
     depth_max: float
 
     @property
-    def fy(self) -> float:
-        return self.height / (2.0 * math.tan(0.5 * self.mount.fov))
-
-    @property
     def intrinsics(self) -> tuple[float, float, float, float]:
         """``(fx, fy, cu, cv)`` with TinyRenderer's principal point ``(W/2, H/2 - 1)``."""
-        f = self.fy
-        return (f, f, 0.5 * self.width, 0.5 * self.height - 1.0)
+        return tinyrenderer_intrinsics(self.width, self.height, self.mount.fov)
 
     def T_robot_camera(self) -> NDArray[np.float64]:
         """Robot ← optical frame (4x4)."""

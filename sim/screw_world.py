@@ -78,7 +78,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim import screw_scene as sc
 from taskflow_sim.screw_motion import PartMotion
-from taskflow_sim.screw_perception import Detection, PoseNoise, RenderedDetector, visible
+from taskflow_sim.screw_perception import MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow.api import Command, Observation, Robot, StrictModel, World
 from taskflow.registry import register_world
@@ -223,7 +223,7 @@ class ScrewConveyor(World):
         self._cam_period = 1.0 / rp.camera.rate_hz
         self._next_capture = 0.0
         self._frame = 0
-        self._queue: list[Detection] = []
+        self._queue: list[MarkerDetection] = []
         self._perr: list[tuple[float, float, float]] = []
         self._marker: dict[str, Any] | None = None
         self._seq = 0
@@ -374,15 +374,15 @@ class ScrewConveyor(World):
     def _capture(self, t: float) -> None:
         wp = self.params
         if self._occluded(t):
-            det = Detection(t, None)
+            det = MarkerDetection(t, None)
         elif self.detector is not None:
             det = self.detector(self.body.camera_pose(), t)
         else:
             H = self.true_H_co()
             if not visible(self.robot.params.camera, H, K=self._cam_K) or self._rng_sense.random() < wp.dropout:
-                det = Detection(t, None)
+                det = MarkerDetection(t, None)
             else:
-                det = Detection(t, self.noise.apply(H, t))
+                det = MarkerDetection(t, self.noise.apply(H, t))
         if det.H_co is not None:  # perception error against the truth at capture (camera frame)
             truth = self.true_H_co()
             d = det.H_co[:3, 3] - truth[:3, 3]
