@@ -20,15 +20,15 @@ Naming
 
 Implementation
 --------------
-Plain numpy (and ``math`` on scalars) on the arrays the laws already hold.  These functions run in
-control ticks with 10–100 µs budgets; building library objects costs more than the arithmetic:
-measured on the project machine, ``inverse`` 2.3 µs against 3.0 µs for Pinocchio's
-``SE3(R, t).inverse().homogeneous`` and 15 µs for ``numpy.linalg.inv``; ``rotation_angle`` 0.8 µs;
-scipy's ``Rotation.from_matrix(R).as_rotvec()`` 45 µs against 3 µs for :func:`rotvec_from_rotation`.
-Each function is the one the paper code used before it was gathered here, operation for operation,
-so every mission's trace stayed the same to the bit (``rotation_from_quaternion`` is Bullet's own
-formula: it equals ``pybullet.getMatrixFromQuaternion`` exactly).  The tests check the twist
-transform against Pinocchio's ``SE3.action`` and finite differences, and the rotations against scipy.
+Plain numpy (and ``math`` on scalars) on the arrays the laws already hold: no SE3 object is built per
+tick.  Each function is the one the paper code used before it was gathered here, operation for
+operation, so every shipped mission's records (trace, transitions, summary; seed 0, every perception
+mode) stayed the same to the bit.  Two consequences of that: :func:`rotation_from_unit_quaternion` (the
+ViKi world's formula) stands beside :func:`rotation_from_quaternion` (Bullet's, equal to
+``pybullet.getMatrixFromQuaternion`` to the bit), and the two worlds that invert a rigid transform with
+``numpy.linalg.inv`` keep doing so (:func:`inverse`'s closed form differs in the last bits, which the
+screw missions' traces showed).  ``tests/unit/test_spatial.py`` checks the twist maps against
+Pinocchio's ``SE3.action`` and finite differences of moving frames, the rotations against scipy.
 """
 
 from __future__ import annotations
