@@ -93,9 +93,9 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
     """µs per call: eq. 19–26 + eq. 5 (visual tick, kinematic tick) and the whole task step."""
     robot = Racecar(Racecar.Params())
     rp = robot.params
-    T = rp.rear_camera.optical_transform()
+    T = rp.rear_camera.T_robot_camera()
     K = (rp.rear_camera.focal_px(),) * 2 + (320.0, 179.0)
-    kw = dict(intrinsics=K, T_rc=T, lam=np.array([0.85, 1.05, 1.0, 1.0, 1.0]), k1=np.array([1.0, 2.0]), d=rp.wheelbase,
+    kw = dict(intrinsics=K, T_robot_camera=T, lam=np.array([0.85, 1.05, 1.0, 1.0, 1.0]), k1=np.array([1.0, 2.0]), d=rp.wheelbase,
               wheelbase=rp.wheelbase, v_max=rp.v_max, psi_max=rp.psi_max)
     out = {}
     for name, seen in (("law_visual_tick_us", True), ("law_kinematic_tick_us", False)):
@@ -130,14 +130,14 @@ def render_costs(sizes: tuple[tuple[int, int], ...] = ((320, 180), (640, 360)), 
             try:
                 w.observe()
                 per = w._perceptor(cam)
-                T_wr = w.robot_pose_matrix()
-                T_wc = w.cameras[cam].pose(T_wr)
+                T_world_robot = w.T_world_robot()
+                T_world_camera = w.cameras[cam].pose(T_world_robot)
                 ts = []
                 for _ in range(frames):
                     if w._lidar is not None:
                         w._lidar.next_scan = 0.0
                     t0 = time.perf_counter()
-                    per.detect(T_wc, 0.0, T_wr)
+                    per.detect(T_world_camera, 0.0, T_world_robot)
                     ts.append(time.perf_counter() - t0)
                 out[f"render_{cam}_{w_}x{h_}_ms"] = 1e3 * statistics.median(ts)
             finally:

@@ -30,21 +30,10 @@ from pydantic import ConfigDict, Field, field_validator, model_validator
 from taskflow_robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
-from taskflow_robots.geometry import rpy_matrix
+from taskflow_robots.camera import focal_px, tinyrenderer_K
+from taskflow.spatial import rpy_from_rotation, transform_from_xyz_rpy
 
 Vec3 = tuple[float, float, float]
-
-
-def matrix_rpy(R: NDArray[np.float64]) -> Vec3:
-    """Inverse of :func:`rpy_matrix` (pitch in [−π/2, π/2])."""
-    pitch = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
-    if abs(math.cos(pitch)) > 1e-9:
-        roll = math.atan2(float(R[2, 1]), float(R[2, 2]))
-        yaw = math.atan2(float(R[1, 0]), float(R[0, 0]))
-    else:  # gimbal lock: put everything in yaw
-        roll = 0.0
-        yaw = math.atan2(-float(R[0, 1]), float(R[1, 1]))
-    return (roll, pitch, yaw)
 
 
 def _finite3(name: str, v: object) -> Vec3:
@@ -94,14 +83,12 @@ class Pose(StrictModel):
         return _finite3(info.field_name, v)
 
     def matrix(self) -> NDArray[np.float64]:
-        H = np.eye(4)
-        H[:3, :3] = rpy_matrix(*self.rpy)
-        H[:3, 3] = self.xyz
-        return H
+        """``T_parent_frame`` of this pose (4x4)."""
+        return transform_from_xyz_rpy(self.xyz, self.rpy)
 
     @classmethod
     def from_matrix(cls, H: NDArray[np.float64]) -> "Pose":
-        return cls(xyz=tuple(float(x) for x in H[:3, 3]), rpy=matrix_rpy(H[:3, :3]))  # type: ignore[arg-type]
+        return cls(xyz=tuple(float(x) for x in H[:3, 3]), rpy=rpy_from_rotation(H[:3, :3]))  # type: ignore[arg-type]
 
 
 class CameraParams(StrictModel):
@@ -130,16 +117,11 @@ class CameraParams(StrictModel):
 
     def focal_px(self) -> float:
         """``fx = fy = H / (2 tan(fovy / 2))`` (the FOV is vertical)."""
-        return self.height / (2.0 * math.tan(0.5 * self.fov))
-
-    def principal_point(self) -> tuple[float, float]:
-        """TinyRenderer's principal point ``(W/2, H/2 − 1)`` (SIMULATOR_NOTES.md)."""
-        return (0.5 * self.width, 0.5 * self.height - 1.0)
+        return focal_px(self.height, self.fov)
 
     def K(self) -> NDArray[np.float64]:
-        f = self.focal_px()
-        cx, cy = self.principal_point()
-        return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+        """TinyRenderer's intrinsics (principal point ``(W/2, H/2 − 1)``, SIMULATOR_NOTES.md)."""
+        return tinyrenderer_K(self.width, self.height, self.fov)
 
 
 class ToolParams(StrictModel):

@@ -21,19 +21,8 @@ from pydantic import Field, model_validator
 
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
-
-# Rotation body (FLU) ← optical (x right, y down, z forward): the paper's eR_c written for FLU axes.
-FLU_R_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-
-
-def _rz(yaw: float) -> NDArray[np.float64]:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _ry(pitch: float) -> NDArray[np.float64]:
-    c, s = math.cos(pitch), math.sin(pitch)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+from taskflow_robots.camera import tinyrenderer_K
+from taskflow.spatial import R_FLU_OPTICAL, rotation_y, rotation_z, transform
 
 
 class QuadCamera(StrictModel):
@@ -62,16 +51,27 @@ class QuadCamera(StrictModel):
 
     def K(self) -> NDArray[np.float64]:
         """3x3 intrinsic matrix in pixels."""
-        f = self.height / (2.0 * math.tan(0.5 * self.fovy))
-        return np.array([[f, 0.0, self.width / 2.0], [0.0, f, self.height / 2.0 - 1.0], [0.0, 0.0, 1.0]])
+        return tinyrenderer_K(self.width, self.height, self.fovy)
 
-    def R(self) -> NDArray[np.float64]:
-        """``eR_c``: rotation body ← optical frame."""
-        return _ry(self.pitch) @ FLU_R_OPTICAL
+    def R_body_camera(self) -> NDArray[np.float64]:
+        """``eR_c``: rotation body ← optical frame (the optical axis pitched down by ``pitch``)."""
+        return rotation_y(self.pitch) @ R_FLU_OPTICAL
 
-    def t(self) -> NDArray[np.float64]:
+    def t_body_camera(self) -> NDArray[np.float64]:
         """``et_c``: camera origin in the body frame (m)."""
         return np.asarray(self.xyz, dtype=np.float64)
+
+    def T_body_camera(self) -> NDArray[np.float64]:
+        """``eT_c`` as a 4x4 transform: body ← optical frame."""
+        return transform(self.R_body_camera(), self.t_body_camera())
+
+    def pose_in_world(self, pose: "tuple[float, float, float, float] | list[float]"
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(R_world_camera, t_world_camera)`` of this camera on a body at ``pose = (x, y, z, yaw)``
+        (the quadcopter flies level: its body frame is turned by ``yaw`` about the world z only)."""
+        x, y, z, yaw = pose
+        R_world_body = rotation_z(yaw)
+        return R_world_body @ self.R_body_camera(), np.array([x, y, z]) + R_world_body @ self.t_body_camera()
 
 
 class QuadcopterParams(StrictModel):
@@ -104,13 +104,7 @@ class Quadcopter(Robot):
         lim = np.array([p.v_max, p.v_max, p.v_max, p.wz_max])
         return np.clip(np.asarray(nu, dtype=np.float64).reshape(4), -lim, lim)
 
-    def eTc(self) -> NDArray[np.float64]:
-        """Eq. (5): the 6x6 twist transform body ← camera."""
-        R, t = self.params.camera.R(), self.params.camera.t()
-        x, y, z = t
-        S = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-        T = np.zeros((6, 6))
-        T[:3, :3] = R
-        T[:3, 3:] = S @ R
-        T[3:, 3:] = R
-        return T
+    def T_body_camera(self) -> NDArray[np.float64]:
+        """``eT_c`` (4x4): body ← camera optical frame.  Eq. (5)'s 6x6 twist map camera → body is
+        ``taskflow.spatial.twist_adjoint(robot.T_body_camera())``."""
+        return self.params.camera.T_body_camera()

@@ -19,13 +19,10 @@ from pydantic import Field, field_validator
 
 from taskflow.api import Robot, StrictModel
 from taskflow.registry import register_robot
-from taskflow_robots.geometry import rpy_matrix
+from taskflow_robots.camera import focal_px
+from taskflow.spatial import R_body_optical, rotation_from_rpy, transform
 
 Vec3 = tuple[float, float, float]
-
-# Rotation camera body frame (x forward, y left, z up) ← optical frame (x right, y down, z forward):
-# its columns are the optical axes in the body frame.
-_BODY_TO_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 
 class Mount(StrictModel):
@@ -38,16 +35,13 @@ class Mount(StrictModel):
     xyz: Vec3
     rpy: Vec3 = (0.0, 0.0, 0.0)
 
-    def rotation(self) -> NDArray[np.float64]:
+    def R_robot_mount(self) -> NDArray[np.float64]:
         """Rotation robot ← sensor body frame."""
-        return rpy_matrix(*self.rpy)
+        return rotation_from_rpy(*self.rpy)
 
-    def transform(self) -> NDArray[np.float64]:
+    def T_robot_mount(self) -> NDArray[np.float64]:
         """4x4 homogeneous transform robot ← sensor body frame."""
-        t = np.eye(4)
-        t[:3, :3] = self.rotation()
-        t[:3, 3] = self.xyz
-        return t
+        return transform(self.R_robot_mount(), self.xyz)
 
 
 class CameraMount(Mount):
@@ -64,18 +58,17 @@ class CameraMount(Mount):
     near: float = Field(default=0.05, gt=0.0)
     far: float = Field(default=20.0, gt=0.0)
 
-    def optical_transform(self) -> NDArray[np.float64]:
+    def T_robot_camera(self) -> NDArray[np.float64]:
         """4x4 transform robot ← camera optical frame (x right, y down, z along the view, OpenCV).
 
         This is the ``(^r R_c, ^r t_c)`` of the paper's eqs. (22)–(23).
         """
-        t = self.transform()
-        t[:3, :3] = t[:3, :3] @ _BODY_TO_OPTICAL
-        return t
+        roll, pitch, yaw = self.rpy
+        return transform(R_body_optical(yaw=yaw, pitch=pitch, roll=roll), self.xyz)
 
     def focal_px(self) -> float:
         """Focal length in pixels, ``fx = fy = H / (2 tan(fovy / 2))``."""
-        return self.height / (2.0 * math.tan(0.5 * self.fov))
+        return focal_px(self.height, self.fov)
 
 
 class LidarMount(Mount):

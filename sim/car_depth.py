@@ -9,7 +9,7 @@ Conventions
   pixel centres at integer coordinates (OpenCV convention), so a projected point lands on pixel
   ``(rint(u), rint(v))``. Images are ``(height, width)`` arrays indexed ``[v, u]``; a depth of 0
   means "no data" (eq. 15 and 17 rely on it).
-* LiDAR frame: x forward, y left, z up (Velodyne). ``T_cl = ^{c}T_l`` (4x4) maps LiDAR points to
+* LiDAR frame: x forward, y left, z up (Velodyne). ``T_camera_lidar = ^{c}T_l`` (4x4) maps LiDAR points to
   camera coordinates, as in eq. 11. Beam elevations are in radians, positive up; azimuths in
   radians about the LiDAR z axis, 0 along x, positive towards y (left).
 * ``intrinsics`` is ``(fx, fy, cu, cv)`` in pixels or a 3x3 ``K``. The PyBullet TinyRenderer's
@@ -74,7 +74,7 @@ def _intrinsics(intrinsics: ArrayLike) -> tuple[float, float, float, float]:
 def _transform(T: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     a = np.asarray(T, dtype=float)
     if a.shape not in ((4, 4), (3, 4)):
-        raise ValueError(f"T_cl must be a 4x4 (or 3x4) homogeneous transform, got shape {a.shape}")
+        raise ValueError(f"T_camera_lidar must be a 4x4 (or 3x4) homogeneous transform, got shape {a.shape}")
     return a[:3, :3], a[:3, 3]
 
 
@@ -99,7 +99,7 @@ def blind_spot_radius(lidar_height: float = 1.10, lowest_beam: float = np.deg2ra
 
 def project_lidar_points(
     P_l: ArrayLike,
-    T_cl: ArrayLike,
+    T_camera_lidar: ArrayLike,
     intrinsics: ArrayLike,
     width: int,
     height: int,
@@ -107,7 +107,7 @@ def project_lidar_points(
 ) -> NDArray[np.float64]:
     """Eq. 11-12: depth image ``dI_l`` (height x width) of LiDAR points ``P_l`` (N x 3).
 
-    Each point is moved to the camera by ``T_cl``, projected with the pinhole model and written
+    Each point is moved to the camera by ``T_camera_lidar``, projected with the pinhole model and written
     on pixel ``(rint(u), rint(v))`` if that pixel is in the image and the point is in front of
     the camera. ``value`` selects what is written (module docstring): ``"range"`` = norm of the
     LiDAR point (eq. 12 as meant), ``"camera_range"`` = norm in the camera frame, ``"camera_z"``
@@ -117,7 +117,7 @@ def project_lidar_points(
         raise ValueError(f"value must be one of {_VALUES}, got {value!r}")
     w, h = _image_size(width, height)
     fx, fy, cu, cv = _intrinsics(intrinsics)
-    R, t = _transform(T_cl)
+    R, t = _transform(T_camera_lidar)
     P = np.asarray(P_l, dtype=float)
     if P.ndim != 2 or P.shape[1] != 3:
         raise ValueError(f"P_l must be an (N, 3) array, got shape {P.shape}")
@@ -230,7 +230,7 @@ def lidar_ranges_to_points(
 
 
 def blind_spot_mask(
-    T_cl: ArrayLike,
+    T_camera_lidar: ArrayLike,
     intrinsics: ArrayLike,
     width: int,
     height: int,
@@ -248,7 +248,7 @@ def blind_spot_mask(
     """
     w, h = _image_size(width, height)
     fx, fy, cu, cv = _intrinsics(intrinsics)
-    R, t = _transform(T_cl)
+    R, t = _transform(T_camera_lidar)
     if radius is None:
         radius = blind_spot_radius(lidar_height, lowest_beam)
     if not radius > 0.0:

@@ -33,6 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from taskflow_robots.camera import tinyrenderer_intrinsics
+from taskflow.spatial import rotation_angle
 from taskflow_robots.racecar import CameraMount
 
 
@@ -47,26 +49,21 @@ class CameraModel:
     depth_max: float
 
     @property
-    def fy(self) -> float:
-        return self.height / (2.0 * math.tan(0.5 * self.mount.fov))
-
-    @property
     def intrinsics(self) -> tuple[float, float, float, float]:
         """``(fx, fy, cu, cv)`` with TinyRenderer's principal point ``(W/2, H/2 - 1)``."""
-        f = self.fy
-        return (f, f, 0.5 * self.width, 0.5 * self.height - 1.0)
+        return tinyrenderer_intrinsics(self.width, self.height, self.mount.fov)
 
-    def T_rc(self) -> NDArray[np.float64]:
+    def T_robot_camera(self) -> NDArray[np.float64]:
         """Robot ← optical frame (4x4)."""
-        return self.mount.optical_transform()
+        return self.mount.T_robot_camera()
 
-    def pose(self, T_wr: NDArray[np.float64]) -> NDArray[np.float64]:
-        """World ← optical frame for a robot pose ``T_wr`` (4x4)."""
-        return T_wr @ self.T_rc()
+    def pose(self, T_world_robot: NDArray[np.float64]) -> NDArray[np.float64]:
+        """World ← optical frame for a robot pose ``T_world_robot`` (4x4)."""
+        return T_world_robot @ self.T_robot_camera()
 
-    def project(self, T_wc: NDArray[np.float64], P_w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def project(self, T_world_camera: NDArray[np.float64], P_w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Pixels ``(N, 2)`` and camera depths ``(N,)`` of world points ``(N, 3)``."""
-        R, t = T_wc[:3, :3], T_wc[:3, 3]
+        R, t = T_world_camera[:3, :3], T_world_camera[:3, 3]
         Pc = (np.asarray(P_w, dtype=float) - t) @ R  # R^T (P - t), row-wise
         fx, fy, cu, cv = self.intrinsics
         z = Pc[:, 2]
@@ -74,7 +71,7 @@ class CameraModel:
             uv = np.column_stack([fx * Pc[:, 0] / z + cu, fy * Pc[:, 1] / z + cv])
         return uv, z
 
-    def rays(self, T_wc: NDArray[np.float64], u: NDArray[np.float64], v: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def rays(self, T_world_camera: NDArray[np.float64], u: NDArray[np.float64], v: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World origin and (N, 3) directions of pixel rays, scaled so the camera-Z component is 1.
 
         With that scaling the ray parameter of a hit *is* the camera depth ``Z``.
@@ -82,21 +79,7 @@ class CameraModel:
         fx, fy, cu, cv = self.intrinsics
         dc = np.column_stack([(np.asarray(u, float) - cu) / fx, (np.asarray(v, float) - cv) / fy,
                               np.ones(np.size(u))])
-        return T_wc[:3, 3].copy(), dc @ T_wc[:3, :3].T
-
-
-def pose_matrix(position: tuple[float, ...], quaternion: tuple[float, ...]) -> NDArray[np.float64]:
-    """4x4 from a position and an ``(x, y, z, w)`` quaternion (numpy only)."""
-    x, y, z, w = quaternion
-    R = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = position
-    return T
+        return T_world_camera[:3, 3].copy(), dc @ T_world_camera[:3, :3].T
 
 
 def quantise_box(u0: float, v0: float, u2: float, v2: float) -> tuple[float, float, float, float]:
@@ -141,16 +124,16 @@ class DropoutModel:
         self.missing = False
         self._last_pose = None
 
-    def frame(self, T_wc: NDArray[np.float64]) -> bool:
-        """Advance one frame taken from camera pose ``T_wc``; True if this frame's detection is dropped."""
+    def frame(self, T_world_camera: NDArray[np.float64]) -> bool:
+        """Advance one frame taken from camera pose ``T_world_camera``; True if this frame's detection is dropped."""
         if self.miss <= 0.0:
             return False
         u = float(self.rng.random())  # one draw per frame whatever the branch: the stream stays aligned
-        last, self._last_pose = self._last_pose, T_wc.copy()
+        last, self._last_pose = self._last_pose, T_world_camera.copy()
         if last is None:  # a stream's first frame is a detection (the experiment starts from one)
             self.missing = False
             return False
-        if self._static(last, T_wc):
+        if self._static(last, T_world_camera):
             if u < self.static_flip:
                 self.missing = not self.missing
             return self.missing
@@ -164,6 +147,5 @@ class DropoutModel:
         if self.static_m <= 0.0:
             return False
         dt = float(np.linalg.norm(a[:3, 3] - b[:3, 3]))
-        c = (np.trace(a[:3, :3].T @ b[:3, :3]) - 1.0) * 0.5
-        ang = math.acos(min(1.0, max(-1.0, c)))
+        ang = rotation_angle(a[:3, :3].T @ b[:3, :3])
         return dt < self.static_m and ang < self.static_rad

@@ -38,13 +38,13 @@ class GeometricPerception:
         self.pixel_noise, self.depth_noise, self.min_pixels = pixel_noise, depth_noise, min_pixels
         self._hull = obj.hull_points()
 
-    def _depths(self, T_wc: NDArray[np.float64], u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    def _depths(self, T_world_camera: NDArray[np.float64], u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
         """Camera depth of pixel rays (0 where nothing within ``depth_max``)."""
-        o, d = self.cam.rays(T_wc, u, v)
+        o, d = self.cam.rays(T_world_camera, u, v)
         t = np.minimum(self.obj.ray_hit(o, d), ray_ground(o, d))
         return np.where(t <= self.cam.depth_max, t, 0.0)
 
-    def detect(self, T_wc: NDArray[np.float64]) -> tuple[tuple[float, float, float, float] | None, float | None,
+    def detect(self, T_world_camera: NDArray[np.float64]) -> tuple[tuple[float, float, float, float] | None, float | None,
                                                           Callable[[float, float], float | None],
                                                           Callable[[tuple[float, float, float, float]], float | None]]:
         cam = self.cam
@@ -57,14 +57,14 @@ class GeometricPerception:
         def depth_at(u: float, v: float) -> float | None:
             if not (-0.5 <= u < W - 0.5 and -0.5 <= v < H - 0.5):
                 return None
-            z = float(self._depths(T_wc, np.array([u]), np.array([v]))[0])
+            z = float(self._depths(T_world_camera, np.array([u]), np.array([v]))[0])
             return z * scale if z > 0.0 else None
 
         def depth_in(box: tuple[float, float, float, float]) -> float | None:
-            z = self._object_depth(T_wc, pixel_box(box))
+            z = self._object_depth(T_world_camera, pixel_box(box))
             return z * scale if z is not None else None
 
-        uv, z = cam.project(T_wc, self._hull)
+        uv, z = cam.project(T_world_camera, self._hull)
         front = z > cam.mount.near
         if not np.any(front):
             return None, None, depth_at, depth_in
@@ -81,13 +81,13 @@ class GeometricPerception:
         a, c, b, d = max(a, 0), max(c, 0), min(b, W - 1), min(d, H - 1)
         if a > b or c > d or (b - a + 1) * (d - c + 1) < self.min_pixels:
             return None, None, depth_at, depth_in
-        if not self._line_of_sight(T_wc):
+        if not self._line_of_sight(T_world_camera):
             return None, None, depth_at, depth_in
         bbox = (a - 0.5, c - 0.5, b + 0.5, d + 0.5)
-        depth = self._object_depth(T_wc, (a, c, b, d))
+        depth = self._object_depth(T_world_camera, (a, c, b, d))
         return bbox, (depth * scale if depth is not None else None), depth_at, depth_in
 
-    def _object_depth(self, T_wc: NDArray[np.float64], pbox: tuple[int, int, int, int]) -> float | None:
+    def _object_depth(self, T_world_camera: NDArray[np.float64], pbox: tuple[int, int, int, int]) -> float | None:
         """Eq. 16–17 over the pixel centres of the shrunk box."""
         umin, vmin, umax, vmax = shrunk_box(np.asarray(pbox, dtype=float))
         umin, vmin = max(umin, 0), max(vmin, 0)
@@ -99,14 +99,14 @@ class GeometricPerception:
         us = np.arange(umin, umax + 1, su, dtype=float)
         vs = np.arange(vmin, vmax + 1, su, dtype=float)
         U, V = np.meshgrid(us, vs)
-        z = self._depths(T_wc, U.ravel(), V.ravel())
+        z = self._depths(T_world_camera, U.ravel(), V.ravel())
         ok = z > 0.0
         if not np.any(ok):
             return None
         return float(z[ok].mean())
 
-    def _line_of_sight(self, T_wc: NDArray[np.float64]) -> bool:
-        start = T_wc[:3, 3]
+    def _line_of_sight(self, T_world_camera: NDArray[np.float64]) -> bool:
+        start = T_world_camera[:3, 3]
         end = self.obj.centre()
         hit = p.rayTest(start.tolist(), end.tolist(), physicsClientId=self.client)[0]
         return hit[0] in (-1, self.body)

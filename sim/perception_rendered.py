@@ -62,13 +62,13 @@ class LidarScanner:
         self.scans = 0
         self.scan_s = 0.0
 
-    def maybe_scan(self, t: float, T_wr: NDArray[np.float64]) -> None:
+    def maybe_scan(self, t: float, T_world_robot: NDArray[np.float64]) -> None:
         if t + 1e-9 < self.next_scan:
             return
         self.next_scan = t + 1.0 / self.mount.rate_hz
         t0 = time.perf_counter()
-        T_wl = T_wr @ self.mount.transform()
-        R, o = T_wl[:3, :3], T_wl[:3, 3]
+        T_world_lidar = T_world_robot @ self.mount.T_robot_mount()
+        R, o = T_world_lidar[:3, :3], T_world_lidar[:3, 3]
         rng = self.mount.max_range
         ends = o + (self._dirs @ R.T) * rng
         starts = np.broadcast_to(o, ends.shape)
@@ -90,21 +90,23 @@ class RenderedPerception:
         self._proj = p.computeProjectionMatrixFOV(math.degrees(m.fov), camera.width / camera.height, m.near, m.far)
         self._mask: NDArray[np.bool_] | None = None
         if lidar is not None:
-            T_cl = np.linalg.inv(camera.T_rc()) @ lidar.mount.transform()
-            self._mask = blind_spot_mask(T_cl, camera.intrinsics, camera.width, camera.height,
+            # numpy's general (LU) inverses here, not spatial.inverse: the closed form differs in the last bits
+            # (kept so the rendered runs' records stay the same)
+            T_camera_lidar = np.linalg.inv(camera.T_robot_camera()) @ lidar.mount.T_robot_mount()
+            self._mask = blind_spot_mask(T_camera_lidar, camera.intrinsics, camera.width, camera.height,
                                          lidar_height=lidar.mount.xyz[2], lowest_beam=lidar.mount.v_fov[0])
         self.render_s = 0.0
         self.fusion_s = 0.0
         self.frames = 0
         self.last_depth: NDArray[np.float64] | None = None
 
-    def detect(self, T_wc: NDArray[np.float64], t: float, T_wr: NDArray[np.float64]) -> tuple[
+    def detect(self, T_world_camera: NDArray[np.float64], t: float, T_world_robot: NDArray[np.float64]) -> tuple[
             tuple[float, float, float, float] | None, float | None, Callable[[float, float], float | None],
             Callable[[tuple[float, float, float, float]], float | None]]:
         cam, m = self.cam, self.cam.mount
         W, H = cam.width, cam.height
-        eye = T_wc[:3, 3]
-        view = p.computeViewMatrix(eye.tolist(), (eye + T_wc[:3, 2]).tolist(), (-T_wc[:3, 1]).tolist())
+        eye = T_world_camera[:3, 3]
+        view = p.computeViewMatrix(eye.tolist(), (eye + T_world_camera[:3, 2]).tolist(), (-T_world_camera[:3, 1]).tolist())
         t0 = time.perf_counter()
         _, _, _, zbuf, seg = p.getCameraImage(W, H, view, self._proj, shadow=0, renderer=p.ER_TINY_RENDERER,
                                               physicsClientId=self.client)
@@ -115,8 +117,9 @@ class RenderedPerception:
         depth = m.far * m.near / (m.far - (m.far - m.near) * d)
         depth = np.where((d < 1.0 - 1e-7) & (depth <= cam.depth_max), depth, 0.0)
         if self.lidar is not None and self._mask is not None:
-            self.lidar.maybe_scan(t, T_wr)
-            dI_l = project_lidar_points(self.lidar.points_w, np.linalg.inv(T_wc), cam.intrinsics, W, H,
+            self.lidar.maybe_scan(t, T_world_robot)
+            # (numpy inverse kept: see __init__)
+            dI_l = project_lidar_points(self.lidar.points_w, np.linalg.inv(T_world_camera), cam.intrinsics, W, H,
                                         value="camera_z")
             depth = fuse_depth(dI_l, depth, self._mask)
         self.last_depth = depth

@@ -27,6 +27,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from taskflow.spatial import quaternion_from_rotation, rotation_from_quaternion
 from taskflow_robots.quadcopter import QuadCamera
 
 OBSTACLE_RGB = (0.1, 0.8, 0.15)
@@ -185,8 +186,8 @@ class QuadScene:
     def set_drone_pose(self, x: float, y: float, z: float, yaw: float) -> None:
         """Place the body frame at ``(x, y, z)`` with heading ``yaw`` (kinematic)."""
         q = p.getQuaternionFromEuler([0.0, 0.0, yaw])
-        R = np.asarray(p.getMatrixFromQuaternion(q)).reshape(3, 3)
-        pos = np.array([x, y, z]) + R @ self.inertial_offset
+        R_world_body = rotation_from_quaternion(q)
+        pos = np.array([x, y, z]) + R_world_body @ self.inertial_offset
         p.resetBasePositionAndOrientation(self.drone, pos.tolist(), q, physicsClientId=self.client)
 
     def clearances(self, max_distance: float = 5.0) -> tuple[float, float]:
@@ -205,12 +206,9 @@ class QuadScene:
 
     # -- the camera --------------------------------------------------------------------------------
     def _camera_image(self, pose: tuple[float, float, float, float], cam: QuadCamera) -> tuple:
-        x, y, z, yaw = pose
-        Rb = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
-        Rc = Rb @ cam.R()
-        eye = np.array([x, y, z]) + Rb @ cam.t()
-        target = eye + Rc[:, 2]
-        up = -Rc[:, 1]
+        R_world_camera, eye = cam.pose_in_world(pose)
+        target = eye + R_world_camera[:, 2]
+        up = -R_world_camera[:, 1]
         view = p.computeViewMatrix(eye.tolist(), target.tolist(), up.tolist())
         proj = p.computeProjectionMatrixFOV(math.degrees(cam.fovy), cam.width / cam.height, cam.near, cam.far)
         _, _, rgba, depth, _ = p.getCameraImage(cam.width, cam.height, view, proj, renderer=p.ER_TINY_RENDERER,
@@ -274,29 +272,13 @@ def _build_room(client: int, tmp: Path, room: Room, rng: np.random.Generator, px
         _quad_obj(obj, (corners - centre) @ R)  # vertices in the body frame
         vis = p.createVisualShape(p.GEOM_MESH, fileName=str(obj), physicsClientId=client)
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.5 * w, 0.5 * hh, 0.01], physicsClientId=client)
-        body = p.createMultiBody(0.0, col, vis, centre.tolist(), _quat_from_matrix(R), physicsClientId=client)
+        body = p.createMultiBody(0.0, col, vis, centre.tolist(), quaternion_from_rotation(R), physicsClientId=client)
         tid = p.loadTexture(str(png), physicsClientId=client)
         p.changeVisualShape(body, -1, textureUniqueId=tid, rgbaColor=[1, 1, 1, 1], physicsClientId=client)
         bodies.append(body)
     return bodies
 
 
-def _quat_from_matrix(R: NDArray[np.float64]) -> list[float]:
-    """Quaternion ``[x, y, z, w]`` of a rotation matrix (Shepperd's method)."""
-    m = np.asarray(R, dtype=np.float64)
-    tr = np.trace(m)
-    if tr > 0.0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * math.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        q = [0.0, 0.0, 0.0, (m[k, j] - m[j, k]) / s]
-        q[i] = 0.25 * s
-        q[j] = (m[j, i] + m[i, j]) / s
-        q[k] = (m[k, i] + m[i, k]) / s
-    return q
 
 
 def _build_column(client: int, c: Column, rgb: tuple[float, float, float]) -> int:

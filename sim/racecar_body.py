@@ -31,7 +31,7 @@ import pybullet as p
 import pybullet_data
 from numpy.typing import NDArray
 
-from taskflow_tasks.car_kinematics import (
+from taskflow_robots.racecar_kinematics import (
     ackermann_wheel_angles,
     bicycle_from_wheel_angles,
     differential_wheel_speeds,

@@ -166,15 +166,6 @@ class QuadRoomParams(StrictModel):
         return self
 
 
-def camera_pose_matrices(pose: Sequence[float], R_bc: NDArray[np.float64],
-                         t_bc: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """World ← camera rotation and camera position for the body at ``pose = (x, y, z, yaw)``."""
-    x, y, z, yaw = pose
-    c, s = math.cos(yaw), math.sin(yaw)
-    Rb = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return Rb @ R_bc, np.array([x, y, z]) + Rb @ t_bc
-
-
 @register_world("quad_room")
 class QuadRoom(World):
     """A textured room, green columns and the quadcopter with its forward camera."""
@@ -289,7 +280,7 @@ class QuadRoom(World):
                                                           tuple[int, int]]:
         """World ← optical rotation, camera position, intrinsics and image size at ``pose``."""
         cam = self.robot.params.camera
-        R, t = camera_pose_matrices(pose, cam.R(), cam.t())
+        R, t = cam.pose_in_world(pose)
         return R, t, cam.K(), (cam.width, cam.height)
 
     def _point_view(self, pose: Sequence[float]) -> PointView:
@@ -428,9 +419,9 @@ class QuadRoom(World):
         cam = self.robot.params.camera
         K = cam.K()
         if self.params.perception == "geometric":  # the landmarks the keyframe sees, exact
-            Rk, tk = camera_pose_matrices(kf.pose, cam.R(), cam.t())
+            Rk, tk = cam.pose_in_world(kf.pose)
             ids, uv_k = visible_landmarks(self.landmarks, self.columns, Rk, tk, K, (cam.width, cam.height))
-            R, t = camera_pose_matrices(self.pose if pose is None else pose, cam.R(), cam.t())
+            R, t = cam.pose_in_world(self.pose if pose is None else pose)
             z, uv = project(self.landmarks[ids], R, t, K)
             front = z > 0.05
             return float(np.mean(np.linalg.norm(uv[front] - uv_k[front], axis=1))) if np.any(front) else math.nan
@@ -445,9 +436,9 @@ class QuadRoom(World):
         ok = Z < 0.99 * cam.far
         uv, Z = uv[ok], Z[ok]
         Xc = np.column_stack(((uv[:, 0] - K[0, 2]) / K[0, 0] * Z, (uv[:, 1] - K[1, 2]) / K[1, 1] * Z, Z))
-        Rk, tk = camera_pose_matrices(kf.pose, cam.R(), cam.t())
+        Rk, tk = cam.pose_in_world(kf.pose)
         Xw = Xc @ Rk.T + tk
-        R, t = camera_pose_matrices(self.pose if pose is None else pose, cam.R(), cam.t())
+        R, t = cam.pose_in_world(self.pose if pose is None else pose)
         Xn = (Xw - t) @ R
         front = Xn[:, 2] > 0.05
         if not np.any(front):
@@ -456,9 +447,10 @@ class QuadRoom(World):
         return float(np.mean(np.linalg.norm(proj - uv[front], axis=1)))
 
     @classmethod
-    def teach(cls, mission: Any, out_dir: str | Path | None = None, seed: int | None = None) -> list[Path]:
-        """Hook for a ``taskflow teach MISSION`` command: see :func:`teach`."""
-        return teach(mission, out_dir, seed)
+    def teach(cls, robot: Robot, params: StrictModel, out_dir: str | Path, seed: int, name: str = "") -> list[Path]:
+        """Hook for the ``taskflow teach MISSION`` command (which loads the mission and passes its robot,
+        world parameters drawn with ``seed``, the output folder and the mission's name): see :func:`teach`."""
+        return teach(robot, params, out_dir, seed, name)
 
     def summary_metrics(self) -> dict[str, Any]:
         """Collisions and clearances over the run; final errors against the last taught pose."""
@@ -481,28 +473,23 @@ class QuadRoom(World):
         return out
 
 
-def teach(mission: Any, out_dir: str | Path | None = None, seed: int | None = None) -> list[Path]:
-    """Teach-by-showing: render the keyframes of ``mission`` (a path or a loaded mission) at their taught
-    poses and store them as PNG files plus ``keyframes.json`` (poses, camera, texture seed).
+def teach(robot: Robot, params: StrictModel, out_dir: str | Path, seed: int, name: str = "") -> list[Path]:
+    """Teach-by-showing: render the keyframes of ``params`` (a quad_room world's parameters, their
+    distributions already drawn with ``seed``) at their taught poses, seen by ``robot``'s camera, and store
+    them in ``out_dir`` as PNG files plus ``keyframes.json`` (poses, camera, texture seed; ``name`` is the
+    mission's name, recorded there).
 
-    Returns the written paths (images first, then the JSON).  Default ``out_dir``:
-    ``<mission dir>/keyframes/<mission name>``.  Point the mission at them with
-    ``--set world.params.keyframe_dir=DIR``.
+    Returns the written paths (images first, then the JSON).  ``taskflow teach MISSION`` loads the mission
+    and passes these (default ``out_dir``: ``<mission dir>/keyframes/<mission name>``).  Point the mission
+    at them with ``--set world.params.keyframe_dir=DIR``.
     """
-    from taskflow.loader import CompiledMission, load_mission
-
-    m = mission if isinstance(mission, CompiledMission) else load_mission(mission)
-    if m.world_cls is not QuadRoom:
-        raise ValueError(f"teach needs a quad_room mission, {m.name!r} uses world {m.world_cls.name!r}")
-    seed = m.spec.seed if seed is None else seed
-    params = m.world_params(seed)
-    assert isinstance(params, QuadRoomParams)
+    if not isinstance(params, QuadRoomParams):
+        raise ValueError(f"teach needs quad_room world parameters, got {type(params).__name__}")
     if not params.keyframes:
-        raise ValueError(f"mission {m.name!r} has no keyframes to teach")
+        raise ValueError(f"mission {name!r} has no keyframes to teach")
     params = params.model_copy(update={"keyframe_dir": None, "perception": "rendered"})  # teaching renders
-    robot = m.build_robot()
     world = QuadRoom(robot, params, seed)
-    out = Path(out_dir) if out_dir is not None else Path(m.file).resolve().parent / "keyframes" / m.name
+    out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     try:
@@ -514,8 +501,8 @@ def teach(mission: Any, out_dir: str | Path | None = None, seed: int | None = No
                 raise OSError(f"could not write {f}")
             written.append(f)
             entries.append({"id": k.id, "pose": list(k.pose), "image": f.name})
-        cam = robot.params.camera
-        meta = {"mission": m.name, "texture_seed": params.texture_seed, "keyframes": entries,
+        cam = world.robot.params.camera
+        meta = {"mission": name, "texture_seed": params.texture_seed, "keyframes": entries,
                 "camera": {"width": cam.width, "height": cam.height, "fovy": cam.fovy, "K": cam.K().tolist()}}
         jf = out / "keyframes.json"
         jf.write_text(json.dumps(meta, indent=1))

@@ -13,7 +13,7 @@
   functions of the pose, not white), plus a visibility test (in the image with a margin, facing the
   camera, within range).
 
-Both modes report a :class:`Detection` with the capture time; it becomes visible to the robot
+Both modes report a :class:`MarkerDetection` with the capture time; it becomes visible to the robot
 ``latency`` seconds later (image transfer + processing, as on the real system).
 """
 
@@ -26,6 +26,8 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from taskflow_robots.camera import tinyrenderer_intrinsics
+from taskflow.spatial import rotation_angle, transform
 from taskflow_robots.mobile_iiwa import CameraParams
 from taskflow_sim.screw_scene import MARKER_DICT, MARKER_ID, MARKER_SIZE
 
@@ -34,7 +36,7 @@ APRILTAG_OFFSET_PX = 0.5
 
 
 @dataclass
-class Detection:
+class MarkerDetection:
     """One camera frame's result: ``H_co`` (None: marker not found) captured at ``t``."""
 
     t: float
@@ -126,8 +128,7 @@ def window_projection(cam: CameraParams, u0: int, v0: int, w: int, h: int) -> li
     reduce to PyBullet's symmetric ``computeProjectionMatrixFOV``).  This is an industrial camera's
     region-of-interest readout: full-resolution pixels, a fraction of the rendering cost.
     """
-    f = cam.focal_px()
-    cx, cy = cam.principal_point()
+    f, _, cx, cy = tinyrenderer_intrinsics(cam.width, cam.height, cam.fov)
     n, fa = cam.near, cam.far
     left, right = n * (u0 - cx) / f, n * (u0 + w - cx) / f
     top, bottom = -n * (v0 - 1 - cy) / f, -n * (v0 + h - 1 - cy) / f
@@ -234,31 +235,28 @@ class RenderedDetector:
             return None, math.inf
         cands = []
         for rv, tv, e in zip(rvecs, tvecs, np.ravel(errs), strict=False):
-            R, _ = cv2.Rodrigues(rv)
-            H = np.eye(4)
-            H[:3, :3] = R
-            H[:3, 3] = tv.ravel()
-            cands.append((float(e), H))
+            R_cm, _ = cv2.Rodrigues(rv)
+            cands.append((float(e), transform(R_cm, tv.ravel())))
         cands.sort(key=lambda c: c[0])
         best = cands[0]
         if len(cands) > 1 and self.last is not None and cands[1][0] < 1.5 * cands[0][0] + 0.05:
             last = self.last
 
             def dist(H: NDArray[np.float64]) -> float:
-                return float(np.arccos(np.clip((np.trace(H[:3, :3].T @ last[:3, :3]) - 1) / 2, -1, 1)))
+                return rotation_angle(H[:3, :3].T @ last[:3, :3])
 
             best = min(cands[:2], key=lambda c: dist(c[1]))
         return best[1], best[0]
 
-    def __call__(self, H_wc: NDArray[np.float64], t: float) -> Detection:
+    def __call__(self, H_wc: NDArray[np.float64], t: float) -> MarkerDetection:
         self.frames += 1
         pts = self.locate(H_wc)
         if pts is None:
             self.last_center = self.prev_center = None
-            return Detection(t, None)
+            return MarkerDetection(t, None)
         centre = pts.mean(axis=0)
         self.prev_center, self.last_center = self.last_center, centre
         H, err = self.solve(pts)
         if H is not None:
             self.last = H
-        return Detection(t, H, err if H is not None else 0.0)
+        return MarkerDetection(t, H, err if H is not None else 0.0)

@@ -23,19 +23,9 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from taskflow.spatial import quaternion_from_yaw, rotation_from_quaternion, transform_from_pose, transform_xyz_yaw
 from taskflow_robots.iiwa_urdf import ARM_JOINTS, CAMERA_LINK, TOOL_JOINT, TOOL_TIP, write_urdf
 from taskflow_robots.mobile_iiwa import MobileIiwa
-
-
-def quat_of_yaw(yaw: float) -> list[float]:
-    return [0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)]
-
-
-def pose_matrix(pos: "list[float] | tuple[float, ...]", orn: "list[float] | tuple[float, ...]") -> NDArray[np.float64]:
-    H = np.eye(4)
-    H[:3, :3] = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
-    H[:3, 3] = pos
-    return H
 
 
 @dataclass
@@ -71,7 +61,7 @@ class MobileIiwaBody:
         self.robot = robot
         rp = robot.params
         self.path = write_urdf(robot.urdf_text)
-        self.id = p.loadURDF(str(self.path), basePosition=[start[0], start[1], 0.0], baseOrientation=quat_of_yaw(start[2]),
+        self.id = p.loadURDF(str(self.path), basePosition=[start[0], start[1], 0.0], baseOrientation=quaternion_from_yaw(start[2]),
                              useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
         names = {}
         links = {}
@@ -153,7 +143,7 @@ class MobileIiwaBody:
         self._pose = integrate_planar(self._pose, mean, h)
         self._tw = new
         x, y, th = self._pose
-        p.resetBasePositionAndOrientation(self.id, [x, y, 0.0], quat_of_yaw(th), physicsClientId=self.client)
+        p.resetBasePositionAndOrientation(self.id, [x, y, 0.0], quaternion_from_yaw(th), physicsClientId=self.client)
 
     def sync_state(self) -> None:
         """Publish the platform's pose and twist as arrays (once per control tick, not per step)."""
@@ -203,7 +193,7 @@ class MobileIiwaBody:
         self._pose = (float(pose[0]), float(pose[1]), float(pose[2]))
         self.platform.pose = np.array(self._pose)
         x, y, th = self._pose
-        p.resetBasePositionAndOrientation(self.id, [x, y, 0.0], quat_of_yaw(th), physicsClientId=self.client)
+        p.resetBasePositionAndOrientation(self.id, [x, y, 0.0], quaternion_from_yaw(th), physicsClientId=self.client)
 
     # -- sensing --------------------------------------------------------------------------------
     def joints(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -214,7 +204,7 @@ class MobileIiwaBody:
         """World pose of a link's URDF frame (``getLinkState`` [4], [5], not the centre of mass);
         ``fk=False`` reads the poses of the last ``stepSimulation`` (cheaper)."""
         ls = p.getLinkState(self.id, link, computeForwardKinematics=fk, physicsClientId=self.client)
-        return pose_matrix(ls[4], ls[5])
+        return transform_from_pose(ls[4], ls[5])
 
     def tip_pose(self) -> NDArray[np.float64]:
         return self.link_pose(self.tip_link)
@@ -224,16 +214,12 @@ class MobileIiwaBody:
 
     def base_pose(self) -> NDArray[np.float64]:
         x, y, th = self._pose
-        H = np.eye(4)
-        c, s = math.cos(th), math.sin(th)
-        H[:2, :2] = [[c, -s], [s, c]]
-        H[:3, 3] = [x, y, 0.0]
-        return H
+        return transform_xyz_yaw(x, y, 0.0, th)
 
     def link_rotation(self, link: int) -> NDArray[np.float64]:
         """World rotation of a link's URDF frame as of the last ``stepSimulation``."""
         ls = p.getLinkState(self.id, link, physicsClientId=self.client)
-        return np.array(p.getMatrixFromQuaternion(ls[5])).reshape(3, 3)
+        return rotation_from_quaternion(ls[5])
 
     def sim_base_planar(self) -> tuple[float, float, float]:
         """The platform's planar pose ``(x, y, yaw)`` as PyBullet has it (ground truth, not the

@@ -18,7 +18,6 @@ soft (``contactStiffness``/``contactDamping``).
 
 from __future__ import annotations
 
-import math
 import os
 import tempfile
 from dataclasses import dataclass
@@ -27,6 +26,8 @@ from pathlib import Path
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
+
+from taskflow.spatial import inverse, quaternion_from_yaw, transform, transform_xyz_yaw
 
 PART_SIZE = (0.40, 0.24, 0.13)  # length (x_P), width (y_P), height (m)
 CONVEYOR_TOP = 0.72  # m; the part's top face is at CONVEYOR_TOP + PART_SIZE[2]
@@ -52,23 +53,19 @@ def bolt_frames_in_P() -> list[NDArray[np.float64]]:
     """Bolt operation frames ``H_Pt_i`` (head top centre, z into the part)."""
     out = []
     for x, y in BOLTS_XY:
-        H = np.eye(4)
-        H[:3, :3] = R_PT
-        H[:3, 3] = (x, y, BOLT_HEIGHT)
-        out.append(H)
+        out.append(transform(R_PT, (x, y, BOLT_HEIGHT)))
     return out
 
 
 def marker_in_P() -> NDArray[np.float64]:
-    H = np.eye(4)
-    H[:3, 3] = MARKER_IN_P
-    return H
+    """``H_Pm``: the marker frame in the part frame (a translation)."""
+    return transform(np.eye(3), MARKER_IN_P)
 
 
 def screw_poses_in_marker() -> list[NDArray[np.float64]]:
     """The true ``H_ot_i`` (what a mission's ``screws`` parameter should hold)."""
-    Hm_inv = np.linalg.inv(marker_in_P())
-    return [Hm_inv @ H for H in bolt_frames_in_P()]
+    H_mP = inverse(marker_in_P())
+    return [H_mP @ H for H in bolt_frames_in_P()]
 
 
 TEXTURE_PX_PER_CELL = 64
@@ -180,13 +177,10 @@ def add_part(client: int, contact_stiffness: float, contact_damping: float) -> P
 
 def set_part_planar(client: int, bodies: PartBodies, x: float, y: float, yaw: float) -> None:
     """Place the part's frame ``P`` at ``(x, y, top height)`` with heading ``yaw`` (its marker follows)."""
-    q = [0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)]
+    q = quaternion_from_yaw(yaw)
     p.resetBasePositionAndOrientation(bodies.part, [x, y, part_top_height()], q, physicsClientId=client)
 
 
 def planar_pose(x: float, y: float, yaw: float, z: float) -> NDArray[np.float64]:
-    H = np.eye(4)
-    c, s = math.cos(yaw), math.sin(yaw)
-    H[:2, :2] = [[c, -s], [s, c]]
-    H[:3, 3] = (x, y, z)
-    return H
+    """``T_world_frame`` of a frame at ``(x, y, z)`` turned by ``yaw`` about z."""
+    return transform_xyz_yaw(x, y, z, yaw)

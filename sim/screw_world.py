@@ -78,10 +78,11 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim import screw_scene as sc
 from taskflow_sim.screw_motion import PartMotion
-from taskflow_sim.screw_perception import Detection, PoseNoise, RenderedDetector, visible
+from taskflow_sim.screw_perception import MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow.api import Command, Observation, Robot, StrictModel, World
 from taskflow.registry import register_world
+from taskflow.spatial import rotation_angle
 
 GRAVITY = 9.81
 
@@ -212,6 +213,8 @@ class ScrewConveyor(World):
         self.noise = PoseNoise(r_sense, wp.noise_xy, wp.noise_z, wp.noise_r, wp.noise_tau)
         self.detector = RenderedDetector(c, rp.camera, roi=wp.roi_px) if wp.perception == "rendered" else None
         self.H_bc = rp.H_bc()
+        # numpy's general (LU) inverse, not spatial.inverse: the closed form differs in the last bits and
+        # those propagate into the screw missions' traces (they were recorded with this one)
         self._H_cb = np.linalg.inv(self.H_bc)
         self._H_Pm = sc.marker_in_P()
         self._cam_K = rp.camera.K()
@@ -220,7 +223,7 @@ class ScrewConveyor(World):
         self._cam_period = 1.0 / rp.camera.rate_hz
         self._next_capture = 0.0
         self._frame = 0
-        self._queue: list[Detection] = []
+        self._queue: list[MarkerDetection] = []
         self._perr: list[tuple[float, float, float]] = []
         self._marker: dict[str, Any] | None = None
         self._seq = 0
@@ -295,7 +298,7 @@ class ScrewConveyor(World):
         axial = float(d @ z)
         lateral = float(np.linalg.norm(d - axial * z))
         Rrel = B[:3, :3].T @ tip[:3, :3]
-        rot = math.acos(max(-1.0, min(1.0, 0.5 * (np.trace(Rrel) - 1.0))))
+        rot = rotation_angle(Rrel)
         tilt = math.acos(max(-1.0, min(1.0, float(tip[:3, 2] @ z))))
         return bolt, float(np.linalg.norm(d)), rot, lateral, axial, tilt
 
@@ -371,21 +374,20 @@ class ScrewConveyor(World):
     def _capture(self, t: float) -> None:
         wp = self.params
         if self._occluded(t):
-            det = Detection(t, None)
+            det = MarkerDetection(t, None)
         elif self.detector is not None:
             det = self.detector(self.body.camera_pose(), t)
         else:
             H = self.true_H_co()
             if not visible(self.robot.params.camera, H, K=self._cam_K) or self._rng_sense.random() < wp.dropout:
-                det = Detection(t, None)
+                det = MarkerDetection(t, None)
             else:
-                det = Detection(t, self.noise.apply(H, t))
+                det = MarkerDetection(t, self.noise.apply(H, t))
         if det.H_co is not None:  # perception error against the truth at capture (camera frame)
             truth = self.true_H_co()
             d = det.H_co[:3, 3] - truth[:3, 3]
             R = det.H_co[:3, :3] @ truth[:3, :3].T
-            self._perr.append((math.hypot(d[0], d[1]), abs(d[2]),
-                               math.acos(max(-1.0, min(1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0))))))
+            self._perr.append((math.hypot(d[0], d[1]), abs(d[2]), rotation_angle(R)))
         self._queue.append(det)
 
     def _deliver(self, t: float) -> None:

@@ -46,7 +46,8 @@ from pydantic import Field, model_validator
 from taskflow_robots.racecar import CameraMount
 from taskflow_robots.sensors import CAMERAS, Detection, active_camera_from_command
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
-from taskflow_sim.perception_common import CameraModel, DropoutModel, pose_matrix
+from taskflow.spatial import rotation_from_unit_quaternion, transform
+from taskflow_sim.perception_common import CameraModel, DropoutModel
 from taskflow_sim.perception_geometric import GeometricPerception
 from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
@@ -182,10 +183,10 @@ class VikiGround(FlatGround):
             raise RuntimeError("viki_ground: call reset() before using the world")
         return self.object
 
-    def robot_pose_matrix(self) -> np.ndarray:
+    def T_world_robot(self) -> np.ndarray:
         """World ← robot (rear-axle midpoint) 4x4 from the simulator (full 3-D, ground truth)."""
         pos, q = self._require_scene().car._base_frame()
-        return pose_matrix(pos, q)
+        return transform(rotation_from_unit_quaternion(q), pos)
 
     # --- the loop --------------------------------------------------------------------------------
     def observe(self) -> Observation:
@@ -210,16 +211,16 @@ class VikiGround(FlatGround):
     def _new_frame(self, name: str) -> float:
         """Capture and detect on camera ``name``; returns the wall-clock seconds perception took."""
         cam = self.cameras[name]
-        T_wr = self.robot_pose_matrix()
-        T_wc = cam.pose(T_wr)
+        T_world_robot = self.T_world_robot()
+        T_world_camera = cam.pose(T_world_robot)
         t0 = time.perf_counter()
         per = self._perceptor(name)
         if self.params.perception == "geometric":
-            bbox, depth, depth_at, depth_in = per.detect(T_wc)
+            bbox, depth, depth_at, depth_in = per.detect(T_world_camera)
         else:
-            bbox, depth, depth_at, depth_in = per.detect(T_wc, self.t, T_wr)
+            bbox, depth, depth_at, depth_in = per.detect(T_world_camera, self.t, T_world_robot)
         perception_s = time.perf_counter() - t0
-        dropped = self._dropout.frame(T_wc) if self._dropout is not None else False
+        dropped = self._dropout.frame(T_world_camera) if self._dropout is not None else False
         self.frames += 1
         if bbox is not None:
             if dropped:

@@ -24,14 +24,12 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from taskflow_robots.racecar_kinematics import require_positive as _positive
+
 FloatArray = NDArray[np.float64]
 
-
-def _positive(name: str, value: float) -> float:
-    value = float(value)
-    if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return value
+# The vehicle's own model (Ackermann hinge angles, electronic differential) is the robot's: it lives in
+# taskflow_robots.racecar_kinematics, which the simulated body uses too (sim/ must not import tasks/).
 
 
 def _pose(pose: ArrayLike) -> FloatArray:
@@ -148,47 +146,3 @@ def car_command(
         v = math.copysign(v_min, sign)
     psi = steering_from_twist(v, w, wheelbase, psi_max)
     return saturate(v, psi, v_max, psi_max)
-
-
-def ackermann_wheel_angles(psi: float, wheelbase: float, track: float) -> tuple[float, float]:
-    """Left and right steering-hinge angles ``(psi_left, psi_right)`` for the bicycle angle ``psi``.
-
-    Ackermann geometry: every wheel axis passes through the instantaneous centre of rotation on the
-    rear-axle line at ``R = L / tan(psi)`` (left of the car when ``psi > 0``).  A hinge at lateral
-    offset ``y = ±track/2`` steers ``atan(L / (R - y))``, i.e.
-    ``tan(psi_i) = L tan(psi) / (L - y tan(psi))``.  For ``psi > 0`` the left wheel is the inner
-    (larger) angle; both are 0 for ``psi = 0``.
-    """
-    wheelbase = _positive("wheelbase", wheelbase)
-    track = _positive("track", track)
-    t = math.tan(psi)
-    half = 0.5 * track
-    left = math.atan2(wheelbase * t, wheelbase - half * t)
-    right = math.atan2(wheelbase * t, wheelbase + half * t)
-    return float(left), float(right)
-
-
-def bicycle_from_wheel_angles(psi_left: float, psi_right: float, wheelbase: float, track: float) -> float:
-    """Inverse of :func:`ackermann_wheel_angles`: ``cot(psi) = (cot(psi_l) + cot(psi_r)) / 2``."""
-    _positive("wheelbase", wheelbase)
-    _positive("track", track)
-    tl, tr = math.tan(psi_left), math.tan(psi_right)
-    if tl + tr == 0.0:
-        return 0.0
-    return float(math.atan(2.0 * tl * tr / (tl + tr)))
-
-
-def differential_wheel_speeds(
-    v: float, psi: float, wheelbase: float, track: float, radius: float
-) -> tuple[float, float]:
-    """Rear wheel angular speeds ``(omega_left, omega_right)`` in rad/s (electronic differential).
-
-    Rear wheels at ``y = ±track/2`` move at ``v (1 ∓ track tan(psi) / (2 L))`` around the centre of
-    rotation, so the yaw rate is ``v tan(psi) / L`` without the wheels fighting each other; divided by
-    the wheel radius.  Positive is rolling forward.
-    """
-    wheelbase = _positive("wheelbase", wheelbase)
-    track = _positive("track", track)
-    radius = _positive("radius", radius)
-    k = 0.5 * track * math.tan(psi) / wheelbase
-    return float(v * (1.0 - k) / radius), float(v * (1.0 + k) / radius)

@@ -28,7 +28,8 @@ As-meant readings (see also /work/shared/REFERENCE.md section 1)
   a *camera* twist to the *robot* twist (``^rW_c``). Eq. 20 needs the opposite direction
   (robot twist -> camera twist), ``^cW_r = (^rW_c)^-1 = [[R^T, -R^T [t]x], [0, R^T]]``, which
   is eq. 22's form evaluated with the inverse transform ``(^cR_r, ^ct_r) = (R^T, -R^T t)``.
-  :func:`twist_transform` returns that matrix; the tests check it against the numerical
+  :func:`taskflow.spatial.twist_adjoint_inverse` ``(T_robot_camera)`` returns that matrix (the
+  framework's one twist map, named by its direction); the tests check it against the numerical
   derivative of the camera pose of a car driven with the unicycle model.
 * The gains ``lambda`` (section III-A: front ``[0.85, 0.3, 1, 1, 1]``, rear
   ``[0.85, 1.05, 1, 1, 1]``): eq. 24 multiplies ``lambda`` with the 2-vector
@@ -52,33 +53,14 @@ from taskflow_tasks.image_features import (
     as_intrinsics,
     point_interaction_matrix,
 )
-from taskflow_robots.geometry import skew
 
 __all__ = [
-    "skew",
-    "camera_mount_rotation",
-    "twist_transform",
     "car_jacobian_r",
     "car_feature_jacobian",
     "car_vs_velocity",
     "camera_vs_velocity",
     "car_gains",
 ]
-
-
-def camera_mount_rotation(yaw: float = 0.0, pitch: float = 0.0) -> NDArray[np.float64]:
-    """``^rR_c`` of an OpenCV camera on the robot: optical axis at heading ``yaw`` (rad about
-    robot z; 0 = looking forward, pi = looking backward) tilted **down** by ``pitch`` (rad).
-
-    With ``yaw = pitch = 0`` the camera axes in robot coordinates are x_c = -y_r (right),
-    y_c = -z_r (down), z_c = x_r (forward).
-    """
-    r0 = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-    cy, sy = np.cos(yaw), np.sin(yaw)
-    cp, sp = np.cos(pitch), np.sin(pitch)
-    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
-    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    return rz @ ry @ r0
 
 
 def _check_mount(
@@ -93,31 +75,12 @@ def _check_mount(
     return R, t
 
 
-def twist_transform(R_rc: ArrayLike, t_rc: ArrayLike) -> NDArray[np.float64]:
-    """6x6 ``T_r^c`` of eq. 22 (as meant): robot twist at the robot origin -> camera twist.
-
-    ``V_c = T @ V_robot`` with ``T = [[R^T, -R^T [t]x], [0, R^T]]`` for the camera pose
-    ``(R, t) = (^rR_c, ^rt_c)`` in the robot frame. Derivation: the camera turns with the body,
-    ``w_c = R^T w``; its origin moves at ``v + w x t = v - [t]x w`` (robot axes), i.e.
-    ``v_c = R^T v - R^T [t]x w``. This equals eq. 22's printed form ``[[R', [t']x R'], [0, R']]``
-    evaluated with ``(R', t') = (^cR_r, ^ct_r) = (R^T, -R^T t)``; eq. 22 with ``(^rR_c, ^rt_c)``
-    literally is the inverse map (see the module docstring).
-    """
-    R, t = _check_mount(R_rc, t_rc)
-    Rt = R.T
-    T = np.zeros((6, 6))
-    T[:3, :3] = Rt
-    T[:3, 3:] = -Rt @ skew(t)
-    T[3:, 3:] = Rt
-    return T
-
-
 def car_jacobian_r(d: float = 0.0) -> NDArray[np.float64]:
     """6x2 ``J_r`` of eq. 21 (as meant): ``[v, w]`` -> 6-D robot twist in the robot frame.
 
     The twist's linear part is the velocity of the body point ``(d, 0, 0)`` (robot frame):
     ``[v, d w, 0]``, angular part ``[0, 0, w]``. This is eq. 1-2 at ``theta_r = 0`` extended to
-    6-D. Use ``d = 0`` (default) with :func:`twist_transform` of a mount measured from the
+    6-D. Use ``d = 0`` (default) with ``taskflow.spatial.twist_adjoint_inverse(T_robot_camera)`` of a mount measured from the
     robot origin; for ``d != 0`` pass ``t_rc - [d, 0, 0]`` (the mount relative to the point),
     which gives the same camera twist.
     """
@@ -171,7 +134,8 @@ def car_feature_jacobian(
     K = as_intrinsics(intrinsics)
     R, t = _check_mount(R_rc, t_rc)
     L = point_interaction_matrix(_feature_points(f, K), Z, K.fx, K.fy)
-    # T J_r keeps columns 0 (v along robot x) and 5 (w about robot z) of T; written out:
+    # T J_r, T = taskflow.spatial.twist_adjoint_inverse(T_robot_camera) (robot twist -> camera twist),
+    # keeps columns 0 (v along robot x) and 5 (w about robot z) of T; written out:
     # v -> camera twist [R^T e_x; 0], w -> [-R^T (t x e_z); R^T e_z].
     TJ = np.zeros((6, 2))
     TJ[:3, 0] = R[0]  # R^T e_x

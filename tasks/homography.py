@@ -19,7 +19,7 @@ Conventions
   with a synthetic camera (points on a plane, exact projection).
 * Robot (quadcopter) body frame ``{e}``: x forward, y left, z up (FLU).  The paper's Bebop frame is
   x forward, y right, z down, hence its ``eR_c = [[0,0,1],[1,0,0],[0,1,0]]``; in FLU the same
-  forward-looking camera is ``eR_c = [[0,0,1],[-1,0,0],[0,-1,0]]`` (:data:`FLU_R_OPTICAL`).
+  forward-looking camera is ``eR_c = [[0,0,1],[-1,0,0],[0,-1,0]]`` (:data:`taskflow.spatial.R_FLU_OPTICAL`).
 """
 
 from __future__ import annotations
@@ -29,12 +29,11 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from taskflow_robots.geometry import skew
+from taskflow.spatial import skew, vee
 
 Array = NDArray[np.float64]
 
 __all__ = [
-    "FLU_R_OPTICAL",
     "SELECT_4DOF",
     "HomographyGains",
     "adaptive_gain",
@@ -49,16 +48,10 @@ __all__ = [
     "normalize_homography",
     "normalize_pixels",
     "robot_velocity",
-    "skew",
     "sort_points",
     "task_error",
-    "twist_transform",
-    "vee",
     "virtual_plane_homography",
 ]
-
-FLU_R_OPTICAL: Array = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-"""Rotation body (FLU) ← camera optical frame for a camera looking forward (columns: optical axes)."""
 
 SELECT_4DOF: Array = np.array(
     [
@@ -73,12 +66,6 @@ SELECT_4DOF: Array = np.array(
 
 # ---------------------------------------------------------------------------------------------
 # small helpers
-
-
-def vee(S: ArrayLike) -> Array:
-    """Inverse of :func:`skew` on a skew-symmetric matrix: ``[S21... ]`` → ``(S32, S13, S21)``."""
-    s = np.asarray(S, dtype=np.float64)
-    return np.array([s[2, 1], s[0, 2], s[1, 0]])
 
 
 def intrinsic_matrix(fx: float, fy: float, cx: float, cy: float) -> Array:
@@ -307,19 +294,12 @@ def homography_control(e: ArrayLike, gains: ArrayLike) -> Array:
 # eqs. (5)–(7)
 
 
-def twist_transform(R: ArrayLike, t: ArrayLike) -> Array:
-    """Eq. (5): ``eT_c = [[eR_c, [et_c]x eR_c], [0, eR_c]]`` — camera twist → body twist (6x6)."""
-    r = np.asarray(R, dtype=np.float64).reshape(3, 3)
-    T = np.zeros((6, 6))
-    T[:3, :3] = r
-    T[:3, 3:] = skew(t) @ r
-    T[3:, 3:] = r
-    return T
+def robot_velocity(nu_c: ArrayLike, Ad_body_camera: ArrayLike) -> Array:
+    """Eq. (6): ``nu_e = S eT_c nu_c = [vx, vy, vz, wz]`` in the body frame.
 
-
-def robot_velocity(nu_c: ArrayLike, eTc: ArrayLike) -> Array:
-    """Eq. (6): ``nu_e = S eT_c nu_c = [vx, vy, vz, wz]`` in the body frame."""
-    return SELECT_4DOF @ (np.asarray(eTc, dtype=np.float64).reshape(6, 6) @ np.asarray(nu_c, dtype=np.float64).reshape(6))
+    ``Ad_body_camera`` is eq. (5)'s ``eT_c = [[eR_c, [et_c]x eR_c], [0, eR_c]]``, the 6x6 map of a
+    camera twist to the body twist: ``taskflow.spatial.twist_adjoint(T_body_camera)``."""
+    return SELECT_4DOF @ (np.asarray(Ad_body_camera, dtype=np.float64).reshape(6, 6) @ np.asarray(nu_c, dtype=np.float64).reshape(6))
 
 
 def mean_pixel_error(p: ArrayLike, p_star: ArrayLike) -> float:
@@ -336,7 +316,7 @@ def mean_pixel_error(p: ArrayLike, p_star: ArrayLike) -> float:
 # eqs. (31)–(32): feed-forward
 
 
-def feedforward_velocity(e_segment: ArrayLike, gains: ArrayLike, gamma: float, eTc: ArrayLike) -> Array:
+def feedforward_velocity(e_segment: ArrayLike, gains: ArrayLike, gamma: float, Ad_body_camera: ArrayLike) -> Array:
     """Eq. (32): ``nu_p = S γ eT_c nu_c`` with ``nu_c`` the law (3) between consecutive keyframes.
 
     ``e_segment`` is the task error (2) of keyframe ``k+1`` seen from keyframe ``k`` (``H`` mapping
@@ -344,7 +324,7 @@ def feedforward_velocity(e_segment: ArrayLike, gains: ArrayLike, gamma: float, e
     """
     if not (0.0 <= gamma <= 1.0):
         raise ValueError(f"gamma must be in [0, 1], got {gamma}")
-    return robot_velocity(gamma * homography_control(e_segment, gains), eTc)
+    return robot_velocity(gamma * homography_control(e_segment, gains), Ad_body_camera)
 
 
 def feedforward_blend(nu_e: ArrayLike, nu_p: ArrayLike, p: float) -> Array:

@@ -38,86 +38,16 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dposv as _dposv
-from taskflow_robots.geometry import rpy_matrix, skew
+from taskflow.spatial import cross, inverse, rotation_angle, rotvec_from_rotation
 
 Array = NDArray[np.float64]
 
-_EYE3 = np.eye(3)
 _EYE6 = np.eye(6)
 
 
-# -- small SE(3) helpers ------------------------------------------------------------------------------
-
-
-def hom(R: Array, p: Array) -> Array:
-    """4x4 homogeneous transform from a rotation and a translation (eq. 1)."""
-    H = np.eye(4)
-    H[:3, :3] = R
-    H[:3, 3] = p
-    return H
-
-
-def inv_h(H: Array) -> Array:
-    """Inverse of a rigid transform."""
-    Rt = H[:3, :3].T
-    out = np.empty((4, 4))
-    out[:3, :3] = Rt
-    out[:3, 3] = -(Rt @ H[:3, 3])
-    out[3] = (0.0, 0.0, 0.0, 1.0)
-    return out
-
-
-def cross(a: Array, b: Array) -> Array:
-    """3-vector cross product (``numpy.cross`` costs ~10x more for one pair)."""
-    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
-    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
-
-
-def so3_exp(w: Array) -> Array:
-    """Rodrigues: the rotation of the rotation vector ``w``."""
-    th = math.sqrt(float(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]))
-    K = skew(w)
-    if th < 1e-9:
-        return _EYE3 + K
-    return _EYE3 + (math.sin(th) / th) * K + ((1.0 - math.cos(th)) / (th * th)) * (K @ K)
-
-
-def pose_matrix(xyz: Array, rpy: Array) -> Array:
-    return hom(rpy_matrix(*rpy), np.asarray(xyz, dtype=np.float64))
-
-
-# -- eqs. (11), (14), (27)–(31) -----------------------------------------------------------------------------
-
-
-def rotation_angle(R: Array) -> float:
-    """Eqs. (11)/(14)/(27): ``θ = arccos((tr R − 1) / 2)`` in [0, π] (argument clipped to [−1, 1])."""
-    c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
-    return math.acos(min(1.0, max(-1.0, c)))
-
-
-def angle_axis(R: Array) -> Array:
-    """Eqs. (27)–(31): the rotation vector ``θ a`` of ``R``.
-
-    ``a = (r32 − r23, r13 − r31, r21 − r12) / (2 sin θ)``; near θ = 0 the ratio ``θ / (2 sin θ)``
-    tends to ½, and near θ = π (where the antisymmetric part vanishes) the axis is taken from the
-    symmetric part ``(R + Rᵀ)/2 = cos θ I + (1 − cos θ) a aᵀ`` with its sign from the antisymmetric part.
-    """
-    th = rotation_angle(R)
-    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if th < 1e-6:
-        return 0.5 * v  # θ/(2 sin θ) → 1/2
-    if th < math.pi - 1e-4:
-        return (th / (2.0 * math.sin(th))) * v
-    # θ ≈ π: the symmetric part is cos θ I + (1 − cos θ) a aᵀ; take the largest diagonal of a aᵀ
-    c = math.cos(th)
-    S = (0.5 * (R + R.T) - c * _EYE3) / (1.0 - c)
-    i = int(np.argmax(np.diag(S)))
-    a = S[:, i] / math.sqrt(max(S[i, i], 1e-300))
-    a /= np.linalg.norm(a)
-    if float(a @ v) < 0.0:
-        a = -a
-    return th * a
+# The SE(3) helpers of eqs. (1), (11), (14), (27)–(31) are :mod:`taskflow.spatial`'s: ``transform``
+# (eq. 1), ``inverse``, ``rotation_angle`` (eqs. 11/14/27: θ = arccos((tr R − 1)/2)), ``rotvec_from_rotation``
+# (eqs. 27–31), ``rotation_from_rotvec``, ``cross``.
 
 
 def pose_error_norms(E: Array) -> tuple[float, float]:
@@ -138,7 +68,7 @@ def within(E: Array, eps_t: float, eps_r: float) -> bool:
 def camera_error(H_co: Array, H_co_star: Array) -> Array:
     """Eq. (10) as meant: ``E_co = H_cc* = H_co · H*_co⁻¹`` — the desired camera pose in the current
     camera frame (its translation is where the camera must go, its rotation how it must turn)."""
-    return H_co @ inv_h(H_co_star)
+    return H_co @ inverse(H_co_star)
 
 
 def camera_error_vector(E_co: Array, R_bc: Array) -> Array:
@@ -148,7 +78,7 @@ def camera_error_vector(E_co: Array, R_bc: Array) -> Array:
     frame (see the module docstring).
     """
     out = np.empty(6)
-    out[:3] = R_bc @ angle_axis(E_co[:3, :3])
+    out[:3] = R_bc @ rotvec_from_rotation(E_co[:3, :3])
     out[3:] = R_bc @ E_co[:3, 3]
     return out
 
@@ -181,7 +111,7 @@ def ee_setpoint(H_bc: Array, H_co: Array, H_ot: Array, H_tp: Array | None = None
 def ee_error_vector(H_be: Array, H_be_star: Array) -> Array:
     """Eq. (13) as meant: ``L_Ee = [log(R* Rᵀ); p* − p]`` in the base frame (the tool point's error)."""
     out = np.empty(6)
-    out[:3] = angle_axis(H_be_star[:3, :3] @ H_be[:3, :3].T)
+    out[:3] = rotvec_from_rotation(H_be_star[:3, :3] @ H_be[:3, :3].T)
     out[3:] = H_be_star[:3, 3] - H_be[:3, 3]
     return out
 

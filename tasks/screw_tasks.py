@@ -48,6 +48,7 @@ from pydantic import BaseModel, Field, field_validator
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
 from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
 from taskflow.registry import register_task
+from taskflow.spatial import inverse, transform_xyz_yaw
 from taskflow_tasks import pbvs
 from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step
 from taskflow_tasks.pid import PidProfile, PidState, pid_step
@@ -106,13 +107,10 @@ def _control_period(ctx: TaskContext, name: str) -> float:
     return dt
 
 
-def _planar_from_odom(odom: NDArray[np.float64]) -> NDArray[np.float64]:
+def _T_world_base(odom: tuple[float, float, float]) -> NDArray[np.float64]:
+    """``T_world_base`` of the platform at the odometry pose ``(x, y, yaw)``."""
     x, y, th = (float(v) for v in odom)
-    H = np.eye(4)
-    c, s = math.cos(th), math.sin(th)
-    H[0, 0], H[0, 1], H[1, 0], H[1, 1] = c, -s, s, c
-    H[0, 3], H[1, 3] = x, y
-    return H
+    return transform_xyz_yaw(x, y, 0.0, th)
 
 
 def _interp_odom(times: list[float], poses: list[tuple[float, float, float]], t: float) -> tuple[float, float, float]:
@@ -156,8 +154,8 @@ class MobilePbvs(Task):
         pred = prof.get("prediction")
         self.pred = pred if isinstance(pred, Prediction) else Prediction()
         self.H_co_star = ctx.params.camera_target.matrix()  # type: ignore[attr-defined]
-        self.H_co_star_inv = pbvs.inv_h(self.H_co_star)
-        self.H_cb = pbvs.inv_h(self.H_bc)
+        self.H_co_star_inv = inverse(self.H_co_star)
+        self.H_cb = inverse(self.H_bc)
         self.H_ot, self.H_tp = self._arm_target(ctx.params)
         m = ctx.memory
         self.mem = m
@@ -203,7 +201,7 @@ class MobilePbvs(Task):
             return None, _ZERO3, _ZERO3
         if marker["seq"] != m.get(MEM + "obj_seq"):
             m[MEM + "obj_seq"] = marker["seq"]
-            H_wo = _planar_from_odom(_interp_odom(times, poses, marker["t"])) @ self.H_bc @ marker["H_co"]
+            H_wo = _T_world_base(_interp_odom(times, poses, marker["t"])) @ self.H_bc @ marker["H_co"]
             objs: list[tuple[float, float, float, float]] = m.setdefault(MEM + "obj_hist", [])
             yaw = math.atan2(H_wo[1, 0], H_wo[0, 0])
             if objs:

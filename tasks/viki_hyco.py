@@ -61,7 +61,8 @@ from taskflow_robots.sensors import Detection, camera_command
 from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
 from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains
-from taskflow_tasks.car_visual_servo import car_jacobian_r, twist_transform
+from taskflow.spatial import twist_adjoint_inverse
+from taskflow_tasks.car_visual_servo import car_jacobian_r
 from taskflow_tasks.viki_laws import (
     ServoInputs,
     desired_centre,
@@ -157,9 +158,9 @@ class ViKiHyCo(Task):
         mount = getattr(rp, f"{params.camera}_camera", None)
         if mount is None:
             raise ValueError(f"the robot has no {params.camera!r} camera")
-        self.T_rc = mount.optical_transform()
+        self.T_robot_camera = mount.T_robot_camera()
         # camera twist of a robot velocity [v, w] (eq. 20-22): V_c = T_r^c J_r V_r, for the figures
-        self._cam_twist = twist_transform(self.T_rc[:3, :3], self.T_rc[:3, 3]) @ car_jacobian_r()
+        self._cam_twist = twist_adjoint_inverse(self.T_robot_camera) @ car_jacobian_r()
         self.lam = np.asarray(gains.lam, dtype=float)
         self.k1 = np.asarray(gains.k1, dtype=float)
         self.d = float(gains.d) if gains.d is not None else rp.wheelbase
@@ -191,7 +192,7 @@ class ViKiHyCo(Task):
         """Object base centre in odometry, half-width and height (eq. 18 + base estimate)."""
         if det.bbox is None or det.depth is None:
             raise ValueError("object position needs a detection with a box and a depth")
-        B, r, z_c = object_base(det.bbox, det.depth, det.intrinsics, self.T_rc)
+        B, r, z_c = object_base(det.bbox, det.depth, det.intrinsics, self.T_robot_camera)
         x, y, th = pose
         c, s = math.cos(th), math.sin(th)
         return np.array([x + c * B[0] - s * B[1], y + s * B[0] + c * B[1]]), r, z_c
@@ -222,7 +223,7 @@ class ViKiHyCo(Task):
                 centre = np.asarray(self.p.desired_centre, dtype=float)
             else:
                 try:
-                    centre = desired_centre(self.goal, r, z_c, det.intrinsics, self.T_rc)
+                    centre = desired_centre(self.goal, r, z_c, det.intrinsics, self.T_robot_camera)
                 except ValueError:
                     centre = None
             if centre is not None:
@@ -240,7 +241,7 @@ class ViKiHyCo(Task):
             ServoInputs(pose=pose, detected=bool(usable), bbox=bbox, Z_o=Z_o, Z_d=Z_d, centre=centre,
                         target=self.target, reverse=self.reverse, v_prev=self.v_prev),
             intrinsics=det.intrinsics if det is not None else (1.0, 1.0, 0.0, 0.0),
-            T_rc=self.T_rc, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
+            T_robot_camera=self.T_robot_camera, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
             psi_max=self.psi_max, mode=self.p.mode, object_size=self.p.object_size, smoothing=self.p.smoothing,
             direction=self.direction)
         self.last = out
@@ -273,8 +274,8 @@ class ViKiHyCo(Task):
     def _goal_depth(self, r: float, z_c: float) -> float:
         """MGBM's desired depth: camera Z of the object's box-centre point at the goal."""
         G = self.goal
-        cam = self.T_rc[:2, 3]
+        cam = self.T_robot_camera[:2, 3]
         u = G - cam
         u = u / max(float(np.hypot(*u)), 1e-9)
         P = np.array([*(G - r * u), z_c])
-        return float((self.T_rc[:3, :3].T @ (P - self.T_rc[:3, 3]))[2])
+        return float((self.T_robot_camera[:3, :3].T @ (P - self.T_robot_camera[:3, 3]))[2])

@@ -5,7 +5,7 @@ Pure numpy.  The control laws themselves live in :mod:`taskflow_tasks.car_visual
 (eq. 1–5); :func:`viki_velocity` chains them for one control tick.
 
 Frames: robot frame = rear-axle midpoint on the ground, x forward, y left, z up; camera frame = OpenCV
-optical frame; ``T_rc`` (4x4) = robot ← camera (``CameraMount.optical_transform()``).  Odometry pose
+optical frame; ``T_robot_camera`` (4x4) = robot ← camera (``CameraMount.T_robot_camera()``).  Odometry pose
 ``(x, y, theta)`` of the rear-axle midpoint.
 
 Where the desired features come from (as meant, not printed in the paper)
@@ -58,50 +58,50 @@ __all__ = [
 ]
 
 
-def _T(T_rc: ArrayLike) -> FloatArray:
-    T = np.asarray(T_rc, dtype=float)
+def _T(T_robot_camera: ArrayLike) -> FloatArray:
+    T = np.asarray(T_robot_camera, dtype=float)
     if T.shape != (4, 4):
-        raise ValueError(f"T_rc must be a 4x4 transform, got shape {T.shape}")
+        raise ValueError(f"T_robot_camera must be a 4x4 transform, got shape {T.shape}")
     return T
 
 
-def object_point(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_rc: ArrayLike) -> FloatArray:
-    """Eq. 18 in the robot frame: ``T_rc @ [(O_u - c_u) Z_o / f_x, (O_v - c_v) Z_o / f_y, Z_o]``."""
+def object_point(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_robot_camera: ArrayLike) -> FloatArray:
+    """Eq. 18 in the robot frame: ``T_robot_camera @ [(O_u - c_u) Z_o / f_x, (O_v - c_v) Z_o / f_y, Z_o]``."""
     fx, fy, cu, cv = (float(v) for v in np.asarray(intrinsics, dtype=float).reshape(4))
     b = np.asarray(bbox, dtype=float).reshape(4)
     if not Z_o > 0.0:
         raise ValueError(f"Z_o must be positive, got {Z_o}")
     ou, ov = 0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])
     Pc = np.array([(ou - cu) * Z_o / fx, (ov - cv) * Z_o / fy, Z_o])
-    T = _T(T_rc)
+    T = _T(T_robot_camera)
     return T[:3, :3] @ Pc + T[:3, 3]
 
 
-def object_base(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_rc: ArrayLike) -> tuple[FloatArray, float, float]:
+def object_base(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_robot_camera: ArrayLike) -> tuple[FloatArray, float, float]:
     """Object base centre ``B`` (robot frame, m), half-width ``r`` (m) and measured height ``z_c`` (m).
 
     ``B = P_xy + r u`` (module docstring): ``P`` from eq. 18, ``r = w_o Z_o / (2 f_x)``, ``u`` the unit
     horizontal direction from the camera to ``P``.
     """
-    P = object_point(bbox, Z_o, intrinsics, T_rc)
+    P = object_point(bbox, Z_o, intrinsics, T_robot_camera)
     b = np.asarray(bbox, dtype=float).reshape(4)
     fx = float(np.asarray(intrinsics, dtype=float).reshape(4)[0])
     r = 0.5 * (b[2] - b[0]) * Z_o / fx
-    cam = _T(T_rc)[:2, 3]
+    cam = _T(T_robot_camera)[:2, 3]
     u = P[:2] - cam
     n = float(np.hypot(u[0], u[1]))
     u = u / n if n > 1e-9 else np.zeros(2)
     return P[:2] + r * u, float(r), float(P[2])
 
 
-def desired_centre(goal_xy: ArrayLike, r: float, z_c: float, intrinsics: ArrayLike, T_rc: ArrayLike) -> FloatArray:
+def desired_centre(goal_xy: ArrayLike, r: float, z_c: float, intrinsics: ArrayLike, T_robot_camera: ArrayLike) -> FloatArray:
     """Pixel ``(u, v)`` where the box centre is when the object's base centre is at ``goal_xy``.
 
     Projection of ``(G - r u_G, z_c)`` (module docstring).  Raises ``ValueError`` when that point is
     behind the camera (a goal the camera cannot see).
     """
     G = np.asarray(goal_xy, dtype=float).reshape(2)
-    T = _T(T_rc)
+    T = _T(T_robot_camera)
     cam = T[:2, 3]
     u = G - cam
     n = float(np.hypot(u[0], u[1]))
@@ -205,7 +205,7 @@ class ServoOutput:
     used_vs: bool
 
 
-def viki_velocity(inp: ServoInputs, *, intrinsics: ArrayLike, T_rc: ArrayLike, lam: ArrayLike, k1: ArrayLike,
+def viki_velocity(inp: ServoInputs, *, intrinsics: ArrayLike, T_robot_camera: ArrayLike, lam: ArrayLike, k1: ArrayLike,
                   d: float, wheelbase: float, v_max: float, psi_max: float, mode: str = "hybrid",
                   object_size: ArrayLike | None = None, smoothing: bool = True, direction: float = 0.0) -> ServoOutput:
     """One ViKi-HyCo control tick, eq. 19–26 then eq. 5.
@@ -222,7 +222,7 @@ def viki_velocity(inp: ServoInputs, *, intrinsics: ArrayLike, T_rc: ArrayLike, l
 
     Eq. 26 (as meant, :func:`taskflow_tasks.hybrid.smooth_velocity`) damps the change from ``inp.v_prev``.
     """
-    T = _T(T_rc)
+    T = _T(T_robot_camera)
     R_rc, t_rc = T[:3, :3], T[:3, 3]
     f = f_d = None
     err = None

@@ -84,6 +84,7 @@ from pydantic import BaseModel, Field, model_validator
 from taskflow_robots.quadcopter import QuadcopterParams
 from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
 from taskflow.registry import register_task
+from taskflow.spatial import twist_adjoint
 from taskflow_tasks.hierarchy import (
     Activation,
     collision_error,
@@ -293,7 +294,7 @@ def match_with_retry(memory: dict[str, Any], kf_image: NDArray[np.uint8], kf_id:
     return cur, kfp
 
 
-def segment_velocities(keyframes: tuple[NDArray[np.uint8], ...], K: NDArray[np.float64], eTc: NDArray[np.float64],
+def segment_velocities(keyframes: tuple[NDArray[np.uint8], ...], K: NDArray[np.float64], Ad_body_camera: NDArray[np.float64],
                        gains: VisualGains, gamma: float, kind: str = "orb", n_features: int = 1000,
                        memory: dict[str, Any] | None = None) -> list[NDArray[np.float64]]:
     """Alg. 2 lines 2–15: ``nu_p`` (eq. 32) of every segment ``k → k+1`` from the keyframe images.
@@ -308,11 +309,11 @@ def segment_velocities(keyframes: tuple[NDArray[np.uint8], ...], K: NDArray[np.f
         fa = _keyframe_features(mem, keyframes[k], k, kind, n_features)
         fb = _keyframe_features(mem, keyframes[k + 1], k + 1, kind, n_features)
         cur, kf = match_keyframe(fb, fa)  # (points in k, points in k+1)
-        out.append(_segment_velocity(cur, kf, K, eTc, gains, gamma))
+        out.append(_segment_velocity(cur, kf, K, Ad_body_camera, gains, gamma))
     return out
 
 
-def segment_velocities_from_points(views: tuple[Any, ...], K: NDArray[np.float64], eTc: NDArray[np.float64],
+def segment_velocities_from_points(views: tuple[Any, ...], K: NDArray[np.float64], Ad_body_camera: NDArray[np.float64],
                                    gains: VisualGains, gamma: float) -> list[NDArray[np.float64]]:
     """:func:`segment_velocities` for the geometric camera: keyframe ``k``'s and ``k+1``'s landmark
     views (``.ids``, ``.uv``) correspond by id."""
@@ -322,12 +323,12 @@ def segment_velocities_from_points(views: tuple[Any, ...], K: NDArray[np.float64
         if len(cur) >= 8:
             order = sort_points(kf)
             cur, kf = cur[order], kf[order]
-        out.append(_segment_velocity(cur, kf, K, eTc, gains, gamma))
+        out.append(_segment_velocity(cur, kf, K, Ad_body_camera, gains, gamma))
     return out
 
 
 def _segment_velocity(cur: NDArray[np.float64], kf: NDArray[np.float64], K: NDArray[np.float64],
-                      eTc: NDArray[np.float64], gains: VisualGains, gamma: float) -> NDArray[np.float64]:
+                      Ad_body_camera: NDArray[np.float64], gains: VisualGains, gamma: float) -> NDArray[np.float64]:
     """Eq. (32) for one segment from its correspondences (largest triangle first); 0 when < 8."""
     if len(cur) < 8:
         return np.zeros(4)
@@ -335,7 +336,7 @@ def _segment_velocity(cur: NDArray[np.float64], kf: NDArray[np.float64], K: NDAr
     m_star = normalize_pixels(kf[:3], K).mean(axis=0)
     e = task_error(H, m_star)
     lam = adaptive_gain(float(np.linalg.norm(e)), gains.lambda_0, gains.lambda_inf, gains.lambda_0_slope)
-    return feedforward_velocity(e, gain_matrix(lam, gains.homography_gains()), gamma, eTc)
+    return feedforward_velocity(e, gain_matrix(lam, gains.homography_gains()), gamma, Ad_body_camera)
 
 
 def _by_id(view: Any, kf: Any) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
@@ -387,10 +388,10 @@ class ServoLaw:
     it also runs on geometric (projected) points.
     """
 
-    def __init__(self, K: NDArray[np.float64], eTc: NDArray[np.float64], size: tuple[int, int], params: VisualPathParams,
+    def __init__(self, K: NDArray[np.float64], Ad_body_camera: NDArray[np.float64], size: tuple[int, int], params: VisualPathParams,
                  visual: VisualGains, hier: HierarchyGains, path_gains: PathGains, t_enter: float,
                  nu_p: NDArray[np.float64] | None = None) -> None:
-        self.K, self.eTc, self.p = K, eTc, params
+        self.K, self.Ad_body_camera, self.p = K, Ad_body_camera, params
         if params.keyframe.sigma is not None:
             hier = hier.model_copy(update={"sigma": params.keyframe.sigma})
         self.visual, self.hier, self.path_gains = visual, hier, path_gains
@@ -450,7 +451,7 @@ class ServoLaw:
         # hierarchy (13)-(19), transition (28)-(29), robot velocities (6), feed-forward (31)
         res = hierarchical_control(J_a, [e_a], J_m, e_m, np.eye(6), e, hier.lambda_a, hier.lambda_m, lam_v, h_a, h_m)
         h_t = transition_weight(t - self.t_enter, self.path_gains.transition_s, self.path_gains.h0) if self.transition else 1.0
-        nu_e = robot_velocity(h_t * res.nu, self.eTc)
+        nu_e = robot_velocity(h_t * res.nu, self.Ad_body_camera)
         if p.feedforward and not p.is_last:
             nu_e = feedforward_blend(nu_e, self.nu_p, self.path_gains.p)
         # imgChVerif inputs
@@ -524,7 +525,7 @@ class VisualPathServo(Task):
         self.path_gains = ctx.profiles.get("path") or PathGains()
         cam = _robot_params(ctx).camera
         self.K = cam.K()
-        self.eTc = ctx.robot.eTc()  # type: ignore[attr-defined]
+        self.Ad_body_camera = twist_adjoint(ctx.robot.T_body_camera())  # type: ignore[attr-defined]
         self.size = (cam.width, cam.height)
         self.t_enter = ctx.t
         self.tracker: PointTracker | None = None
@@ -557,11 +558,11 @@ class VisualPathServo(Task):
         table = mem.get(key)
         if table is None:
             if geometric:
-                table = segment_velocities_from_points(tuple(obs.sensors["keyframe_points"]), self.K, self.eTc,
+                table = segment_velocities_from_points(tuple(obs.sensors["keyframe_points"]), self.K, self.Ad_body_camera,
                                                        self.visual, self.path_gains.gamma)
             else:
                 kfs = tuple(obs.sensors.get("keyframes", ()))
-                table = segment_velocities(kfs, self.K, self.eTc, self.visual, self.path_gains.gamma, self.p.features,
+                table = segment_velocities(kfs, self.K, self.Ad_body_camera, self.visual, self.path_gains.gamma, self.p.features,
                                            self.p.n_features, mem)
             mem[key] = table
         k = self.p.keyframe.id
@@ -586,7 +587,7 @@ class VisualPathServo(Task):
                 return self._hover(("features_lost",))
             self.tracker = PointTracker(grey, cur, kfp)
             self.n_matched = len(cur)
-            self.law = ServoLaw(self.K, self.eTc, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
+            self.law = ServoLaw(self.K, self.Ad_body_camera, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
                                 self._feedforward(obs))
         elif self._track(obs, grey) < p.min_points:
             self.metrics_out.update(n_points=float(len(self.tracker)))
@@ -671,7 +672,7 @@ class VisualPathServo(Task):
         order = np.concatenate((np.flatnonzero(in_tri), np.flatnonzero(~in_tri)))  # the triangle first
         cur, kfp = cur[order], kfp[order]
         if self.law is None:
-            self.law = ServoLaw(self.K, self.eTc, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
+            self.law = ServoLaw(self.K, self.Ad_body_camera, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
                                 self._feedforward(obs))
         obstacle = _silhouette(obs.sensors.get("obstacle"), self.size, self.hier.min_obstacle_px) \
             if self.hier.collision else None

@@ -12,12 +12,19 @@ from pydantic import ValidationError
 
 import taskflow_tasks.visual_path  # noqa: F401 - registers the tasks the missions use
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
-from taskflow_sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir, teach
+from taskflow_sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir
+from taskflow_sim.room_world import teach as _teach
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission
 
 ROOT = Path(__file__).resolve().parents[2]
 POSE_REG = ROOT / "missions" / "visual_path_pose_regulation.yaml"
+
+
+def teach(path, out_dir):
+    """What ``taskflow teach`` does: load the mission, pass its robot, world parameters, seed and name."""
+    m = load_mission(path)
+    return _teach(m.build_robot(), m.world_params(m.spec.seed), out_dir, m.spec.seed, m.name)
 KF = [{"id": 0, "pose": [1.0, 0.0, 1.0, 0.0]}, {"id": 1, "pose": [1.5, 0.3, 0.8, 0.3]}]
 
 
@@ -148,14 +155,13 @@ def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, p
     """Every landmark the geometric camera reports is on the surface PyBullet renders at its pixel
     (rendered depth = landmark depth): projection, intrinsics and column occlusion agree."""
     from taskflow_sim.room_landmarks import project
-    from taskflow_sim.room_world import camera_pose_matrices
 
     cam = geo_world.robot.params.camera
     geo_world.pose[:] = pose
     view = geo_world._point_view(pose)
     assert len(view) > 50
     _, depth = geo_world._require_scene().render_with_depth(pose)
-    R, t = camera_pose_matrices(pose, cam.R(), cam.t())
+    R, t = cam.pose_in_world(pose)
     z, uv = project(geo_world.landmarks[view.ids], R, t, cam.K())
     assert np.allclose(uv, view.uv)
     px = np.round(uv).astype(int)

@@ -11,6 +11,7 @@ import pytest
 
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim.screw_world import ScrewConveyor, ScrewdriverParams
+from taskflow import spatial
 from taskflow_tasks import pbvs
 from taskflow.registry import WORLDS
 
@@ -89,7 +90,7 @@ def test_pose_mode_marker_latency_noise_and_lost_found_events():
         o = w.observe()
         m = o.sensors["marker"]
         assert o.t - m["t"] >= lat - 1e-9
-        err = pbvs.inv_h(m["H_co"]) @ w.true_H_co()
+        err = spatial.inverse(m["H_co"]) @ w.true_H_co()
         # the measurement is stale by its age: the part moved 50 mm/s x age relative to the camera
         assert np.linalg.norm(err[:3, 3]) < 0.05 * (o.t - m["t"]) + 0.002
     finally:
@@ -105,7 +106,7 @@ def test_rendered_mode_finds_the_marker_to_a_fraction_of_a_millimetre():
         truth = w.true_H_co()  # nothing moves: the truth at capture is the truth now
         H = m["H_co"]
         assert np.linalg.norm(truth[:3, 3] - H[:3, 3]) < 0.001
-        assert pbvs.rotation_angle(H[:3, :3] @ truth[:3, :3].T) < math.radians(0.2)
+        assert spatial.rotation_angle(H[:3, :3] @ truth[:3, :3].T) < math.radians(0.2)
         assert w.detector.frames >= 4
         s = w.summary_metrics()
         assert s["perception_rms_xy_mm"] < 0.3 and s["perception_rms_z_mm"] < 1.0 and s["perception_rms_r_deg"] < 0.2
@@ -119,9 +120,9 @@ def test_force_torque_sensor_reads_the_contact_force_without_the_tool_weight():
         run(w, 0.2)
         assert np.linalg.norm(w.observe().sensors["wrench"][:3]) < 0.3  # weight compensated
         H_wb = w.body.base_pose()
-        bolt = pbvs.inv_h(H_wb) @ w.bolt_poses()[0]
-        q = ik(np.array(ROBOT.params.q_home), bolt @ pbvs.hom(np.eye(3), np.array([0.0, 0.0, 0.001])))
-        w.body.set_joints(ik(np.array(ROBOT.params.q_home), bolt @ pbvs.hom(np.eye(3), np.array([0.0, 0.0, -0.01]))))
+        bolt = spatial.inverse(H_wb) @ w.bolt_poses()[0]
+        q = ik(np.array(ROBOT.params.q_home), bolt @ spatial.transform(np.eye(3), np.array([0.0, 0.0, 0.001])))
+        w.body.set_joints(ik(np.array(ROBOT.params.q_home), bolt @ spatial.transform(np.eye(3), np.array([0.0, 0.0, -0.01]))))
         w.apply({"base_twist": np.zeros(3), "arm_dq": q - w.body.q_ref_target})
         w.advance(0.5)
         run(w, 0.5)
@@ -139,8 +140,8 @@ def test_screwdriver_couples_only_when_the_bit_sits_on_the_bolt(offset, expected
     w = make(speed=0.0)
     try:
         H_wb = w.body.base_pose()
-        bolt = pbvs.inv_h(H_wb) @ w.bolt_poses()[2]
-        target = bolt @ pbvs.hom(np.eye(3), np.array([offset, 0.0, 0.0005]))
+        bolt = spatial.inverse(H_wb) @ w.bolt_poses()[2]
+        target = bolt @ spatial.transform(np.eye(3), np.array([offset, 0.0, 0.0005]))
         w.body.set_joints(ik(np.array(ROBOT.params.q_home), target))
         run(w, 0.2)
         w.start_action("screwdriver", {"phase": "activate"})
@@ -190,8 +191,8 @@ def test_same_seed_same_trolley_and_noise():
 
 def place_tip(w: ScrewConveyor, bolt: int, offset_in_bolt: tuple[float, float, float]) -> None:
     """Teleport the arm so the tool tip sits at ``offset_in_bolt`` (m) in bolt ``bolt``'s frame."""
-    bolt_b = pbvs.inv_h(w.body.base_pose()) @ w.bolt_poses()[bolt]
-    w.body.set_joints(ik(np.array(ROBOT.params.q_home), bolt_b @ pbvs.hom(np.eye(3), np.array(offset_in_bolt))))
+    bolt_b = spatial.inverse(w.body.base_pose()) @ w.bolt_poses()[bolt]
+    w.body.set_joints(ik(np.array(ROBOT.params.q_home), bolt_b @ spatial.transform(np.eye(3), np.array(offset_in_bolt))))
 
 
 def test_an_operation_with_no_bolt_under_the_tool_fails_and_stays_out_of_the_bolt_error_statistics():
@@ -236,8 +237,8 @@ def test_a_bit_that_leaves_the_bolt_during_activation_fails_coupling_at_that_bol
         w.start_action("screwdriver", {"phase": "activate"})
         run(w, 0.3)
         # move the tool 6 mm sideways while the screwdriver couples
-        bolt_b = pbvs.inv_h(w.body.base_pose()) @ w.bolt_poses()[1]
-        q = ik(w.body.q_ref_target, bolt_b @ pbvs.hom(np.eye(3), np.array([0.006, 0.0, 0.0005])))
+        bolt_b = spatial.inverse(w.body.base_pose()) @ w.bolt_poses()[1]
+        q = ik(w.body.q_ref_target, bolt_b @ spatial.transform(np.eye(3), np.array([0.006, 0.0, 0.0005])))
         w.apply({"base_twist": np.zeros(3), "arm_dq": q - w.body.q_ref_target})
         w.advance(DT)
         assert [e for _, e in run(w, 0.8)] == ["tool_failed"]

@@ -22,7 +22,7 @@ VLP16 = np.deg2rad(np.arange(-15.0, 16.0, 2.0))
 R_CL = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
 
 
-def T_cl(R=R_CL, t=(0.0, 0.3, -0.1)):
+def T_camera_lidar(R=R_CL, t=(0.0, 0.3, -0.1)):
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = t
@@ -73,16 +73,16 @@ def test_object_position_reprojects_to_the_box_centre():
 # ----------------------------------------------------------------------------- eq. 11-12
 def test_lidar_point_lands_on_the_right_pixel_with_the_right_range():
     P = np.array([[5.0, 1.0, -0.5]])  # LiDAR frame
-    img = project_lidar_points(P, T_cl(), INTR, 640, 480)
+    img = project_lidar_points(P, T_camera_lidar(), INTR, 640, 480)
     Pc = R_CL @ P[0] + np.array([0.0, 0.3, -0.1])  # (-1.0, 0.8, 4.9)
     u = round(500.0 * Pc[0] / Pc[2] + 320.0)  # 218
     v = round(480.0 * Pc[1] / Pc[2] + 239.0)  # 317
     assert (u, v) == (218, 317)
     assert img[v, u] == pytest.approx(np.sqrt(25.0 + 1.0 + 0.25))
     assert np.count_nonzero(img) == 1
-    img_z = project_lidar_points(P, T_cl(), INTR, 640, 480, value="camera_z")
+    img_z = project_lidar_points(P, T_camera_lidar(), INTR, 640, 480, value="camera_z")
     assert img_z[v, u] == pytest.approx(4.9)
-    img_r = project_lidar_points(P, T_cl(), INTR, 640, 480, value="camera_range")
+    img_r = project_lidar_points(P, T_camera_lidar(), INTR, 640, 480, value="camera_range")
     assert img_r[v, u] == pytest.approx(np.linalg.norm(Pc))
 
 
@@ -100,11 +100,11 @@ def test_lidar_projection_keeps_the_nearest_and_drops_unseen_points():
             [np.nan, 0.0, 0.0],
         ]
     )
-    img = project_lidar_points(P, T_cl(t=(0, 0, 0)), INTR, 640, 480)
+    img = project_lidar_points(P, T_camera_lidar(t=(0, 0, 0)), INTR, 640, 480)
     assert img[239, 320] == pytest.approx(4.0)
     assert np.count_nonzero(img) == 1
     with pytest.raises(ValueError):
-        project_lidar_points(P, T_cl(), INTR, 640, 480, value="depth")
+        project_lidar_points(P, T_camera_lidar(), INTR, 640, 480, value="depth")
 
 
 def test_interpolation_gives_112_layers_for_16():

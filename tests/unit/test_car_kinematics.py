@@ -13,14 +13,12 @@ from pydantic import ValidationError
 from taskflow_robots.racecar import Racecar
 from taskflow.api import Observation, TaskContext
 from taskflow_tasks.car_goto import CarGains, CarGoto
+from taskflow_robots.racecar_kinematics import ackermann_wheel_angles, bicycle_from_wheel_angles, differential_wheel_speeds
 from taskflow_tasks.car_kinematics import (
-    ackermann_wheel_angles,
-    bicycle_from_wheel_angles,
     car_command,
     car_jacobian_b,
     car_jacobian_b_inv,
     control_point,
-    differential_wheel_speeds,
     kinematic_control,
     saturate,
     steering_from_twist,

@@ -5,15 +5,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from taskflow_tasks.bbox_target import desired_bbox
+from taskflow.spatial import R_body_optical, skew, transform, twist_adjoint, twist_adjoint_inverse
 from taskflow_tasks.car_visual_servo import (
-    camera_mount_rotation,
     camera_vs_velocity,
     car_feature_jacobian,
     car_gains,
     car_jacobian_r,
     car_vs_velocity,
-    skew,
-    twist_transform,
 )
 from taskflow_tasks.image_features import (
     CameraIntrinsics,
@@ -23,6 +21,16 @@ from taskflow_tasks.image_features import (
 )
 
 K = CameraIntrinsics(500.0, 500.0, 320.0, 240.0)
+
+
+def camera_mount_rotation(yaw: float, pitch: float) -> np.ndarray:
+    """``R_robot_camera`` of an optical frame looking at heading ``yaw``, tilted down by ``pitch``."""
+    return R_body_optical(yaw=yaw, pitch=pitch)
+
+
+def robot_to_camera(R_rc, t_rc) -> np.ndarray:
+    """Eq. 22 as meant: the 6x6 map robot twist → camera twist for the mount ``T_robot_camera``."""
+    return twist_adjoint_inverse(transform(R_rc, t_rc))
 FRONT = [0.85, 0.3, 1.0, 1.0, 1.0]
 REAR = [0.85, 1.05, 1.0, 1.0, 1.0]
 
@@ -92,10 +100,10 @@ def test_camera_mount_rotation():
 
 
 @pytest.mark.parametrize("R_rc, t_rc", MOUNTS)
-def test_twist_transform_and_jr_match_the_camera_pose_derivative(R_rc, t_rc):
+def test_robot_to_camera_twist_and_jr_match_the_camera_pose_derivative(R_rc, t_rc):
     """Drive the car with [v, w] (unicycle), take the camera's displacement in its own frame."""
     dt = 1e-6
-    T = twist_transform(R_rc, t_rc)
+    T = robot_to_camera(R_rc, t_rc)
     J = car_jacobian_r()
     for V in ([0.4, 0.0], [0.0, 0.7], [-0.3, 0.5], [0.25, -1.2]):
         q1 = unicycle_step(np.zeros(3), V, dt)
@@ -105,6 +113,8 @@ def test_twist_transform_and_jr_match_the_camera_pose_derivative(R_rc, t_rc):
         dp = R0.T @ (p1 - p0)
         numeric = np.concatenate([dp, Rotation.from_matrix(dR).as_rotvec()]) / dt
         np.testing.assert_allclose(T @ J @ np.asarray(V), numeric, atol=1e-5)
+        if np.any(np.asarray(V) != 0.0):  # the opposite map (eq. 22 as printed) is not it
+            assert not np.allclose(twist_adjoint(transform(R_rc, t_rc)) @ J @ np.asarray(V), numeric, atol=1e-3)
 
 
 @pytest.mark.parametrize("R_rc, t_rc", MOUNTS)
@@ -113,21 +123,21 @@ def test_printed_eq22_is_the_inverse_map(R_rc, t_rc):
     printed[:3, :3] = R_rc
     printed[:3, 3:] = skew(t_rc) @ R_rc
     printed[3:, 3:] = R_rc
-    np.testing.assert_allclose(printed @ twist_transform(R_rc, t_rc), np.eye(6), atol=1e-12)
+    np.testing.assert_allclose(printed @ robot_to_camera(R_rc, t_rc), np.eye(6), atol=1e-12)
     # ... and eq. 22's form evaluated with the inverse pose (^cR_r, ^ct_r) is ours.
     Ri, ti = R_rc.T, -R_rc.T @ t_rc
     as_meant = np.zeros((6, 6))
     as_meant[:3, :3] = Ri
     as_meant[:3, 3:] = skew(ti) @ Ri
     as_meant[3:, 3:] = Ri
-    np.testing.assert_allclose(as_meant, twist_transform(R_rc, t_rc), atol=1e-12)
+    np.testing.assert_allclose(as_meant, robot_to_camera(R_rc, t_rc), atol=1e-12)
 
 
 def test_jr_reference_point_does_not_change_the_camera_twist():
     R_rc, t_rc = MOUNTS[0]
     d = 0.325
-    a = twist_transform(R_rc, t_rc - np.array([d, 0.0, 0.0])) @ car_jacobian_r(d)
-    b = twist_transform(R_rc, t_rc) @ car_jacobian_r(0.0)
+    a = robot_to_camera(R_rc, t_rc - np.array([d, 0.0, 0.0])) @ car_jacobian_r(d)
+    b = robot_to_camera(R_rc, t_rc) @ car_jacobian_r(0.0)
     np.testing.assert_allclose(a, b, atol=1e-12)
     np.testing.assert_array_equal(car_jacobian_r(d)[:, 1], [0, d, 0, 0, 0, 1])
 
@@ -138,7 +148,7 @@ def test_feature_jacobian_is_L_T_J(R_rc, t_rc):
     uv = f.reshape(4, 2) - (K.cu, K.cv)
     expected = (
         point_interaction_matrix(uv, 2.0, K.fx, K.fy)
-        @ twist_transform(R_rc, t_rc)
+        @ robot_to_camera(R_rc, t_rc)
         @ car_jacobian_r()
     )
     np.testing.assert_allclose(car_feature_jacobian(f, 2.0, K, R_rc, t_rc), expected, atol=1e-9)

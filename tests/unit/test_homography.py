@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from taskflow.spatial import R_FLU_OPTICAL, skew, transform, twist_adjoint, vee
 from taskflow_tasks.homography import (
-    FLU_R_OPTICAL,
     HomographyGains,
     adaptive_gain,
     euclidean_homography,
@@ -24,16 +24,13 @@ from taskflow_tasks.homography import (
     normalize_homography,
     normalize_pixels,
     robot_velocity,
-    skew,
     sort_points,
     task_error,
-    twist_transform,
-    vee,
     virtual_plane_homography,
 )
 
 K = intrinsic_matrix(260.0, 260.0, 160.0, 119.0)
-ETC = twist_transform(FLU_R_OPTICAL, [0.2, 0.0, -0.05])
+AD_BODY_CAMERA = twist_adjoint(transform(R_FLU_OPTICAL, [0.2, 0.0, -0.05]))  # eq. (5): camera twist → body twist
 
 
 def wall_points(n: int = 60, seed: int = 0, x: float = 4.0) -> np.ndarray:
@@ -55,7 +52,7 @@ def camera_pose(x: float, y: float, z: float, yaw: float) -> tuple[np.ndarray, n
     """World ← camera-optical rotation and camera position of a quadcopter at ``[x, y, z, yaw]``
     (camera at the body origin for simplicity)."""
     Rb = Rotation.from_euler("z", yaw).as_matrix()
-    return Rb @ FLU_R_OPTICAL, np.array([x, y, z])
+    return Rb @ R_FLU_OPTICAL, np.array([x, y, z])
 
 
 def project(X: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -133,7 +130,7 @@ def simulate(X, start, key, law_sign=1.0, steps=600, dt=0.04, direction="current
             H = euclidean_homography(kf, cur, K)
         e = task_error(H, m_star)
         g = gain_matrix(adaptive_gain(np.linalg.norm(e), *lam), gains)
-        nu_e = robot_velocity(law_sign * homography_control(e, g), ETC)
+        nu_e = robot_velocity(law_sign * homography_control(e, g), AD_BODY_CAMERA)
         c, s = math.cos(x[3]), math.sin(x[3])
         x += dt * np.array([c * nu_e[0] - s * nu_e[1], s * nu_e[0] + c * nu_e[1], nu_e[2], nu_e[3]])
         if not np.all(np.abs(x[:3]) < 50):
@@ -181,16 +178,16 @@ def test_gain_matrix_paper_5_1():
     assert np.allclose(g, [2.0, 4.5, 2.0, 1.0, 1.0, 1.0])
 
 
-def test_twist_transform_and_selection():
+def test_body_camera_twist_map_and_selection():
     # a pure camera forward velocity (optical z) is a body forward velocity
-    nu = robot_velocity([0, 0, 1.0, 0, 0, 0], ETC)
+    nu = robot_velocity([0, 0, 1.0, 0, 0, 0], AD_BODY_CAMERA)
     assert np.allclose(nu, [1.0, 0, 0, 0])
     # camera x (right) is body -y; camera y (down) is body -z
-    assert np.allclose(robot_velocity([1.0, 0, 0, 0, 0, 0], ETC), [0, -1.0, 0, 0])
-    assert np.allclose(robot_velocity([0, 1.0, 0, 0, 0, 0], ETC), [0, 0, -1.0, 0])
+    assert np.allclose(robot_velocity([1.0, 0, 0, 0, 0, 0], AD_BODY_CAMERA), [0, -1.0, 0, 0])
+    assert np.allclose(robot_velocity([0, 1.0, 0, 0, 0, 0], AD_BODY_CAMERA), [0, 0, -1.0, 0])
     # a yaw rate about the camera's -y axis, with the camera 0.2 m ahead of the body origin:
     # the body origin moves sideways by -w x t
-    nu = robot_velocity([0, 0, 0, 0, -1.0, 0], ETC)
+    nu = robot_velocity([0, 0, 0, 0, -1.0, 0], AD_BODY_CAMERA)
     assert np.allclose(nu[3], 1.0)
     assert np.allclose(nu[:3], np.cross([0.2, 0.0, -0.05], [0, 0, 1.0]))
 
@@ -242,13 +239,13 @@ def test_feedforward_equals_the_scaled_law_between_consecutive_keyframes():
     k0, k1 = (1.0, 0.0, 1.0, 0.0), (1.5, 0.0, 1.0, math.radians(15))
     e, _, _ = error_at(X, k0, k1)  # keyframe k seen as "current", keyframe k+1 as the target
     g = gain_matrix(adaptive_gain(np.linalg.norm(e), 1.5, 0.8, 5.0))
-    nu_p = feedforward_velocity(e, g, 0.75, ETC)
-    assert np.allclose(nu_p, 0.75 * robot_velocity(homography_control(e, g), ETC))
+    nu_p = feedforward_velocity(e, g, 0.75, AD_BODY_CAMERA)
+    assert np.allclose(nu_p, 0.75 * robot_velocity(homography_control(e, g), AD_BODY_CAMERA))
     assert nu_p[0] > 0.0 and nu_p[3] > 0.0  # forward and turning left, like the segment
     nu_e = np.array([0.1, 0.0, 0.0, 0.0])
     assert np.allclose(feedforward_blend(nu_e, nu_p, 0.5), 0.5 * nu_e + 0.5 * nu_p)
     assert np.allclose(feedforward_blend(nu_e, nu_p, 1.0), nu_e)
     with pytest.raises(ValueError):
-        feedforward_velocity(e, g, 1.5, ETC)
+        feedforward_velocity(e, g, 1.5, AD_BODY_CAMERA)
     with pytest.raises(ValueError):
         feedforward_blend(nu_e, nu_p, -0.1)

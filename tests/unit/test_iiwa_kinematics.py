@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from taskflow_robots.iiwa_urdf import ARM_JOINTS, installed_iiwa_urdf
 from taskflow_robots.mobile_iiwa import MobileIiwa, Pose
+from taskflow import spatial
 from taskflow_tasks import pbvs
 from taskflow.registry import ROBOTS
 
@@ -113,7 +114,7 @@ def test_pybullet_and_pinocchio_tool_frames_agree_within_0_1_mm(robot):
                 pb = body.link_pose(link)
                 pn = H_wb @ k.frame_pose(q, frame)
                 worst = max(worst, float(np.linalg.norm(pb[:3, 3] - pn[:3, 3])))
-                assert pbvs.rotation_angle(pb[:3, :3] @ pn[:3, :3].T) < 1e-5
+                assert spatial.rotation_angle(pb[:3, :3] @ pn[:3, :3].T) < 1e-5
         assert worst < 1e-4, f"worst tool-frame disagreement {worst * 1e3:.4f} mm"
         np.testing.assert_allclose(k.frame_pose(np.zeros(7), "camera_optical"), robot.params.H_bc(), atol=1e-12)
     finally:

@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from taskflow import spatial
 from taskflow_tasks import pbvs
 
 
 def rand_pose(rng: np.random.Generator, scale: float = 1.0) -> np.ndarray:
-    return pbvs.hom(Rotation.random(random_state=rng).as_matrix(), rng.normal(0.0, scale, 3))
+    return spatial.transform(Rotation.random(random_state=rng).as_matrix(), rng.normal(0.0, scale, 3))
 
 
 # -- angle-axis, eqs. 27-31 -----------------------------------------------------------------------------
@@ -22,7 +23,7 @@ def test_angle_axis_matches_scipy_rotvec_over_random_rotations():
     rng = np.random.default_rng(0)
     for _ in range(500):
         R = Rotation.random(random_state=rng)
-        np.testing.assert_allclose(pbvs.angle_axis(R.as_matrix()), R.as_rotvec(), atol=1e-9)
+        np.testing.assert_allclose(spatial.rotvec_from_rotation(R.as_matrix()), R.as_rotvec(), atol=1e-9)
 
 
 @pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-7, 1e-5, 1e-3, 0.5, 3.0, math.pi - 1e-3, math.pi - 1e-5, math.pi - 1e-7])
@@ -32,7 +33,7 @@ def test_angle_axis_near_zero_and_pi(angle):
         axis = rng.normal(size=3)
         axis /= np.linalg.norm(axis)
         R = Rotation.from_rotvec(angle * axis)
-        got = pbvs.angle_axis(R.as_matrix())
+        got = spatial.rotvec_from_rotation(R.as_matrix())
         assert np.linalg.norm(got) == pytest.approx(angle, abs=1e-6)
         # the same rotation (θ a and −θ a coincide at π)
         np.testing.assert_allclose(Rotation.from_rotvec(got).as_matrix(), R.as_matrix(), atol=1e-6)
@@ -40,8 +41,8 @@ def test_angle_axis_near_zero_and_pi(angle):
 
 def test_rotation_angle_is_eq_11_and_clips():
     R = Rotation.from_rotvec([0.0, 0.3, 0.0]).as_matrix()
-    assert pbvs.rotation_angle(R) == pytest.approx(0.3)
-    assert pbvs.rotation_angle(np.eye(3) * (1 + 1e-12)) == 0.0  # trace a hair above 3 is clipped
+    assert spatial.rotation_angle(R) == pytest.approx(0.3)
+    assert spatial.rotation_angle(np.eye(3) * (1 + 1e-12)) == 0.0  # trace a hair above 3 is clipped
 
 
 # -- transition tests, eqs. 9-14 ----------------------------------------------------------------------------
@@ -51,13 +52,13 @@ def test_eq_10_and_13_norms_do_not_depend_on_the_product_order():
     rng = np.random.default_rng(2)
     for _ in range(50):
         A, B = rand_pose(rng), rand_pose(rng)
-        t1, r1 = pbvs.pose_error_norms(A @ pbvs.inv_h(B))  # as meant for the control law
-        t2, r2 = pbvs.pose_error_norms(B @ pbvs.inv_h(A))  # as printed
+        t1, r1 = pbvs.pose_error_norms(A @ spatial.inverse(B))  # as meant for the control law
+        t2, r2 = pbvs.pose_error_norms(B @ spatial.inverse(A))  # as printed
         assert t1 == pytest.approx(t2) and r1 == pytest.approx(r2)
 
 
 def test_within_is_strict_on_translation_and_inclusive_on_rotation():
-    E = pbvs.hom(Rotation.from_rotvec([0.0, 0.0, 0.01]).as_matrix(), np.array([0.002, 0.0, 0.0]))
+    E = spatial.transform(Rotation.from_rotvec([0.0, 0.0, 0.01]).as_matrix(), np.array([0.002, 0.0, 0.0]))
     assert not pbvs.within(E, 0.002, 0.02)       # |p| < ε_t is strict (eq. 9)
     assert pbvs.within(E, 0.0021, 0.01 + 1e-12)  # |θ| ≤ ε_r is inclusive
     assert not pbvs.within(E, 0.0021, 0.0099)
@@ -73,7 +74,7 @@ def test_camera_error_points_the_camera_where_it_must_go():
         H_co, H_star = rand_pose(rng), rand_pose(rng)
         E = pbvs.camera_error(H_co, H_star)
         # the camera moves to E (pose of c* in c): then it sees the object at E^-1 H_co
-        np.testing.assert_allclose(pbvs.inv_h(E) @ H_co, H_star, atol=1e-12)
+        np.testing.assert_allclose(spatial.inverse(E) @ H_co, H_star, atol=1e-12)
 
 
 def test_camera_error_vector_is_the_error_expressed_in_the_base_frame():
@@ -109,7 +110,7 @@ def planar_motion(cmd: np.ndarray, dt: float) -> np.ndarray:
         s, c = math.sin(th), math.cos(th)
         dx = (vx * s - vy * (1 - c)) / wz
         dy = (vx * (1 - c) + vy * s) / wz
-    return pbvs.hom(Rotation.from_rotvec([0, 0, th]).as_matrix(), np.array([dx, dy, 0.0]))
+    return spatial.transform(Rotation.from_rotvec([0, 0, th]).as_matrix(), np.array([dx, dy, 0.0]))
 
 
 def test_compensation_matches_a_finite_difference_of_the_tool_pose_under_platform_motion():
@@ -131,7 +132,7 @@ def test_compensation_matches_a_finite_difference_of_the_tool_pose_under_platfor
         np.testing.assert_allclose(V_be[3:], dp, atol=1e-4)
         # eq. 35: the compensated error is the error left once the platform has moved for dt
         target = rand_pose(rng, 0.6)  # a world-fixed target, in the initial base frame
-        target1 = pbvs.inv_h(planar_motion(cmd, dt)) @ target  # the same target in the moved base frame
+        target1 = spatial.inverse(planar_motion(cmd, dt)) @ target  # the same target in the moved base frame
         L0 = pbvs.ee_error_vector(H_be, target)
         L1 = pbvs.ee_error_vector(H_be, target1)
         V_bt = pbvs.platform_induced_twist(V_b, target[:3, 3])
@@ -150,11 +151,11 @@ def test_ee_error_vector_drives_the_tool_onto_the_target():
     for _ in range(30):
         H, H_star = rand_pose(rng), rand_pose(rng)
         L = pbvs.ee_error_vector(H, H_star)
-        moved = pbvs.hom(pbvs.so3_exp(L[:3]) @ H[:3, :3], H[:3, 3] + L[3:])
+        moved = spatial.transform(spatial.rotation_from_rotvec(L[:3]) @ H[:3, :3], H[:3, 3] + L[3:])
         np.testing.assert_allclose(moved, H_star, atol=1e-9)
         t, r = pbvs.error_norms(L)
         assert t == pytest.approx(np.linalg.norm(H_star[:3, 3] - H[:3, 3]))
-        assert r == pytest.approx(pbvs.rotation_angle(H_star[:3, :3] @ H[:3, :3].T), abs=1e-9)
+        assert r == pytest.approx(spatial.rotation_angle(H_star[:3, :3] @ H[:3, :3].T), abs=1e-9)
 
 
 # -- damped least squares, eq. 37 -----------------------------------------------------------------------

@@ -10,6 +10,7 @@ import pytest
 
 from taskflow.api import Observation, TaskContext
 from taskflow_robots.mobile_iiwa import MobileIiwa
+from taskflow import spatial
 from taskflow_tasks import pbvs
 from taskflow_tasks.impedance import ImpedanceProfile
 from taskflow_tasks.pid import PidProfile
@@ -44,7 +45,7 @@ def test_platform_pid_integrates_the_control_period_at_40_hz():
     task = PbvsPlatform(TaskContext(0.0, params, {"platform": pid, "arm": zero}, memory, ROBOT, dt=DT))
     H_co = marker_offset_along_base_x(params.camera_target.matrix(), 0.01)
     q = np.array(ROBOT.params.q_home)
-    np.testing.assert_allclose(pbvs.camera_error_vector(H_co @ pbvs.inv_h(params.camera_target.matrix()),
+    np.testing.assert_allclose(pbvs.camera_error_vector(H_co @ spatial.inverse(params.camera_target.matrix()),
                                                         ROBOT.params.H_bc()[:3, :3]), [0, 0, 0, 0.01, 0, 0], atol=1e-12)
     for k in range(1, 4):
         r = task.step(obs(k * DT, H_co, q))

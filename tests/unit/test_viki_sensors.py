@@ -35,10 +35,10 @@ def test_camera_model_principal_point_and_depth_scaled_rays():
     cam = CameraModel("front", RP.front_camera, 320, 180, 5.0)
     fx, fy, cu, cv = cam.intrinsics
     assert (cu, cv) == (160.0, 89.0) and fx == pytest.approx(180 / (2 * math.tan(0.5 * RP.front_camera.fov)))
-    T_wc = cam.pose(np.eye(4))
+    T_world_camera = cam.pose(np.eye(4))
     P = np.array([[1.5, 0.2, 0.05], [2.5, -0.4, 0.0]])
-    uv, z = cam.project(T_wc, P)
-    o, d = cam.rays(T_wc, uv[:, 0], uv[:, 1])
+    uv, z = cam.project(T_world_camera, P)
+    o, d = cam.rays(T_world_camera, uv[:, 0], uv[:, 1])
     np.testing.assert_allclose(o + z[:, None] * d, P, atol=1e-9)  # ray parameter = camera depth
 
 

@@ -48,7 +48,7 @@ def test_a_detection_drives_eq24_toward_the_desired_box_and_selects_the_camera()
     assert r.command["camera_rear"][0] == 1.0 and r.command["camera_front"][0] == 0.0
     assert r.metrics["detected"] == 1.0 and task.last.used_vs
     # desired centre: the object's measured base would be at the goal
-    T = RP.rear_camera.optical_transform()
+    T = RP.rear_camera.T_robot_camera()
     _, rad, z_c = object_base(d.bbox, d.depth, K, T)
     c = desired_centre((-0.9, 0.0), rad, z_c, K, T)
     fd = task.last.f_d
@@ -213,3 +213,26 @@ def test_zd_is_read_at_the_desired_centre(zd):
     else:  # the current box (40 x 80 px) moved to the desired centre
         assert calls[0][1] == pytest.approx((c[0] - 20, c[1] - 40, c[0] + 20, c[1] + 40))
     assert fd[4] - fd[0] == pytest.approx(40.0 * 1.3 / 1.2)  # eq. 19, k = Z_o / Z_d
+
+
+@pytest.mark.parametrize("camera", ["rear", "front"])
+def test_the_reported_camera_twist_is_the_derivative_of_the_camera_pose(camera):
+    """viki_hyco's camera-twist metrics use the robot → camera map (eq. 20-22 as meant); the camera → robot
+    map (``twist_adjoint``, eq. 22 as printed) would give other numbers: drive the car along an arc and
+    differentiate the camera pose (car: x forward, yaw rate about z; the body twist is [v, 0, 0, 0, 0, w])."""
+    from taskflow import spatial
+
+    task = make_task(camera=camera)
+    T_robot_camera = getattr(RP, f"{camera}_camera").T_robot_camera()
+    V = np.array([0.3, 0.8])
+    h = 1e-6
+
+    def T_world_camera(s):
+        th = V[1] * s
+        x, y = (V[0] / V[1]) * math.sin(th), (V[0] / V[1]) * (1.0 - math.cos(th))
+        return spatial.transform_xyz_yaw(x, y, 0.0, th) @ T_robot_camera
+
+    X = spatial.inverse(T_world_camera(0.0)) @ (T_world_camera(h) - T_world_camera(-h)) / (2 * h)
+    numeric = np.r_[X[:3, 3], spatial.vee(X[:3, :3])]
+    np.testing.assert_allclose(task._cam_twist @ V, numeric, atol=1e-6)
+    assert not np.allclose(spatial.twist_adjoint(T_robot_camera)[:, [0, 5]] @ V, numeric, atol=1e-3)

@@ -12,6 +12,7 @@ from pydantic import ValidationError
 
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.quad_scene import generate_texture
+from taskflow.spatial import twist_adjoint
 from taskflow_tasks.homography import (
     intrinsic_matrix,
     largest_triangle,
@@ -185,7 +186,7 @@ def test_segment_velocities_match_the_scaled_law(texture):
     displacement between the two views."""
     rob = Quadcopter(QuadcopterParams())
     imgs = tuple(view(texture, plane_map(0.0, 0.1 * k, 0.25 * k)) for k in range(3))
-    nus = segment_velocities(imgs, K, rob.eTc(), VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
+    nus = segment_velocities(imgs, K, twist_adjoint(rob.T_body_camera()), VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
     assert len(nus) == 2
     for nu in nus:
         assert nu[0] > 0.0 and nu[1] < 0.0  # forward, and to the right (body y is left)
@@ -200,14 +201,12 @@ def test_segment_velocities_match_the_scaled_law(texture):
 def test_servo_law_regulates_a_quadcopter_with_exact_points():
     rob = Quadcopter(QuadcopterParams(tau=0.1))
     cam = rob.params.camera
-    Kc, eTc = cam.K(), rob.eTc()
+    Kc, Ad_body_camera = cam.K(), twist_adjoint(rob.T_body_camera())
     rng = np.random.default_rng(0)
     X = np.column_stack((np.full(300, 4.0), rng.uniform(-2.5, 2.5, 300), rng.uniform(0, 3, 300)))
 
     def project(pose):
-        x, y, z, yaw = pose
-        Rb = np.array([[math.cos(yaw), -math.sin(yaw), 0], [math.sin(yaw), math.cos(yaw), 0], [0, 0, 1.0]])
-        R, t = Rb @ cam.R(), np.array([x, y, z]) + Rb @ cam.t()
+        R, t = cam.pose_in_world(pose)
         Xc = (X - t) @ R
         uv = Xc[:, :2] / Xc[:, 2:3] * [Kc[0, 0], Kc[1, 1]] + [Kc[0, 2], Kc[1, 2]]
         return uv, (uv[:, 0] > 0) & (uv[:, 0] < 319) & (uv[:, 1] > 0) & (uv[:, 1] < 239)
@@ -216,7 +215,7 @@ def test_servo_law_regulates_a_quadcopter_with_exact_points():
     kf, ok_k = project(key)
     pose = np.array([0.0, 0.2, 1.0, 0.1])
     params = VisualPathParams(keyframe=KeyframeRef(id=0))
-    law = ServoLaw(Kc, eTc, (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
+    law = ServoLaw(Kc, Ad_body_camera, (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
     vel, dt = np.zeros(4), 0.04
     for i in range(300):
         cur, ok = project(pose)
@@ -236,7 +235,7 @@ def test_epsilon_progress_is_the_drop_of_epsilon_over_its_window():
     rob = Quadcopter(QuadcopterParams())
     kf = np.random.default_rng(1).uniform([20, 20], [300, 220], (40, 2))
     params = VisualPathParams(keyframe=KeyframeRef(id=0), progress_window_s=1.0)
-    law = ServoLaw(K, rob.eTc(), (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
+    law = ServoLaw(K, twist_adjoint(rob.T_body_camera()), (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
     out = []
     for i in range(100):
         t = i * 0.04
@@ -263,7 +262,7 @@ def test_rebase_keeps_the_epsilon_rules_on_the_scale_of_a_grown_point_set():
                               progress_window_s=1.0, feedforward=True)
     runs = {}
     for rebase in (True, False):
-        law = ServoLaw(K, rob.eTc(), (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
+        law = ServoLaw(K, twist_adjoint(rob.T_body_camera()), (320, 240), params, VisualGains(), HierarchyGains(), PathGains(), 0.0)
         out = []
         for i in range(100):
             t = i * 0.04
@@ -294,15 +293,13 @@ def test_segment_velocities_from_landmark_views_point_along_the_path():
                          np.random.default_rng(3).uniform(0, 2.5, 400)))
 
     def view(x, yaw):
-        c, s = math.cos(yaw), math.sin(yaw)
-        Rb = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-        R, t = Rb @ cam.R(), np.array([x, 0.0, 1.0]) + Rb @ cam.t()
+        R, t = cam.pose_in_world((x, 0.0, 1.0, yaw))
         Xc = (X - t) @ R
         uv = Xc[:, :2] / Xc[:, 2:3] * [Kc[0, 0], Kc[1, 1]] + [Kc[0, 2], Kc[1, 2]]
         ok = np.flatnonzero((uv[:, 0] > 0) & (uv[:, 0] < 319) & (uv[:, 1] > 0) & (uv[:, 1] < 239))
         return SimpleNamespace(ids=ok, uv=uv[ok])
 
-    nus = segment_velocities_from_points((view(0.0, 0.0), view(0.3, 0.0), view(0.3, 0.25)), Kc, rob.eTc(),
+    nus = segment_velocities_from_points((view(0.0, 0.0), view(0.3, 0.0), view(0.3, 0.25)), Kc, twist_adjoint(rob.T_body_camera()),
                                          VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
     assert nus[0][0] > 0.02 and abs(nus[0][1]) < 0.2 * nus[0][0] and abs(nus[0][3]) < 0.01
     assert nus[1][3] > 0.02  # yaw left (+z)
