@@ -14,12 +14,16 @@ share it.
 
 from __future__ import annotations
 
+import math
 from typing import ClassVar
 
 from pydantic import Field
 
 from taskflow.api import ObsSpec, Robot, StrictModel, array, scalar
 from taskflow.registry import register_robot
+from taskflow_robots.racecar import CameraMount, LidarMount
+
+_PITCH = math.radians(30.0)
 
 
 class HuskyParams(StrictModel):
@@ -34,6 +38,11 @@ class HuskyParams(StrictModel):
     a_max: float = Field(default=1.5, gt=0.0, description="forward acceleration limit")
     alpha_max: float = Field(default=4.0, gt=0.0, description="yaw acceleration limit")
     wheel_torque: float = Field(default=60.0, gt=0.0)
+    # RGB-D cameras on a mast 0.55 m high pitched 30 deg down, at the front and rear bumpers (data only:
+    # worlds that render sensors, e.g. viki_ground, read them), and a LiDAR above the centre.
+    front_camera: CameraMount = CameraMount(xyz=(0.58, 0.0, 0.55), rpy=(0.0, _PITCH, 0.0))
+    rear_camera: CameraMount = CameraMount(xyz=(-0.40, 0.0, 0.55), rpy=(0.0, _PITCH, math.pi))
+    lidar: LidarMount = LidarMount(xyz=(0.0, 0.0, 1.10))
 
 
 @register_robot("husky")
@@ -44,6 +53,7 @@ class Husky(Robot):
     command_interface: ClassVar[str] = "unicycle"
     command_keys: ClassVar[dict[str, int]] = {"v": 1, "w": 1}
     observations: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar(), "state.w": scalar()}
+    sensors: ClassVar[dict[str, str]] = {"front_camera": "rgbd_camera", "rear_camera": "rgbd_camera", "lidar": "lidar"}
 
     params: HuskyParams
 

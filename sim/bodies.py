@@ -57,6 +57,11 @@ class GroundBody(ABC):
         self.client = -1
         self.uid = -1
 
+    @property
+    def body(self) -> int:
+        """The PyBullet body id under the name the racecar body uses (scenes read ``scene.car.body``)."""
+        return self.uid
+
     @abstractmethod
     def spawn(self, client: int, pose: tuple[float, float, float]) -> None:
         """Load the model into ``client`` with its base frame at ``pose``, at rest."""

@@ -21,7 +21,8 @@ def test_every_shipped_robot_has_a_world_and_ground_robots_share_flat_ground():
     hosted = {r.name for _, r in PAIRS}
     assert hosted == set(SHIPPED_ROBOTS)
     assert {r.name for w, r in PAIRS if w.name == "flat_ground"} >= {"racecar", "husky"}
-    assert ("viki_ground", "husky") not in {(w.name, r.name) for w, r in PAIRS}  # no cameras on the Husky
+    assert ("viki_ground", "husky") in {(w.name, r.name) for w, r in PAIRS}  # it carries the camera mounts
+    assert ("quad_room", "husky") not in {(w.name, r.name) for w, r in PAIRS}  # a unicycle is not a quadcopter
 
 
 @pytest.mark.parametrize("world_cls, robot_cls", PAIRS, ids=[f"{w.name}-{r.name}" for w, r in PAIRS])

@@ -30,3 +30,15 @@ def test_husky_reaches_every_waypoint_within_5_cm_of_ground_truth(tmp_path):
     assert abs(trace["gt.v"][-1]) < 1e-2  # at rest after the safe stop
     assert set(trace["state"]) >= {"drive.approach", "drive.settle"}
     assert {"cmd.v", "cmd.w"} <= set(trace)  # the unicycle command is recorded
+
+
+def test_husky_approaches_the_object_in_the_viki_scene(tmp_path):
+    """viki_ground hosts the Husky through its body and camera mounts (no edit to the world): it waits for
+    the front camera's detection, then stops with the object ~1 m ahead (ground truth)."""
+    m = load_mission(MISSION.with_name("husky_viki_approach.yaml"))
+    r = run_mission(m, seed=1, out_dir=tmp_path / "run")
+    assert_outcome(r, "succeeded")
+    s = r.summary["metrics"]
+    assert s["first_detection_s"] is not None and s["detections"] > 0
+    assert s["final_error_m"] < 0.15, s["final_error_m"]  # object in the robot frame vs goal [1.0, 0.0]
+    assert 0.85 < s["object_x_m"] < 1.15
