@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from taskflow_robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
-from taskflow.api import Robot, StrictModel
+from taskflow.api import ObsSpec, Robot, StrictModel, array
 from taskflow.registry import register_robot
 from taskflow_robots.camera import focal_px, tinyrenderer_K
 from taskflow.spatial import rpy_from_rotation, transform_from_xyz_rpy
@@ -208,7 +208,11 @@ class MobileIiwa(Robot):
     """Holonomic platform (``base_twist``) + 7-DoF arm (``arm_dq``) + screwdriver + platform camera."""
 
     Params: ClassVar[type[MobileIiwaParams]] = MobileIiwaParams
+    command_interface: ClassVar[str] = "base_arm"
     command_keys: ClassVar[dict[str, int]] = {"base_twist": 3, "arm_dq": 7}
+    observations: ClassVar[dict[str, ObsSpec]] = {"state.q": array(7), "state.qd": array(7), "state.q_ref": array(7),
+                                                  "state.base_twist": array(3), "state.odom": array(3)}
+    sensors: ClassVar[dict[str, str]] = {"camera": "rgb_camera"}
 
     params: MobileIiwaParams
 

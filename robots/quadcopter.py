@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
-from taskflow.api import Robot, StrictModel
+from taskflow.api import ObsSpec, Robot, StrictModel, array
 from taskflow.registry import register_robot
 from taskflow_robots.camera import tinyrenderer_K
 from taskflow.spatial import R_FLU_OPTICAL, rotation_y, rotation_z, transform
@@ -89,7 +89,10 @@ class Quadcopter(Robot):
     """Quadcopter commanded with ``nu = [vx, vy, vz, wz]`` (m/s, rad/s) in its body frame."""
 
     Params: ClassVar[type[QuadcopterParams]] = QuadcopterParams
+    command_interface: ClassVar[str] = "body_velocity"
     command_keys: ClassVar[dict[str, int]] = {"nu": 4}
+    observations: ClassVar[dict[str, ObsSpec]] = {"state.nu": array(4)}
+    sensors: ClassVar[dict[str, str]] = {"camera": "rgb_camera"}
 
     params: QuadcopterParams
 

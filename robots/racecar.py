@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, field_validator
 
-from taskflow.api import Robot, StrictModel
+from taskflow.api import ObsSpec, Robot, StrictModel, array, scalar
 from taskflow.registry import register_robot
 from taskflow_robots.camera import focal_px
 from taskflow.spatial import R_body_optical, rotation_from_rpy, transform
@@ -119,7 +119,10 @@ class Racecar(Robot):
     """Car-like robot commanded with forward speed ``v`` (m/s) and bicycle steering angle ``steer`` (rad)."""
 
     Params: ClassVar[type[RacecarParams]] = RacecarParams
+    command_interface: ClassVar[str] = "ackermann"
     command_keys: ClassVar[dict[str, int]] = {"v": 1, "steer": 1}
+    observations: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar(), "state.steer": scalar()}
+    sensors: ClassVar[dict[str, str]] = {"front_camera": "rgbd_camera", "rear_camera": "rgbd_camera", "lidar": "lidar"}
 
     params: RacecarParams
 

@@ -1,4 +1,9 @@
-"""``flat_ground``: the racecar alone on a flat floor — the world of the car's kinematic states.
+"""``flat_ground``: a wheeled robot alone on a flat floor — the world of the kinematic states.
+
+Any robot with a registered ground body (:mod:`taskflow_sim.bodies`, entry point group
+``taskflow.bodies``) drives here: the world builds the body by the robot's name and never names a robot.
+The observation's ``state`` is the body's proprioception (``pose``, ``v`` and what the robot adds, e.g.
+the racecar's ``steer``).
 
 Odometry (``obs.state["pose"]``) is ground truth plus optional white Gaussian noise drawn from
 ``np.random.default_rng(seed)`` (re-seeded by every :meth:`FlatGround.reset`), so a run with a given seed
@@ -8,21 +13,41 @@ is bit-for-bit reproducible.  Time is the simulation clock: a count of physics s
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 import pybullet as p
 from pydantic import Field
 
-from taskflow_robots.racecar import Racecar
-from taskflow_sim.car_scene import CarScene
-from taskflow_sim.racecar_body import Actuation
-from taskflow.api import Command, Observation, Robot, StrictModel, World
+from taskflow_sim.bodies import BodyOptions, GroundBody, make_body
+from taskflow_sim.car_scene import add_floor, connect
+from taskflow_sim.stepped import SteppedWorld, check_command
+from taskflow.api import Command, Observation, Robot, RobotNeeds, StrictModel
 from taskflow.registry import register_world
 
 
+@dataclass
+class GroundScene:
+    """A floor and one robot body in a fresh client (``car`` is the body, by its historical name)."""
+
+    client: int
+    floor: int
+    car: GroundBody
+
+    def step(self, h: float) -> None:
+        """One physics step of ``h`` seconds (actuator response, then the solver)."""
+        self.car.update(h)
+        p.stepSimulation(physicsClientId=self.client)
+
+    def close(self) -> None:
+        if p.isConnected(physicsClientId=self.client):
+            p.disconnect(physicsClientId=self.client)
+
+
 class FlatGroundParams(StrictModel):
-    """Start pose ``[x, y, yaw]`` (m, rad) of the rear-axle midpoint, physics rate, noise and actuators."""
+    """Start pose ``[x, y, yaw]`` (m, rad) of the robot frame (the racecar's rear-axle midpoint), physics
+    rate, noise and actuators."""
 
     start: tuple[float, float, float] = (0.0, 0.0, 0.0)
     physics_hz: float = Field(default=240.0, ge=100.0, le=10_000.0,
@@ -36,43 +61,30 @@ class FlatGroundParams(StrictModel):
 
 
 @register_world("flat_ground")
-class FlatGround(World):
-    """A floor and the racecar; ``observe`` gives odometry, speed and steering."""
+class FlatGround(SteppedWorld):
+    """A floor and one wheeled robot; ``observe`` gives its odometry and proprioception."""
 
     Params: ClassVar[type[FlatGroundParams]] = FlatGroundParams
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "yaw", "v")
-    robots: ClassVar[tuple[str, ...]] = ("racecar",)
+    needs: ClassVar[RobotNeeds] = RobotNeeds(body=True)
 
     params: FlatGroundParams
-    robot: Racecar
 
     def __init__(self, robot: Robot, params: FlatGroundParams, seed: int, gui: bool = False) -> None:
-        if not isinstance(robot, Racecar):
-            raise TypeError(f"world flat_ground drives a racecar, got {type(robot).__name__}")
         super().__init__(robot, params, seed, gui)
-        self.physics_hz = float(params.physics_hz)
-        self.scene: CarScene | None = None
-        self._steps = 0
-        self._carry = 0.0
+        self.scene: GroundScene | None = None
         self._rng = np.random.default_rng(seed)
 
     # --- lifecycle -----------------------------------------------------------------------------
     def reset(self) -> None:
         self.close()
-        rp, wp = self.robot.params, self.params
-        actuation = Actuation(
-            v_max=rp.v_max, psi_max=rp.psi_max, speed_tau=wp.speed_tau, steer_tau=wp.steer_tau
-        )
-        self.scene = CarScene.build(
-            gui=self.gui,
-            physics_hz=self.physics_hz,
-            start=wp.start,
-            actuation=actuation,
-            floor_half_size=wp.floor_half_size,
-            friction=wp.friction,
-        )
-        self._steps = 0
-        self._carry = 0.0
+        wp = self.params
+        body = make_body(self.robot, BodyOptions(friction=wp.friction, speed_tau=wp.speed_tau, steer_tau=wp.steer_tau))
+        client = connect(self.gui, self.physics_hz)
+        floor = add_floor(client, wp.floor_half_size, wp.friction)
+        body.spawn(client, wp.start)
+        self.scene = GroundScene(client, floor, body)
+        self.restart_clock()
         self._rng = np.random.default_rng(self.seed)
         self._populate()
         if self.gui:
@@ -80,19 +92,14 @@ class FlatGround(World):
             p.resetDebugVisualizerCamera(3.0, 0.0, -45.0, [x, y, 0.0], physicsClientId=self.scene.client)
 
     def _populate(self) -> None:
-        """Hook for subclasses: add bodies and sensors to ``self.scene`` after the car is built."""
+        """Hook for subclasses: add bodies and sensors to ``self.scene`` after the robot is built."""
 
     def close(self) -> None:
         if self.scene is not None:
             self.scene.close()
             self.scene = None
 
-    @property
-    def t(self) -> float:
-        """Simulation time (s): physics steps taken since :meth:`reset` over ``physics_hz``."""
-        return self._steps / self.physics_hz
-
-    def _require_scene(self) -> CarScene:
+    def _require_scene(self) -> GroundScene:
         if self.scene is None:
             raise RuntimeError("flat_ground: call reset() before using the world")
         return self.scene
@@ -106,36 +113,22 @@ class FlatGround(World):
             pose[:2] += self._rng.normal(0.0, wp.odom_noise, 2)
         if wp.odom_yaw_noise > 0.0:
             pose[2] = math.remainder(pose[2] + self._rng.normal(0.0, wp.odom_yaw_noise), 2.0 * math.pi)
-        state: dict[str, Any] = {"pose": pose, "v": car.speed(), "steer": car.steering()}
+        state: dict[str, Any] = {**car.proprioception(), "pose": pose}
         return Observation(t=self.t, state=state)
 
     def apply(self, command: Command) -> None:
-        keys = set(self.robot.command_keys)
-        if set(command) != keys:
-            raise ValueError(f"racecar command needs keys {sorted(keys)}, got {sorted(command)}")
-        v = np.asarray(command["v"], dtype=np.float64).reshape(-1)
-        steer = np.asarray(command["steer"], dtype=np.float64).reshape(-1)
-        if v.shape != (1,) or steer.shape != (1,):
-            raise ValueError(f"racecar command arrays must have length 1, got v{v.shape} steer{steer.shape}")
-        self._require_scene().car.apply(float(v[0]), float(steer[0]))
+        self._require_scene().car.apply(check_command(self.robot, command))
 
-    def advance(self, dt: float) -> None:
-        """Step ``dt * physics_hz`` whole physics steps (a fractional remainder carries to the next call)."""
-        if not (math.isfinite(dt) and dt >= 0.0):
-            raise ValueError(f"advance(dt) needs a finite dt >= 0, got {dt!r}")
-        scene = self._require_scene()
-        self._carry += dt * self.physics_hz
-        n = round(self._carry)
-        self._carry -= n
-        h = 1.0 / self.physics_hz
-        for _ in range(n):
-            scene.step(h)
-        self._steps += n
+    def _before_steps(self) -> None:
+        self._require_scene()
+
+    def physics_step(self, h: float) -> None:
+        self._require_scene().step(h)
 
     def ground_truth(self) -> dict[str, float]:
         car = self._require_scene().car
         x, y, yaw = car.pose()
-        return {"x": float(x), "y": float(y), "yaw": float(yaw), "v": car.speed()}
+        return {"x": float(x), "y": float(y), "yaw": float(yaw), "v": float(car.twist()[0])}
 
     def summary_metrics(self) -> dict[str, Any]:
         """Final ground-truth pose and speed of the rear-axle midpoint."""

@@ -43,7 +43,7 @@ from pydantic import Field, field_validator, model_validator
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.quad_scene import Column, QuadScene, Room
 from taskflow_sim.room_landmarks import PointView, column_silhouette, project, sample_landmarks, visible_landmarks
-from taskflow.api import Command, Observation, Robot, StrictModel, World
+from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message, scalar, sequence
 from taskflow.registry import register_world
 
 Pose = tuple[float, float, float, float]
@@ -174,7 +174,11 @@ class QuadRoom(World):
     events: ClassVar[tuple[str, ...]] = ("collision",)
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "z", "yaw", "vx", "vy", "vz", "wz",
                                                     "obstacle_clearance", "wall_clearance")
-    robots: ClassVar[tuple[str, ...]] = ("quadcopter",)
+    needs: ClassVar[RobotNeeds] = RobotNeeds(interfaces=("body_velocity",), sensors={"camera": "rgb_camera"})
+    observations: ClassVar[dict[str, ObsSpec]] = {  # geometric mode: points, obstacle; rendered: image, keyframes
+        "sensors.frame_id": scalar(), "sensors.frame_t": scalar(), "sensors.points": message(PointView),
+        "sensors.obstacle": sequence(optional=True), "sensors.keyframe_points": sequence(optional=True),
+        "sensors.image": array(None, None, 3, optional=True), "sensors.keyframes": sequence(optional=True)}
 
     params: QuadRoomParams
     robot: Quadcopter

@@ -80,7 +80,7 @@ from taskflow_sim import screw_scene as sc
 from taskflow_sim.screw_motion import PartMotion
 from taskflow_sim.screw_perception import MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody
-from taskflow.api import Command, Observation, Robot, StrictModel, World
+from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, mapping
 from taskflow.registry import register_world
 from taskflow.spatial import rotation_angle
 
@@ -164,7 +164,8 @@ class ScrewConveyor(World):
                                                     "tool_err_t", "tool_err_r", "contact_force")
     actions: ClassVar[dict[str, tuple[str, ...]]] = {"screwdriver": ("tool_activated", "tool_failed", "screw_done")}
     action_params: ClassVar[dict[str, type[BaseModel]]] = {"screwdriver": ScrewdriverParams}
-    robots: ClassVar[tuple[str, ...]] = ("mobile_iiwa",)
+    needs: ClassVar[RobotNeeds] = RobotNeeds(interfaces=("base_arm",), sensors={"camera": "rgb_camera"})
+    observations: ClassVar[dict[str, ObsSpec]] = {"sensors.marker": mapping(optional=True), "sensors.wrench": array(6)}
 
     params: ScrewWorldParams
     robot: MobileIiwa

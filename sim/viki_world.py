@@ -51,7 +51,7 @@ from taskflow_sim.perception_common import CameraModel, DropoutModel
 from taskflow_sim.perception_geometric import GeometricPerception
 from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
-from taskflow.api import Command, Observation, Robot
+from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, message, text
 from taskflow.registry import register_world
 
 CAMERA_CODE = {None: 0.0, "front": 1.0, "rear": 2.0}
@@ -98,7 +98,10 @@ class VikiGround(FlatGround):
     events: ClassVar[tuple[str, ...]] = ("target_found", "target_lost")
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "yaw", "v", "obj_x", "obj_y", "err_x", "err_y",
                                                     "detected", "camera")
-    robots: ClassVar[tuple[str, ...]] = ("racecar",)
+    needs: ClassVar[RobotNeeds] = RobotNeeds(
+        sensors={"front_camera": "rgbd_camera", "rear_camera": "rgbd_camera", "lidar": "lidar"}, body=True)
+    observations: ClassVar[dict[str, ObsSpec]] = {"sensors.detection": message(Detection),
+                                                  "sensors.camera": text(optional=True)}
 
     params: VikiGroundParams
 

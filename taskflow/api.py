@@ -18,7 +18,7 @@ expressions may write ``2 cm`` or ``3 deg`` and are converted when the mission l
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar, Literal, Mapping
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,6 +26,102 @@ from pydantic import BaseModel, ConfigDict
 
 Command = dict[str, NDArray[np.float64]]
 """Robot command: named arrays (e.g. ``{"v": [0.3], "steer": [0.1]}``); keys are the robot's."""
+
+
+@dataclass(frozen=True)
+class ObsSpec:
+    """The declared type of one observation entry, named ``"state.<key>"`` or ``"sensors.<key>"``.
+
+    ``kind`` is ``"array"`` (a numpy float/int array of ``shape``; ``None`` in the shape matches any
+    length), ``"scalar"`` (a real number), ``"text"`` (a string), ``"message"`` (an instance of ``cls``,
+    e.g. :class:`taskflow_robots.sensors.Detection`) or ``"sequence"`` (a tuple or list) or ``"mapping"`` (a dict).  ``optional``
+    entries may be absent or ``None`` on a tick (a camera between frames, a perception mode that does
+    not produce them).  Robots and worlds declare what they provide, tasks what they require; the
+    compiler matches the two and :mod:`taskflow.conformance` checks real observations against them.
+    """
+
+    kind: Literal["array", "scalar", "text", "message", "sequence", "mapping"]
+    shape: tuple[int | None, ...] = ()
+    cls: type | None = None
+    optional: bool = False
+
+    def __str__(self) -> str:
+        base = {"array": f"array{list(self.shape)}", "message": self.cls.__name__ if self.cls else "message"}
+        return base.get(self.kind, self.kind) + ("?" if self.optional else "")
+
+    def satisfies(self, required: "ObsSpec") -> bool:
+        """Whether a provided entry of this type can serve a consumer that ``required`` it."""
+        if self.kind != required.kind:
+            return False
+        if self.kind == "array":
+            return len(self.shape) == len(required.shape) and all(
+                r is None or s == r for s, r in zip(self.shape, required.shape))
+        if self.kind == "message":
+            return self.cls is not None and required.cls is not None and issubclass(self.cls, required.cls)
+        return True
+
+    def problem(self, value: Any) -> str | None:
+        """Why ``value`` does not conform to this spec, or None."""
+        if value is None:
+            return None if self.optional else "is None"
+        if self.kind == "array":
+            if not isinstance(value, np.ndarray) or value.dtype.kind not in "fiub":
+                return f"is {type(value).__name__}, not a numeric numpy array"
+            if len(value.shape) != len(self.shape) or any(s is not None and n != s for n, s in zip(value.shape, self.shape)):
+                return f"has shape {value.shape}, declared {self.shape}"
+            return None
+        if self.kind == "scalar":
+            ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+            return None if ok else f"is {type(value).__name__}, not a real number"
+        if self.kind == "text":
+            return None if isinstance(value, str) else f"is {type(value).__name__}, not a string"
+        if self.kind == "sequence":
+            return None if isinstance(value, (tuple, list)) else f"is {type(value).__name__}, not a tuple or list"
+        if self.kind == "mapping":
+            return None if isinstance(value, Mapping) else f"is {type(value).__name__}, not a mapping"
+        assert self.cls is not None
+        return None if isinstance(value, self.cls) else f"is {type(value).__name__}, not {self.cls.__name__}"
+
+
+def array(*shape: int | None, optional: bool = False) -> ObsSpec:
+    """An array entry of ``shape`` (``None``: any length on that axis)."""
+    return ObsSpec("array", tuple(shape), optional=optional)
+
+
+def scalar(optional: bool = False) -> ObsSpec:
+    return ObsSpec("scalar", optional=optional)
+
+
+def text(optional: bool = False) -> ObsSpec:
+    return ObsSpec("text", optional=optional)
+
+
+def sequence(optional: bool = False) -> ObsSpec:
+    return ObsSpec("sequence", optional=optional)
+
+
+def mapping(optional: bool = False) -> ObsSpec:
+    return ObsSpec("mapping", optional=optional)
+
+
+def message(cls: type, optional: bool = True) -> ObsSpec:
+    """A typed sensor message (optional by default: a sensor may have no frame yet)."""
+    return ObsSpec("message", cls=cls, optional=optional)
+
+
+@dataclass(frozen=True)
+class RobotNeeds:
+    """What a world needs from the robot it hosts (:attr:`World.needs`).
+
+    ``interfaces``: the command interfaces it can actuate (empty: any); ``sensors``: mount name → sensor
+    kind the world renders from the robot's description (``{"front_camera": "rgbd_camera"}``);
+    ``body``: the world builds the robot from a registered simulator body (``taskflow.bodies`` entry
+    point named after the robot), so the robot needs one.
+    """
+
+    interfaces: tuple[str, ...] = ()
+    sensors: Mapping[str, str] = field(default_factory=dict)
+    body: bool = False
 
 
 class StrictModel(BaseModel):
@@ -101,7 +197,10 @@ class Task:
     * ``slots`` — profile slot → pydantic model of the profile bound to it (``bind:`` in YAML);
     * ``metrics`` — metric name → unit of every metric ``step`` publishes;
     * ``events`` — events ``step`` may raise;
-    * ``robots`` — robot names this task can drive (empty: any).
+    * ``command_interface`` — the robot command interface its commands are in (``"ackermann"``,
+      ``"unicycle"`` ...; empty: it commands no motion), checked against the mission's robot;
+    * ``requires`` — observation entries ``step`` reads (``"state.pose": array(3)``), checked against
+      what the robot and the world provide.
     """
 
     name: ClassVar[str] = ""
@@ -109,7 +208,8 @@ class Task:
     slots: ClassVar[dict[str, type[BaseModel]]] = {}
     metrics: ClassVar[dict[str, str]] = {}
     events: ClassVar[tuple[str, ...]] = ()
-    robots: ClassVar[tuple[str, ...]] = ()
+    command_interface: ClassVar[str] = ""
+    requires: ClassVar[dict[str, ObsSpec]] = {}
 
     def __init__(self, ctx: TaskContext) -> None:
         self.ctx = ctx
@@ -124,13 +224,20 @@ class Task:
 class Robot:
     """A robot description: parameters, limits, command layout.  No simulator code here.
 
-    ``command_keys`` maps each command name to its length; :meth:`stop_command` is what the runtime
-    sends for a safe stop.  A robot instance is built from its validated ``Params``.
+    ``command_interface`` names the kind of command it takes (every robot of one interface has the same
+    ``command_keys``: ``"ackermann"`` = ``v`` + ``steer``, ``"unicycle"`` = ``v`` + ``w``); ``command_keys``
+    maps each command name to its length; :meth:`stop_command` is what the runtime sends for a safe stop.
+    ``observations`` are the entries its proprioception puts in every observation on any world that hosts
+    it (``"state.pose": array(3)``), ``sensors`` the sensors it carries (mount name → kind) for worlds to
+    render.  A robot instance is built from its validated ``Params``.
     """
 
     name: ClassVar[str] = ""
     Params: ClassVar[type[BaseModel]] = NoParams
+    command_interface: ClassVar[str] = ""
     command_keys: ClassVar[dict[str, int]] = {}
+    observations: ClassVar[dict[str, ObsSpec]] = {}
+    sensors: ClassVar[dict[str, str]] = {}
 
     def __init__(self, params: BaseModel) -> None:
         self.params = params
@@ -146,8 +253,10 @@ class World:
     resolved with the seed), ``events`` it emits, ``metrics`` (sensor-side values, with units) it
     publishes in observations, ``ground_truth_keys`` the scalar columns of :meth:`ground_truth`,
     ``actions`` (asynchronous action name → events it ends with), ``action_params`` (action name → pydantic
-    model of its parameters, checked for every state and ``foreach`` item at load), ``robots`` it
-    accepts, and ``physics_hz`` (or a ``physics_hz`` parameter): the mission's ``rate_hz`` must divide it.
+    model of its parameters, checked for every state and ``foreach`` item at load), ``needs`` (what a
+    robot must offer to be hosted, :class:`RobotNeeds`), ``observations`` (the entries the world adds to
+    the robot's own, with their types) and ``physics_hz`` (or a ``physics_hz`` parameter): the mission's
+    ``rate_hz`` must divide it.
     """
 
     name: ClassVar[str] = ""
@@ -157,7 +266,8 @@ class World:
     ground_truth_keys: ClassVar[tuple[str, ...]] = ()
     actions: ClassVar[dict[str, tuple[str, ...]]] = {}
     action_params: ClassVar[dict[str, type[BaseModel]]] = {}
-    robots: ClassVar[tuple[str, ...]] = ()
+    needs: ClassVar[RobotNeeds] = RobotNeeds()
+    observations: ClassVar[dict[str, ObsSpec]] = {}
 
     physics_hz: float = 240.0
 

@@ -172,6 +172,30 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_check(args: argparse.Namespace) -> int:
+    import yaml
+
+    from .conformance import check_all
+    from .registry import UnknownName
+
+    params: dict[str, dict[str, object]] = {}
+    for item in args.param:
+        key, sep, value = item.partition("=")
+        world, dot, name = key.partition(".")
+        if not (sep and dot and world and name):
+            raise UsageError(f"--param {item!r}: expected WORLD.KEY=VALUE, e.g. quad_room.perception=geometric")
+        params.setdefault(world, {})[name] = yaml.safe_load(value)
+    try:
+        results = check_all(params, args.world or None, args.robot or None, steps=args.steps)
+    except UnknownName as exc:
+        raise UsageError(str(exc)) from None
+    for r in results:
+        print(r)
+    bad = sum(not r.ok for r in results)
+    print(f"{len(results) - bad}/{len(results)} world x robot pairings conform")
+    return 1 if bad or not results else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="taskflow", description="Run robot missions written as YAML state machines.")
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -221,6 +245,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plot", help="write the figures of a run directory as PNG")
     p.add_argument("run_dir")
     p.set_defaults(fn=cmd_plot)
+
+    c = sub.add_parser("check", help="conformance check of every registered world x robot it hosts; exit 1 on a failure")
+    c.add_argument("--world", action="append", default=[], help="only this world (repeatable)")
+    c.add_argument("--robot", action="append", default=[], help="only this robot (repeatable)")
+    c.add_argument("--param", action="append", default=[], metavar="WORLD.KEY=VALUE",
+                   help="world parameter override, e.g. quad_room.perception=geometric")
+    c.add_argument("--steps", type=int, default=5, help="ticks per seeded rollout")
+    c.set_defaults(fn=cmd_check)
     return ap
 
 

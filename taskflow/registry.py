@@ -1,4 +1,4 @@
-"""Name → class registries for tasks, robots and worlds.
+"""Name → class registries for tasks, robots, worlds and the simulator bodies of robots.
 
 One mechanism for all three.  A class is registered either with the decorators below (importing the
 module registers it) or through an entry point in a package's ``pyproject.toml``::
@@ -115,10 +115,14 @@ class Registry(Generic[T]):
 TASKS: Registry[type[Task]] = Registry("task", Task, "taskflow.tasks")
 ROBOTS: Registry[type[Robot]] = Registry("robot", Robot, "taskflow.robots")
 WORLDS: Registry[type[World]] = Registry("world", World, "taskflow.worlds")
+BODIES: Registry[type] = Registry("body", object, "taskflow.bodies")
+"""Robot name → its simulator body class (``sim/``; the base is ``taskflow_sim.bodies.GroundBody``).
+The framework only asks whether a robot has one (:attr:`taskflow.api.RobotNeeds.body`), never imports it."""
 
 register_task = TASKS.register
 register_robot = ROBOTS.register
 register_world = WORLDS.register
+register_body = BODIES.register
 
 
 def import_builtin(module: str) -> None:

@@ -24,7 +24,7 @@ import numpy as np
 from pydantic import BaseModel, Field, field_validator
 
 from taskflow_robots.racecar import RacecarParams
-from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
+from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, scalar
 from taskflow.registry import register_task
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 
@@ -64,7 +64,8 @@ class CarGoto(Task):
     Params: ClassVar[type[CarGotoParams]] = CarGotoParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": CarGains}
     metrics: ClassVar[dict[str, str]] = {"pos_error": "m", "heading_error": "rad", "speed": "m/s"}
-    robots: ClassVar[tuple[str, ...]] = ("racecar",)
+    command_interface: ClassVar[str] = "ackermann"
+    requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}
 
     def __init__(self, ctx: TaskContext) -> None:
         super().__init__(ctx)

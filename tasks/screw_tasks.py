@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator
 
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
-from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
+from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, mapping
 from taskflow.registry import register_task
 from taskflow.spatial import inverse, transform_xyz_yaw
 from taskflow_tasks import pbvs
@@ -133,7 +133,9 @@ class MobilePbvs(Task):
     slots: ClassVar[dict[str, type[BaseModel]]] = {
         "platform": PidProfile, "arm": PidProfile, "impedance": ImpedanceProfile, "prediction": Prediction}
     metrics: ClassVar[dict[str, str]] = {"camera_error.t": "m", "camera_error.r": "rad", "contact_force": "N"}
-    robots: ClassVar[tuple[str, ...]] = ("mobile_iiwa",)
+    command_interface: ClassVar[str] = "base_arm"
+    requires: ClassVar[dict[str, ObsSpec]] = {"state.odom": array(3), "state.q": array(7), "state.q_ref": array(7),
+                                              "sensors.marker": mapping(optional=True), "sensors.wrench": array(6)}
 
     def __init__(self, ctx: TaskContext) -> None:
         super().__init__(ctx)
@@ -358,7 +360,8 @@ class ArmHome(Task):
 
     Params: ClassVar[type[BaseModel]] = HomeParams
     metrics: ClassVar[dict[str, str]] = {"joint_error": "rad"}
-    robots: ClassVar[tuple[str, ...]] = ("mobile_iiwa",)
+    command_interface: ClassVar[str] = "base_arm"
+    requires: ClassVar[dict[str, ObsSpec]] = {"state.q": array(7), "state.q_ref": array(7)}
 
     def __init__(self, ctx: TaskContext) -> None:
         super().__init__(ctx)

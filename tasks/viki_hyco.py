@@ -58,7 +58,7 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.racecar import RacecarParams
 from taskflow_robots.sensors import Detection, camera_command
-from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
+from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
 from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains
 from taskflow.spatial import twist_adjoint_inverse
@@ -142,7 +142,8 @@ class ViKiHyCo(Task):
         "cam_vx": "m/s", "cam_vy": "m/s", "cam_vz": "m/s", "cam_wx": "rad/s", "cam_wy": "rad/s", "cam_wz": "rad/s",
     }
     events: ClassVar[tuple[str, ...]] = ("no_target",)
-    robots: ClassVar[tuple[str, ...]] = ("racecar",)
+    command_interface: ClassVar[str] = "ackermann"
+    requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "sensors.detection": message(Detection)}
 
     def __init__(self, ctx: TaskContext) -> None:
         super().__init__(ctx)

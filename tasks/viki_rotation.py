@@ -40,7 +40,7 @@ from pydantic import BaseModel, Field
 
 from taskflow_robots.racecar import RacecarParams
 from taskflow_robots.sensors import camera_command
-from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
+from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array
 from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
@@ -113,7 +113,8 @@ class ViKiRotate(Task):
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": CarGains}
     metrics: ClassVar[dict[str, str]] = {"pos_error": "m", "leg": "", "heading_error": "rad", "speed": "m/s"}
     events: ClassVar[tuple[str, ...]] = ("no_target",)
-    robots: ClassVar[tuple[str, ...]] = ("racecar",)
+    command_interface: ClassVar[str] = "ackermann"
+    requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3)}
 
     def __init__(self, ctx: TaskContext) -> None:
         super().__init__(ctx)

@@ -82,7 +82,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
 
 from taskflow_robots.quadcopter import QuadcopterParams
-from taskflow.api import Observation, StepResult, StrictModel, Task, TaskContext
+from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, scalar
 from taskflow.registry import register_task
 from taskflow.spatial import twist_adjoint
 from taskflow_tasks.hierarchy import (
@@ -512,7 +512,8 @@ class VisualPathServo(Task):
                                                    "path": PathGains}
     metrics: ClassVar[dict[str, str]] = _METRICS
     events: ClassVar[tuple[str, ...]] = ("features_lost",)
-    robots: ClassVar[tuple[str, ...]] = ("quadcopter",)
+    command_interface: ClassVar[str] = "body_velocity"
+    requires: ClassVar[dict[str, ObsSpec]] = {"sensors.frame_id": scalar()}
 
     def __init__(self, ctx: TaskContext) -> None:
         super().__init__(ctx)
@@ -715,7 +716,8 @@ class VisualPathRematch(Task):
     Params: ClassVar[type[RematchParams]] = RematchParams
     metrics: ClassVar[dict[str, str]] = {"n_points": "", "keyframe": ""}
     events: ClassVar[tuple[str, ...]] = ("features_found",)
-    robots: ClassVar[tuple[str, ...]] = ("quadcopter",)
+    command_interface: ClassVar[str] = "body_velocity"
+    requires: ClassVar[dict[str, ObsSpec]] = {"sensors.frame_id": scalar()}
 
     def __init__(self, ctx: TaskContext) -> None:
         super().__init__(ctx)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from pydantic import BaseModel
 
-from taskflow.api import Robot, Task, World
+from taskflow.api import ObsSpec, Robot, Task, World
 from taskflow.registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError, UnknownName
 from taskflow.units import UNITS
 
@@ -53,7 +53,8 @@ def test_task_conformance(name):
     assert all(issubclass(m, BaseModel) for m in cls.slots.values())
     assert all(unit in UNITS for unit in cls.metrics.values()), cls.metrics
     assert all(e.isidentifier() for e in cls.events)
-    assert all(r in ROBOTS for r in cls.robots), cls.robots
+    assert all(isinstance(s, ObsSpec) for s in cls.requires.values()), cls.requires
+    assert all(k.split(".", 1)[0] in ("state", "sensors") for k in cls.requires), cls.requires
     assert cls.step is not Task.step, "a task must implement step()"
 
 
@@ -76,6 +77,6 @@ def test_world_conformance(name):
     assert all(e.isidentifier() for e in cls.events)
     for action, ends in cls.actions.items():
         assert action.isidentifier() and ends and all(e.isidentifier() for e in ends)
-    assert all(r in ROBOTS for r in cls.robots), cls.robots
+    assert all(isinstance(s, ObsSpec) for s in cls.observations.values()), cls.observations
     for m in ("observe", "apply", "advance"):
         assert getattr(cls, m) is not getattr(World, m), f"{name} must implement {m}()"

@@ -1,5 +1,6 @@
 """Compile pass: the robot and the world — registered names, their parameters (world distributions
-drawn with the mission's seed and checked at the edges of their range), the pairing, and the control
+drawn with the mission's seed and checked at the edges of their range), the pairing (the robot offers
+what the world needs, :func:`taskflow.contracts.world_problem`), and the control
 rate against the world's physics rate."""
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from ..api import World
+from ..contracts import world_problem
 from ..distributions import DistributionError, distributions_in, replaced, sample, support, world_rng
 from ..model import YPath, with_model_defaults
 from ..registry import ROBOTS, WORLDS, RegistryError, UnknownName, describe_choices
@@ -25,9 +27,9 @@ def resolve_components(c: Compilation) -> None:
     if world_cls is None:
         return
     c.world_cls = world_cls
-    if robot_cls is not None and world_cls.robots and robot_cls.name not in world_cls.robots:
-        c.err(("world",), f"world {world_cls.name!r} cannot host robot {robot_cls.name!r}",
-              f"robots it accepts: {', '.join(world_cls.robots)}")
+    mismatch = world_problem(world_cls, robot_cls) if robot_cls is not None else None
+    if mismatch is not None:
+        c.err(("world",), *mismatch)
     try:
         drawn = sample(world_raw, world_rng(c.spec.seed))
     except DistributionError as exc:

@@ -4,6 +4,7 @@ and final outcome; then the catalogue of what the mission's tasks and world publ
 
 from __future__ import annotations
 
+from ..contracts import task_problem
 from ..model import Loop, StateNode, YPath
 from ..registry import TASKS, RegistryError, UnknownName, describe_choices
 from ..schema import Machine, State
@@ -23,8 +24,9 @@ def _build(c: Compilation, node: StateNode, spec: State | Machine, ypath: YPath)
         tpath = ypath + ("task",) if isinstance(spec.task, str) else ypath + ("task", "name")
         try:
             cls = TASKS.get(tname)
-            if cls.robots and c.robot.name not in cls.robots:
-                c.err(tpath, f"task {tname!r} cannot drive robot {c.robot.name!r}", f"robots it drives: {', '.join(cls.robots)}")
+            mismatch = task_problem(cls, c.robot, c.world)
+            if mismatch is not None:
+                c.err(tpath, *mismatch)
             node.task_cls, node.task_params = cls, dict(tparams)
             node.task_ypath = ypath + ("task",)
         except UnknownName as exc:

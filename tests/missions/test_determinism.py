@@ -17,6 +17,8 @@ RECORDS = ("trace.csv", "transitions.jsonl", "summary.json", "mission.yaml")
 
 CASES = [  # (mission, overrides, simulated seconds)
     ("car_waypoints.yaml", [], 6.0),
+    ("husky_waypoints.yaml", ["world.params.odom_noise=0.003"], 6.0),
+    ("husky_viki_approach.yaml", [], 6.0),
     ("viki_hyco.yaml", [], 6.0),
     ("viki_hyco.yaml", ["world.params.perception=rendered", "world.params.image_size=[320, 180]"], 2.0),
     ("visual_path_pose_regulation.yaml", [], 2.0),

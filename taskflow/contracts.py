@@ -1,0 +1,85 @@
+"""The contract checks between a task, a robot and a world: command interface, observations, needs.
+
+Used by the compiler (``compile/components.py``, ``compile/tree.py``: one ``FILE:LINE:COL`` problem per
+mismatch) and by :mod:`taskflow.conformance` (which robots each world can host).  Each check returns
+``None`` or ``(message, hint)``.  Names are never compared: a robot is accepted for what it declares
+(:attr:`~taskflow.api.Robot.command_interface`, :attr:`~taskflow.api.Robot.observations`,
+:attr:`~taskflow.api.Robot.sensors`), so a new robot needs no edit to any task or world that fits it.
+"""
+
+from __future__ import annotations
+
+from .api import ObsSpec, Robot, Task, World
+from .registry import BODIES, ROBOTS, TASKS, RegistryError
+
+Problem = tuple[str, str]
+
+
+def provided(robot: type[Robot], world: type[World]) -> dict[str, ObsSpec]:
+    """Every observation entry a run of ``robot`` on ``world`` carries: the robot's, then the world's."""
+    return {**robot.observations, **world.observations}
+
+
+def _listing(specs: dict[str, ObsSpec]) -> str:
+    return ", ".join(f"{k} ({v})" for k, v in specs.items()) or "(none)"
+
+
+def interface_label(robot: type[Robot]) -> str:
+    keys = ", ".join(robot.command_keys)
+    return f"{robot.command_interface or '(none)'} ({keys})" if keys else robot.command_interface or "(none)"
+
+
+def _names_where(registry: object, pred: object) -> list[str]:
+    """Registered names whose class satisfies ``pred`` (entry points that fail to load are skipped)."""
+    out = []
+    for n in registry.names():  # type: ignore[attr-defined]
+        try:
+            if pred(registry.get(n)):  # type: ignore[attr-defined, operator]
+                out.append(n)
+        except RegistryError:
+            continue
+    return out
+
+
+def hosts(world: type[World], robot: type[Robot]) -> bool:
+    """Whether ``world`` can host ``robot``."""
+    return world_problem(world, robot, hint=False) is None
+
+
+def world_problem(world: type[World], robot: type[Robot], hint: bool = True) -> Problem | None:
+    """Why ``world`` cannot host ``robot`` (None: it can)."""
+    needs = world.needs
+    if needs.interfaces and robot.command_interface not in needs.interfaces:
+        return (f"world {world.name!r} cannot host robot {robot.name!r}: it actuates "
+                f"{', '.join(needs.interfaces)} commands, the robot takes {interface_label(robot)}",
+                f"robots it can host: {', '.join(_names_where(ROBOTS, lambda r: hosts(world, r)))}" if hint else "")
+    missing = {m: k for m, k in needs.sensors.items() if robot.sensors.get(m) != k}
+    if missing:
+        want = ", ".join(f"{m} ({k})" for m, k in missing.items())
+        has = ", ".join(f"{m} ({k})" for m, k in robot.sensors.items()) or "none"
+        return (f"world {world.name!r} cannot host robot {robot.name!r}: it renders sensors {want} the robot "
+                f"does not carry", f"the robot carries: {has}")
+    if needs.body and robot.name not in BODIES:
+        return (f"world {world.name!r} cannot host robot {robot.name!r}: the robot has no simulator body",
+                f"register one under the entry point group 'taskflow.bodies' named {robot.name!r}; "
+                f"robots with a body: {', '.join(BODIES.names()) or '(none)'}")
+    return None
+
+
+def task_problem(task: type[Task], robot: type[Robot], world: type[World]) -> Problem | None:
+    """Why ``task`` cannot run with ``robot`` on ``world`` (None: it can)."""
+    if task.command_interface and task.command_interface != robot.command_interface:
+        drivers = _names_where(TASKS, lambda t: t.command_interface == robot.command_interface)
+        return (f"task {task.name!r} commands the {task.command_interface!r} interface but robot {robot.name!r} "
+                f"takes {interface_label(robot)}",
+                f"tasks for {robot.command_interface!r}: {', '.join(drivers) or '(none)'}")
+    have = provided(robot, world)
+    for key, need in task.requires.items():
+        got = have.get(key)
+        if got is None:
+            return (f"task {task.name!r} reads observation {key} ({need}), which neither robot {robot.name!r} "
+                    f"nor world {world.name!r} provides", f"provided here: {_listing(have)}")
+        if not got.satisfies(need):
+            return (f"task {task.name!r} reads observation {key} as {need}, but it is {got} with robot "
+                    f"{robot.name!r} on world {world.name!r}", f"provided here: {_listing(have)}")
+    return None

@@ -1,0 +1,114 @@
+"""``unicycle_goto``: drive a unicycle-commanded robot (``v``, ``w``) to a point.
+
+The law (:func:`unicycle_point_law`) is Cartesian regulation of the unicycle in polar coordinates,
+Siciliano, Sciavicco, Villani & Oriolo, *Robotics: Modelling, Planning and Control* (Springer 2009),
+§11.6.2 ("Cartesian regulation": ``v = k_rho rho cos(alpha)``, ``w`` proportional to the bearing
+error), with the ``k_rho sin(alpha) cos(alpha)`` feed-forward of Aicardi, Casalino, Bicchi & Balestrino,
+"Closed loop steering of unicycle-like vehicles via Lyapunov techniques", IEEE Robotics & Automation
+Magazine 2(1), 1995, that cancels the bearing drift caused by ``v``::
+
+    rho   = |p* - p|,   alpha = wrap(atan2(y* - y, x* - x) - theta)
+    v     = k_rho rho cos(alpha)
+    w     = k_alpha alpha + k_rho sin(alpha) cos(alpha)
+
+With the unicycle kinematics ``rho' = -v cos(alpha)``, ``alpha' = v sin(alpha) / rho - w`` this gives
+the closed loop ``alpha' = -k_alpha alpha`` (exponential decay of the bearing error) and
+``rho' = -k_rho rho cos(alpha)^2 <= 0``.  ``cos(alpha) < 0`` (target behind) drives backwards while the
+robot turns.  Signs: ``theta``, ``alpha`` and ``w`` positive counter-clockwise (z up).  The final
+heading is not controlled.
+
+The task saturates ``(v, w)`` to the robot's ``v_max`` / ``w_max`` by one common factor (so the path's
+curvature ``w / v`` is kept).  Metrics (from odometry, never ground truth): ``pos_error`` (m) = rho,
+``heading_error`` (rad) = alpha (or, with a target yaw, ``wrap(yaw* - theta)``, reported only),
+``speed`` (m/s) = ``|v|`` measured.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, Field, field_validator
+
+from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, scalar
+from taskflow.registry import register_task
+
+
+def wrap(a: float) -> float:
+    """Angle in ``[-pi, pi]``."""
+    return math.remainder(a, 2.0 * math.pi)
+
+
+def unicycle_point_law(pose: NDArray[np.float64], target: NDArray[np.float64], k_rho: float,
+                       k_alpha: float) -> tuple[float, float, float, float]:
+    """``(v, w, rho, alpha)`` of the law in the module docstring for ``pose = [x, y, theta]`` and
+    ``target = [x*, y*]`` (m, rad).  At the target (``rho = 0``) the bearing is undefined: ``(0, 0, 0, 0)``."""
+    dx, dy = float(target[0] - pose[0]), float(target[1] - pose[1])
+    rho = math.hypot(dx, dy)
+    if rho == 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    alpha = wrap(math.atan2(dy, dx) - float(pose[2]))
+    c, s = math.cos(alpha), math.sin(alpha)
+    return k_rho * rho * c, k_alpha * alpha + k_rho * s * c, rho, alpha
+
+
+def saturate(v: float, w: float, v_max: float, w_max: float) -> tuple[float, float]:
+    """``(v, w)`` scaled by one factor so that ``|v| <= v_max`` and ``|w| <= w_max``."""
+    scale = max(1.0, abs(v) / v_max, abs(w) / w_max)
+    return v / scale, w / scale
+
+
+class UnicycleGains(StrictModel):
+    """``k_rho`` (1/s) and ``k_alpha`` (1/s) of the law; ``alpha`` decays as ``exp(-k_alpha t)``."""
+
+    k_rho: float = Field(default=0.5, gt=0.0)
+    k_alpha: float = Field(default=1.5, gt=0.0)
+
+
+class UnicycleGotoParams(StrictModel):
+    """Target ``[x, y]`` or ``[x, y, yaw]`` (m, m, rad) in the odometry frame (yaw is reported only)."""
+
+    target: list[float]
+
+    @field_validator("target")
+    @classmethod
+    def _shape(cls, target: list[float]) -> list[float]:
+        if len(target) not in (2, 3) or not all(math.isfinite(v) for v in target):
+            raise ValueError(f"target must be [x, y] or [x, y, yaw] with finite values, got {target}")
+        return target
+
+
+@register_task("unicycle_goto")
+class UnicycleGoto(Task):
+    """Point regulation of a unicycle (Siciliano et al. 2009 §11.6.2; Aicardi et al. 1995)."""
+
+    Params: ClassVar[type[UnicycleGotoParams]] = UnicycleGotoParams
+    slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": UnicycleGains}
+    metrics: ClassVar[dict[str, str]] = {"pos_error": "m", "heading_error": "rad", "speed": "m/s"}
+    command_interface: ClassVar[str] = "unicycle"
+    requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}
+
+    def __init__(self, ctx: TaskContext) -> None:
+        super().__init__(ctx)
+        params, gains, rp = ctx.params, ctx.profiles.get("gains"), ctx.robot.params
+        if not isinstance(params, UnicycleGotoParams):
+            raise TypeError(f"unicycle_goto needs UnicycleGoto.Params, got {type(params).__name__}")
+        if not isinstance(gains, UnicycleGains):
+            raise TypeError(f"unicycle_goto needs a UnicycleGains profile in slot 'gains', got {type(gains).__name__}")
+        try:
+            self.v_max, self.w_max = float(getattr(rp, "v_max")), float(getattr(rp, "w_max"))
+        except AttributeError as exc:
+            raise TypeError(f"unicycle_goto needs robot parameters v_max and w_max: {exc}") from exc
+        self.k_rho, self.k_alpha = gains.k_rho, gains.k_alpha
+        self.target = np.asarray(params.target[:2], dtype=np.float64)
+        self.target_yaw = float(params.target[2]) if len(params.target) == 3 else None
+
+    def step(self, obs: Observation) -> StepResult:
+        pose = np.asarray(obs.state["pose"], dtype=np.float64)
+        v, w, rho, alpha = unicycle_point_law(pose, self.target, self.k_rho, self.k_alpha)
+        v, w = saturate(v, w, self.v_max, self.w_max)
+        heading = wrap(self.target_yaw - float(pose[2])) if self.target_yaw is not None else alpha
+        return StepResult(command={"v": np.array([v]), "w": np.array([w])},
+                          metrics={"pos_error": rho, "heading_error": heading, "speed": abs(float(obs.state["v"]))})
