@@ -109,8 +109,15 @@ def run_batch(path: str, *, trials: int, workers: int | None = None, seed: int =
     old_term = _on_sigterm()
     try:
         if workers == 1:
+            from .runtime import INTERRUPTED, TERMINATED
+
             for i, job in enumerate(jobs):
-                done[i] = _trial(job)
+                summary, timing = _trial(job)
+                if summary.get("reason") in (INTERRUPTED, TERMINATED):
+                    # the run in this process saw the signal and stopped itself: the batch ends here too,
+                    # without counting the cut trial (as a worker's trial cut by the pool is not counted)
+                    raise KeyboardInterrupt()
+                done[i] = (summary, timing)
         else:
             _run_pool(jobs, workers, done)
     except (KeyboardInterrupt, BatchInterrupted) as exc:

@@ -65,11 +65,36 @@ class _Terminated(BaseException):
     pass
 
 
-def _sigterm(signum: int, frame: Any) -> None:
-    raise _Terminated()
-
-
 INTERRUPTED = "interrupted (Ctrl-C)"
+TERMINATED = "terminated (SIGTERM)"
+
+
+class _StopRequest:
+    """Signal handler for the run loop: the first Ctrl-C or SIGTERM asks the run to stop at the next tick
+    boundary (so the record ends on a whole tick, and the safe stop starts from the clock the summary
+    gives); a second one stops at once."""
+
+    def __init__(self) -> None:
+        self.reason: str | None = None
+
+    def __call__(self, signum: int, frame: Any) -> None:
+        if self.reason is not None:
+            raise KeyboardInterrupt() if signum == signal.SIGINT else _Terminated()
+        self.reason = INTERRUPTED if signum == signal.SIGINT else TERMINATED
+
+    def install(self) -> list[tuple[int, Any]]:
+        """Handle SIGTERM, and SIGINT unless it is ignored (batch workers leave Ctrl-C to their parent);
+        returns the handlers to restore.  Off the main thread nothing is installed."""
+        old: list[tuple[int, Any]] = []
+        try:
+            for sig in (signal.SIGTERM, signal.SIGINT):
+                current = signal.getsignal(sig)
+                if sig == signal.SIGINT and current is signal.SIG_IGN:
+                    continue
+                old.append((sig, signal.signal(sig, self)))
+        except ValueError:  # not the main thread
+            pass
+        return old
 
 
 def default_run_dir(mission: CompiledMission, seed: int, root: str | Path = "runs") -> Path:
@@ -148,17 +173,16 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     reason = ""
     k = 0
     t_end = 0.0
-    old_handler = None
+    stop = _StopRequest()
+    old_handlers = stop.install()
     try:
-        try:
-            old_handler = signal.signal(signal.SIGTERM, _sigterm)
-        except ValueError:  # not the main thread
-            old_handler = None
         world.reset()
         executor.start(0.0)  # a world's clock starts at 0 on reset; the machine is entered first, so the
         obs = world.observe()  # first observation (and its events) is seen by the first tick
         while True:
             t = obs.t
+            if stop.reason is not None:
+                break
             if executor.outcome is not None:
                 break
             if t >= max_time - 1e-9:
@@ -180,18 +204,21 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             if executor.outcome is None:
                 world.advance(dt)
             obs = world.observe()
-        outcome, reason = executor.outcome or "aborted", executor.reason
+        if stop.reason is not None:
+            outcome, reason = "aborted", stop.reason
+        else:
+            outcome, reason = executor.outcome or "aborted", executor.reason
     except KeyboardInterrupt:
         outcome, reason = "aborted", INTERRUPTED
     except _Terminated:
-        outcome, reason = "aborted", "terminated (SIGTERM)"
+        outcome, reason = "aborted", TERMINATED
     except Exception as exc:  # the run record must survive any failure of a task or world
         outcome, reason = "aborted", f"{type(exc).__name__}: {exc}"
         if recorder is not None:
             (recorder.dir / "error.txt").write_text(traceback.format_exc())
     finally:
-        if old_handler is not None:
-            signal.signal(signal.SIGTERM, old_handler)
+        for sig, handler in reversed(old_handlers):
+            signal.signal(sig, handler)
     executor.outcome, executor.reason = outcome, reason
     t_end = t
     wall_run = time.perf_counter() - wall0

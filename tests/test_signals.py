@@ -64,11 +64,12 @@ def test_an_interrupted_run_is_recorded_with_its_safe_stop(tmp_path: Path, sig: 
     assert abs(trace["gt.v"][-1]) < 1e-3  # the car is at rest
 
 
-@pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
-def test_an_interrupted_batch_stops_at_once_and_records_what_finished(tmp_path: Path, how: str) -> None:
+@pytest.mark.parametrize("how, workers", [("ctrl-c", "2"), ("sigterm", "2"), ("ctrl-c", "1")])
+def test_an_interrupted_batch_stops_at_once_and_records_what_finished(tmp_path: Path, how: str, workers: str) -> None:
     out = tmp_path / "batch"
-    # 6 trials of 60 s simulated each on 2 workers; interrupted while the first two run
-    proc = _taskflow("batch", LONG, "--trials", "6", "--workers", "2", "--out", str(out), "--keep-runs")
+    # 6 trials of 60 s simulated each on 2 workers (or in the batch's own process); interrupted while the
+    # first ones run
+    proc = _taskflow("batch", LONG, "--trials", "6", "--workers", workers, "--out", str(out), "--keep-runs")
     _wait_for(out / "trial-00000" / "trace.csv", proc, "a running trial", 120)
     if how == "ctrl-c":
         os.killpg(proc.pid, signal.SIGINT)  # parent and workers alike, as a terminal does
