@@ -18,7 +18,7 @@ expressions may write ``2 cm`` or ``3 deg`` and are converted when the mission l
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal, Mapping
+from typing import Any, ClassVar, Generic, Literal, Mapping, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -167,28 +167,51 @@ class StepResult:
     timings: dict[str, float] = field(default_factory=dict)
 
 
+ParamsT = TypeVar("ParamsT", bound=BaseModel)
+RobotParamsT = TypeVar("RobotParamsT", bound=BaseModel)
+ProfileT = TypeVar("ProfileT", bound=BaseModel)
+
+
 @dataclass
-class TaskContext:
-    """Everything a task gets when its state is entered.
+class TaskContext(Generic[ParamsT, RobotParamsT]):
+    """Everything a task gets when its state is entered, typed over the task's models.
 
     ``params`` is the task's validated parameter model (``$name`` references already resolved
     against mission parameters and ``foreach`` items), ``profiles`` maps each profile slot to its
     validated model, ``memory`` is a mission-wide blackboard shared by all tasks of one run (e.g. a
     target fixed by the first detection and used by later states), ``robot`` the robot model,
-    ``items`` the current ``foreach`` items and ``dt`` the control period.
+    ``robot_params`` the robot parameters the task declared it reads (:attr:`Task.robot_params`, built
+    from the robot's own), ``items`` the current ``foreach`` items and ``dt`` the control period.
+
+    The framework has checked every one of them against the task's declarations when the mission was
+    loaded (parameters for every ``foreach`` item, each slot's profile, the robot's parameters), so a
+    task reads them without checking their types again.
     """
 
     t: float
-    params: BaseModel
+    params: ParamsT
     profiles: Mapping[str, BaseModel]
     memory: dict[str, Any]
     robot: "Robot"
     items: Mapping[str, Any] = field(default_factory=dict)
     dt: float = 0.0  # the control period (1 / rate_hz), s
+    robot_params: RobotParamsT = None  # type: ignore[assignment]  # None when the task declares none
+
+    def profile(self, slot: str, model: type[ProfileT]) -> ProfileT:
+        """The profile bound to ``slot``, typed as ``model`` (the slot's declared model, which the loader
+        checked it against)."""
+        return cast(ProfileT, self.profiles[slot])
+
+    def optional_profile(self, slot: str, model: type[ProfileT]) -> ProfileT | None:
+        """The profile bound to ``slot``, or None when the mission binds none (an optional slot)."""
+        return cast("ProfileT | None", self.profiles.get(slot))
 
 
-class Task:
+class Task(Generic[ParamsT, RobotParamsT]):
     """A control law bound to a state: ``on_enter`` → ``step`` every tick → ``on_exit``.
+
+    Typed over its parameter model and the robot parameters it reads: ``class CarGoto(Task[CarGotoParams,
+    CarGeometry])`` gets ``ctx.params: CarGotoParams`` and ``ctx.robot_params: CarGeometry``.
 
     Class attributes declare what the loader checks a mission against:
 
@@ -200,7 +223,11 @@ class Task:
     * ``command_interface`` — the robot command interface its commands are in (``"ackermann"``,
       ``"unicycle"`` ...; empty: it commands no motion), checked against the mission's robot;
     * ``requires`` — observation entries ``step`` reads (``"state.pose": array(3)``), checked against
-      what the robot and the world provide.
+      what the robot and the world provide;
+    * ``robot_params`` — a pydantic model of the robot parameters the law reads (geometry, limits,
+      camera mounts).  The robot is accepted for its fields, not its name: the loader checks that the
+      robot's ``Params`` has each field with a compatible type, and the framework builds this model from
+      the robot's parameters as ``ctx.robot_params``.
     """
 
     name: ClassVar[str] = ""
@@ -210,8 +237,9 @@ class Task:
     events: ClassVar[tuple[str, ...]] = ()
     command_interface: ClassVar[str] = ""
     requires: ClassVar[dict[str, ObsSpec]] = {}
+    robot_params: ClassVar[type[BaseModel] | None] = None
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[ParamsT, RobotParamsT]) -> None:
         self.ctx = ctx
 
     def step(self, obs: Observation) -> StepResult:  # pragma: no cover - interface

@@ -9,6 +9,8 @@ mismatch) and by :mod:`taskflow.conformance` (which robots each world can host).
 
 from __future__ import annotations
 
+from pydantic import BaseModel
+
 from .api import ObsSpec, Robot, Task, World
 from .registry import BODIES, ROBOTS, TASKS, RegistryError
 
@@ -73,6 +75,9 @@ def task_problem(task: type[Task], robot: type[Robot], world: type[World]) -> Pr
         return (f"task {task.name!r} commands the {task.command_interface!r} interface but robot {robot.name!r} "
                 f"takes {interface_label(robot)}",
                 f"tasks for {robot.command_interface!r}: {', '.join(drivers) or '(none)'}")
+    geometry = robot_params_problem(task, robot)
+    if geometry is not None:
+        return geometry
     have = provided(robot, world)
     for key, need in task.requires.items():
         got = have.get(key)
@@ -83,3 +88,52 @@ def task_problem(task: type[Task], robot: type[Robot], world: type[World]) -> Pr
             return (f"task {task.name!r} reads observation {key} as {need}, but it is {got} with robot "
                     f"{robot.name!r} on world {world.name!r}", f"provided here: {_listing(have)}")
     return None
+
+
+def _fits(have: object, need: object) -> bool:
+    """Whether a robot parameter annotated ``have`` can fill a task's field annotated ``need``."""
+    if have == need:
+        return True
+    return isinstance(have, type) and isinstance(need, type) and issubclass(have, need)
+
+
+def _robot_params_misfit(task: type[Task], robot: type[Robot]) -> list[str]:
+    """What ``robot``'s parameters lack of those ``task`` reads (empty: nothing)."""
+    model = task.robot_params
+    if model is None:
+        return []
+    fields = robot.Params.model_fields
+    missing = [f for f in model.model_fields if f not in fields]
+    wrong = [f for f, info in model.model_fields.items()
+             if f in fields and not _fits(fields[f].annotation, info.annotation)]
+    why = []
+    if missing:
+        why.append(f"has no {', '.join(missing)}")
+    if wrong:
+        why.append("has " + ", ".join(f"{f} as {_type_name(fields[f].annotation)}, not "
+                                       f"{_type_name(model.model_fields[f].annotation)}" for f in wrong))
+    return why
+
+
+def robot_params_problem(task: type[Task], robot: type[Robot]) -> Problem | None:
+    """Why ``robot``'s parameters cannot give ``task`` the robot parameters it reads (None: they can)."""
+    why = _robot_params_misfit(task, robot)
+    if not why:
+        return None
+    model = task.robot_params
+    assert model is not None
+    fits = _names_where(ROBOTS, lambda r: not _robot_params_misfit(task, r))
+    return (f"task {task.name!r} reads robot parameters {', '.join(model.model_fields)} ({model.__name__}); robot "
+            f"{robot.name!r} {' and '.join(why)}", f"robots that have them: {', '.join(fits) or '(none)'}")
+
+
+def _type_name(t: object) -> str:
+    return t.__name__ if isinstance(t, type) else str(t).replace("typing.", "")
+
+
+def build_robot_params(task: type[Task], robot: Robot) -> BaseModel | None:
+    """The task's :attr:`~taskflow.api.Task.robot_params` model filled from ``robot``'s parameters."""
+    model = task.robot_params
+    if model is None:
+        return None
+    return model.model_validate({f: getattr(robot.params, f) for f in model.model_fields})

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Collection
 
 from .api import Command, Observation, Robot, Task, TaskContext, World
+from .contracts import build_robot_params
 from .engine import START, MissionMachine, MissionState
 from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode, TimeoutTransition,
                     Transition, has_refs, resolve_refs)
@@ -39,6 +40,8 @@ __all__ = ["CAUSES", "START", "Executor", "ItemCount", "IterationRecord", "TaskF
 blend_weight = activation
 """The papers' activation ``h(t)`` (quadcopter paper eq. 20), used by ``blend:``."""
 
+
+_NONE = object()
 
 TaskFactory = Callable[[type[Task], TaskContext], Task | None]
 
@@ -91,6 +94,7 @@ class Executor:
         }
         # per-leaf: a validated parameter model when the task's params hold no $reference
         self._static_params: dict[str, Any] = {}
+        self._robot_params: dict[type[Task], Any] = {}  # per task class: its view of the robot's parameters
         self._scoped: set[str] = {n.path for n in mission.states.values() if any(a.loop for a in n.ancestors())}
         self._below: dict[str, list[MissionState]] = {
             n.path: [self._states[d.path] for d in n.walk() if d is not n] for n in mission.states.values() if n.children}
@@ -169,8 +173,11 @@ class Executor:
                     params = node.task_cls.Params.model_validate(resolve_refs(node.task_params, self.params, items))
                     if not has_refs(node.task_params):
                         self._static_params[node.path] = params
+                robot_params = self._robot_params.get(node.task_cls, _NONE)
+                if robot_params is _NONE:
+                    robot_params = self._robot_params[node.task_cls] = build_robot_params(node.task_cls, self.robot)
                 ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self.memory,
-                                  robot=self.robot, items=items, dt=self._dt)
+                                  robot=self.robot, items=items, dt=self._dt, robot_params=robot_params)
                 self.task = self.task_factory(node.task_cls, ctx)
 
     def _exit(self, node: StateNode) -> None:

@@ -34,6 +34,7 @@ import numpy as np
 import pytest
 
 from .api import Observation, Robot, StepResult, Task, TaskContext, World
+from .contracts import build_robot_params
 from .loader import CompiledMission, load_mission as _load
 from .runtime import RunResult, run_mission
 
@@ -164,6 +165,15 @@ def run_on_world(mission: CompiledMission, *, seed: int | None = None, max_time:
 
 
 # -- assertions ---------------------------------------------------------------------------------
+
+
+def task_context(task: type[Task], params: Any, robot: Robot, profiles: dict[str, Any] | None = None, *,
+                 t: float = 0.0, memory: dict[str, Any] | None = None, items: dict[str, Any] | None = None,
+                 dt: float = 0.0) -> TaskContext:
+    """The context the executor would give ``task`` on entry — for unit tests of one task outside a
+    mission: ``robot_params`` is built from the robot's parameters as the framework builds it."""
+    return TaskContext(t=t, params=params, profiles=profiles or {}, memory={} if memory is None else memory,
+                       robot=robot, items=items or {}, dt=dt, robot_params=build_robot_params(task, robot))
 
 
 def assert_path(result: RunResult, expected: Sequence[str], *, exact: bool = True) -> None:

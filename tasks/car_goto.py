@@ -23,7 +23,6 @@ from typing import ClassVar
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
 
-from taskflow_robots.racecar import RacecarParams
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, scalar
 from taskflow.registry import register_task
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
@@ -44,6 +43,14 @@ class CarGains(StrictModel):
         return k1
 
 
+class CarGeometry(StrictModel):
+    """The robot parameters the car laws read (any robot whose parameters have them, with these types)."""
+
+    wheelbase: float
+    v_max: float
+    psi_max: float
+
+
 class CarGotoParams(StrictModel):
     """Target of the control point: ``[x, y]`` or ``[x, y, yaw]`` (m, m, rad) in the odometry frame."""
 
@@ -58,26 +65,20 @@ class CarGotoParams(StrictModel):
 
 
 @register_task("car_goto")
-class CarGoto(Task):
+class CarGoto(Task[CarGotoParams, CarGeometry]):
     """Kinematic controller of the ViKi-HyCo paper (eqs. 1–5) toward a fixed point."""
 
     Params: ClassVar[type[CarGotoParams]] = CarGotoParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": CarGains}
     metrics: ClassVar[dict[str, str]] = {"pos_error": "m", "heading_error": "rad", "speed": "m/s"}
     command_interface: ClassVar[str] = "ackermann"
+    robot_params: ClassVar[type[BaseModel]] = CarGeometry
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[CarGotoParams, CarGeometry]) -> None:
         super().__init__(ctx)
-        params = ctx.params
-        gains = ctx.profiles.get("gains")
-        rp = ctx.robot.params
-        if not isinstance(params, CarGotoParams):
-            raise TypeError(f"car_goto needs CarGoto.Params, got {type(params).__name__}")
-        if not isinstance(gains, CarGains):
-            raise TypeError(f"car_goto needs a CarGains profile in slot 'gains', got {type(gains).__name__}")
-        if not isinstance(rp, RacecarParams):
-            raise TypeError(f"car_goto drives a racecar, got robot parameters {type(rp).__name__}")
+        params, rp = ctx.params, ctx.robot_params
+        gains = ctx.profile("gains", CarGains)
         self.wheelbase = rp.wheelbase
         self.v_max = rp.v_max
         self.psi_max = rp.psi_max

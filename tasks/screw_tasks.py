@@ -126,7 +126,7 @@ def _interp_odom(times: list[float], poses: list[tuple[float, float, float]], t:
     return (a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1]), a[2] + w * math.remainder(b[2] - a[2], 2 * math.pi))
 
 
-class MobilePbvs(Task):
+class MobilePbvs(Task[Any, MobileIiwaParams]):
     """Platform PBVS + arm PBVS + admittance; subclasses choose the set-points and the slots."""
 
     Params: ClassVar[type[BaseModel]] = PlatformParams
@@ -134,27 +134,24 @@ class MobilePbvs(Task):
         "platform": PidProfile, "arm": PidProfile, "impedance": ImpedanceProfile, "prediction": Prediction}
     metrics: ClassVar[dict[str, str]] = {"camera_error.t": "m", "camera_error.r": "rad", "contact_force": "N"}
     command_interface: ClassVar[str] = "base_arm"
+    robot_params: ClassVar[type[BaseModel]] = MobileIiwaParams
     requires: ClassVar[dict[str, ObsSpec]] = {"state.odom": array(3), "state.q": array(7), "state.q_ref": array(7),
                                               "sensors.marker": mapping(optional=True), "sensors.wrench": array(6)}
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[Any, MobileIiwaParams]) -> None:
         super().__init__(ctx)
-        rp = ctx.robot.params
-        if not isinstance(rp, MobileIiwaParams):
-            raise TypeError(f"{self.name} drives a mobile_iiwa, got robot parameters {type(rp).__name__}")
+        rp = ctx.robot_params
         self.dt = _control_period(ctx, self.name or type(self).__name__)
         self.kin = ctx.robot.kinematics  # type: ignore[attr-defined]
         self.H_bc = rp.H_bc()
         self.R_bc = self.H_bc[:3, :3].copy()
         self.v_max, self.w_max, self.qd_max = rp.v_max, rp.w_max, rp.qd_max
         self.lam = rp.dls_damping
-        prof = ctx.profiles
-        self.g_b = self._profile(prof, "platform", PidProfile).arrays()
-        self.g_a = self._profile(prof, "arm", PidProfile).arrays()
-        imp = prof.get("impedance")
-        self.g_i = imp.arrays() if isinstance(imp, ImpedanceProfile) else None
-        pred = prof.get("prediction")
-        self.pred = pred if isinstance(pred, Prediction) else Prediction()
+        self.g_b = ctx.profile("platform", PidProfile).arrays()
+        self.g_a = ctx.profile("arm", PidProfile).arrays()
+        imp = ctx.optional_profile("impedance", ImpedanceProfile)
+        self.g_i = imp.arrays() if imp is not None else None
+        self.pred = ctx.optional_profile("prediction", Prediction) or Prediction()
         self.H_co_star = ctx.params.camera_target.matrix()  # type: ignore[attr-defined]
         self.H_co_star_inv = inverse(self.H_co_star)
         self.H_cb = inverse(self.H_bc)
@@ -166,13 +163,6 @@ class MobilePbvs(Task):
             if isinstance(st, PidState):
                 st.reset_derivative()  # a new set-point or gain set: no derivative kick
         self.arm_gains_zero = not (np.any(self.g_a.kp) or np.any(self.g_a.ki) or np.any(self.g_a.kd))
-
-    @staticmethod
-    def _profile(prof: Any, slot: str, model: type[BaseModel]) -> Any:
-        v = prof.get(slot)
-        if not isinstance(v, model):
-            raise TypeError(f"slot {slot!r} needs a {model.__name__}, got {type(v).__name__}")
-        return v
 
     def _arm_target(self, params: Any) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
         return None, None
@@ -352,8 +342,14 @@ class HomeParams(StrictModel):
     speed: float = Field(default=0.5, gt=0.0, le=2.0)
 
 
+class HomePose(StrictModel):
+    """The robot parameter the homing law reads: the arm's home configuration (rad)."""
+
+    q_home: tuple[float, ...]
+
+
 @register_task("arm_home")
-class ArmHome(Task):
+class ArmHome(Task[HomeParams, HomePose]):
     """Error handling: the platform stops and the arm retracts to ``q_home`` in joint space (no
     camera needed, so it works when the target is lost).  ``joint_error`` (rad) is the largest joint
     distance to home."""
@@ -361,13 +357,14 @@ class ArmHome(Task):
     Params: ClassVar[type[BaseModel]] = HomeParams
     metrics: ClassVar[dict[str, str]] = {"joint_error": "rad"}
     command_interface: ClassVar[str] = "base_arm"
+    robot_params: ClassVar[type[BaseModel]] = HomePose
     requires: ClassVar[dict[str, ObsSpec]] = {"state.q": array(7), "state.q_ref": array(7)}
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[HomeParams, HomePose]) -> None:
         super().__init__(ctx)
         self.dt = _control_period(ctx, self.name or type(self).__name__)
-        self.home = np.array(ctx.robot.params.q_home)  # type: ignore[attr-defined]
-        self.speed = float(ctx.params.speed)  # type: ignore[attr-defined]
+        self.home = np.array(ctx.robot_params.q_home)
+        self.speed = float(ctx.params.speed)
         self.mem = ctx.memory
 
     def step(self, obs: Observation) -> StepResult:

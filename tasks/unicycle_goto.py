@@ -60,6 +60,13 @@ def saturate(v: float, w: float, v_max: float, w_max: float) -> tuple[float, flo
     return v / scale, w / scale
 
 
+class UnicycleLimits(StrictModel):
+    """The robot parameters the law reads: its forward-speed and yaw-rate limits."""
+
+    v_max: float
+    w_max: float
+
+
 class UnicycleGains(StrictModel):
     """``k_rho`` (1/s) and ``k_alpha`` (1/s) of the law; ``alpha`` decays as ``exp(-k_alpha t)``."""
 
@@ -81,7 +88,7 @@ class UnicycleGotoParams(StrictModel):
 
 
 @register_task("unicycle_goto")
-class UnicycleGoto(Task):
+class UnicycleGoto(Task[UnicycleGotoParams, UnicycleLimits]):
     """Point regulation of a unicycle (Siciliano et al. 2009 §11.6.2; Aicardi et al. 1995)."""
 
     Params: ClassVar[type[UnicycleGotoParams]] = UnicycleGotoParams
@@ -89,18 +96,12 @@ class UnicycleGoto(Task):
     metrics: ClassVar[dict[str, str]] = {"pos_error": "m", "heading_error": "rad", "speed": "m/s"}
     command_interface: ClassVar[str] = "unicycle"
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}
+    robot_params: ClassVar[type[BaseModel]] = UnicycleLimits
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[UnicycleGotoParams, UnicycleLimits]) -> None:
         super().__init__(ctx)
-        params, gains, rp = ctx.params, ctx.profiles.get("gains"), ctx.robot.params
-        if not isinstance(params, UnicycleGotoParams):
-            raise TypeError(f"unicycle_goto needs UnicycleGoto.Params, got {type(params).__name__}")
-        if not isinstance(gains, UnicycleGains):
-            raise TypeError(f"unicycle_goto needs a UnicycleGains profile in slot 'gains', got {type(gains).__name__}")
-        try:
-            self.v_max, self.w_max = float(getattr(rp, "v_max")), float(getattr(rp, "w_max"))
-        except AttributeError as exc:
-            raise TypeError(f"unicycle_goto needs robot parameters v_max and w_max: {exc}") from exc
+        params, gains, rp = ctx.params, ctx.profile("gains", UnicycleGains), ctx.robot_params
+        self.v_max, self.w_max = float(rp.v_max), float(rp.w_max)
         self.k_rho, self.k_alpha = gains.k_rho, gains.k_alpha
         self.target = np.asarray(params.target[:2], dtype=np.float64)
         self.target_yaw = float(params.target[2]) if len(params.target) == 3 else None

@@ -56,11 +56,11 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, Field, field_validator, model_validator
 
-from taskflow_robots.racecar import RacecarParams
+from taskflow_robots.racecar import CameraMount
 from taskflow_robots.sensors import Detection, camera_command
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
 from taskflow.registry import register_task
-from taskflow_tasks.car_goto import CarGains
+from taskflow_tasks.car_goto import CarGains, CarGeometry
 from taskflow.spatial import twist_adjoint_inverse
 from taskflow_tasks.car_visual_servo import car_jacobian_r
 from taskflow_tasks.viki_laws import (
@@ -103,6 +103,13 @@ class ViKiGains(CarGains):
         return lam
 
 
+class CameraCar(CarGeometry):
+    """The robot parameters ViKi-HyCo reads: the car's geometry and its two camera mounts."""
+
+    front_camera: CameraMount
+    rear_camera: CameraMount
+
+
 class ViKiHyCoParams(StrictModel):
     """See the module docstring."""
 
@@ -131,7 +138,7 @@ _CAM_KEYS = ("cam_vx", "cam_vy", "cam_vz", "cam_wx", "cam_wy", "cam_wz")
 
 
 @register_task("viki_hyco")
-class ViKiHyCo(Task):
+class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
     """ViKi-HyCo visual/kinematic positioning with the front or rear camera (module docstring)."""
 
     Params: ClassVar[type[ViKiHyCoParams]] = ViKiHyCoParams
@@ -143,22 +150,15 @@ class ViKiHyCo(Task):
     }
     events: ClassVar[tuple[str, ...]] = ("no_target",)
     command_interface: ClassVar[str] = "ackermann"
+    robot_params: ClassVar[type[BaseModel]] = CameraCar
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "sensors.detection": message(Detection)}
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[ViKiHyCoParams, CameraCar]) -> None:
         super().__init__(ctx)
-        params, gains, rp = ctx.params, ctx.profiles.get("gains"), ctx.robot.params
-        if not isinstance(params, ViKiHyCoParams):
-            raise TypeError(f"viki_hyco needs ViKiHyCo.Params, got {type(params).__name__}")
-        if not isinstance(gains, ViKiGains):
-            raise TypeError(f"viki_hyco needs a ViKiGains profile in slot 'gains', got {type(gains).__name__}")
-        if not isinstance(rp, RacecarParams):
-            raise TypeError(f"viki_hyco drives a racecar, got robot parameters {type(rp).__name__}")
+        params, gains, rp = ctx.params, ctx.profile("gains", ViKiGains), ctx.robot_params
         self.p = params
         self.camera = params.camera
-        mount = getattr(rp, f"{params.camera}_camera", None)
-        if mount is None:
-            raise ValueError(f"the robot has no {params.camera!r} camera")
+        mount = rp.front_camera if params.camera == "front" else rp.rear_camera
         self.T_robot_camera = mount.T_robot_camera()
         # camera twist of a robot velocity [v, w] (eq. 20-22): V_c = T_r^c J_r V_r, for the figures
         self._cam_twist = twist_adjoint_inverse(self.T_robot_camera) @ car_jacobian_r()

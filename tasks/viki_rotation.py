@@ -38,11 +38,10 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 
-from taskflow_robots.racecar import RacecarParams
 from taskflow_robots.sensors import camera_command
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array
 from taskflow.registry import register_task
-from taskflow_tasks.car_goto import CarGains
+from taskflow_tasks.car_goto import CarGains, CarGeometry
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 from taskflow_tasks.viki_hyco import MEM_OBJECT
 from taskflow_tasks.viki_laws import reverse_control
@@ -106,7 +105,7 @@ class ViKiRotateParams(StrictModel):
 
 
 @register_task("viki_rotate")
-class ViKiRotate(Task):
+class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
     """Kinematic K-turn from the forward-positioned pose to the backward-positioning start."""
 
     Params: ClassVar[type[ViKiRotateParams]] = ViKiRotateParams
@@ -115,16 +114,11 @@ class ViKiRotate(Task):
     events: ClassVar[tuple[str, ...]] = ("no_target",)
     command_interface: ClassVar[str] = "ackermann"
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3)}
+    robot_params: ClassVar[type[BaseModel]] = CarGeometry
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[ViKiRotateParams, CarGeometry]) -> None:
         super().__init__(ctx)
-        params, gains, rp = ctx.params, ctx.profiles.get("gains"), ctx.robot.params
-        if not isinstance(params, ViKiRotateParams):
-            raise TypeError(f"viki_rotate needs ViKiRotate.Params, got {type(params).__name__}")
-        if not isinstance(gains, CarGains):
-            raise TypeError(f"viki_rotate needs a CarGains profile in slot 'gains', got {type(gains).__name__}")
-        if not isinstance(rp, RacecarParams):
-            raise TypeError(f"viki_rotate drives a racecar, got robot parameters {type(rp).__name__}")
+        params, gains, rp = ctx.params, ctx.profile("gains", CarGains), ctx.robot_params
         self.p = params
         self.k1 = np.asarray(gains.k1, dtype=float)
         self.d = float(gains.d) if gains.d is not None else rp.wheelbase

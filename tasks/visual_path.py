@@ -81,7 +81,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
 
-from taskflow_robots.quadcopter import QuadcopterParams
+from taskflow_robots.quadcopter import QuadCamera
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, scalar
 from taskflow.registry import register_task
 from taskflow.spatial import twist_adjoint
@@ -366,11 +366,10 @@ _METRICS = {
 }
 
 
-def _robot_params(ctx: TaskContext) -> QuadcopterParams:
-    rp = ctx.robot.params
-    if not isinstance(rp, QuadcopterParams):
-        raise TypeError(f"visual path tasks fly a quadcopter, got robot parameters {type(rp).__name__}")
-    return rp
+class ForwardCamera(StrictModel):
+    """The robot parameter the visual-path laws read: its forward camera (intrinsics and mount ``eT_c``)."""
+
+    camera: QuadCamera
 
 
 def _keyframe_image(obs: Observation, kf_id: int) -> NDArray[np.uint8]:
@@ -504,7 +503,7 @@ class ServoLaw:
 
 
 @register_task("visual_path_servo")
-class VisualPathServo(Task):
+class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
     """Hierarchical homography-based servoing toward one keyframe (Alg. 1; Alg. 2 with feed-forward)."""
 
     Params: ClassVar[type[VisualPathParams]] = VisualPathParams
@@ -513,20 +512,18 @@ class VisualPathServo(Task):
     metrics: ClassVar[dict[str, str]] = _METRICS
     events: ClassVar[tuple[str, ...]] = ("features_lost",)
     command_interface: ClassVar[str] = "body_velocity"
+    robot_params: ClassVar[type[BaseModel]] = ForwardCamera
     requires: ClassVar[dict[str, ObsSpec]] = {"sensors.frame_id": scalar()}
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[VisualPathParams, ForwardCamera]) -> None:
         super().__init__(ctx)
-        p = ctx.params
-        if not isinstance(p, VisualPathParams):
-            raise TypeError(f"visual_path_servo needs VisualPathParams, got {type(p).__name__}")
-        self.p = p
-        self.visual = ctx.profiles.get("visual") or VisualGains()
-        self.hier = ctx.profiles.get("hierarchy") or HierarchyGains()
-        self.path_gains = ctx.profiles.get("path") or PathGains()
-        cam = _robot_params(ctx).camera
+        self.p = ctx.params
+        self.visual = ctx.optional_profile("visual", VisualGains) or VisualGains()
+        self.hier = ctx.optional_profile("hierarchy", HierarchyGains) or HierarchyGains()
+        self.path_gains = ctx.optional_profile("path", PathGains) or PathGains()
+        cam = ctx.robot_params.camera
         self.K = cam.K()
-        self.Ad_body_camera = twist_adjoint(ctx.robot.T_body_camera())  # type: ignore[attr-defined]
+        self.Ad_body_camera = twist_adjoint(cam.T_body_camera())
         self.size = (cam.width, cam.height)
         self.t_enter = ctx.t
         self.tracker: PointTracker | None = None
@@ -709,7 +706,7 @@ def _silhouette(edges: tuple[float, float, bool] | None, size: tuple[int, int], 
 
 
 @register_task("visual_path_rematch")
-class VisualPathRematch(Task):
+class VisualPathRematch(Task[RematchParams, ForwardCamera]):
     """Hover and try to match the keyframe on every new frame; ``features_found`` once at least
     ``min_points`` RANSAC-consistent matches are back."""
 
@@ -717,15 +714,12 @@ class VisualPathRematch(Task):
     metrics: ClassVar[dict[str, str]] = {"n_points": "", "keyframe": ""}
     events: ClassVar[tuple[str, ...]] = ("features_found",)
     command_interface: ClassVar[str] = "body_velocity"
+    robot_params: ClassVar[type[BaseModel]] = ForwardCamera
     requires: ClassVar[dict[str, ObsSpec]] = {"sensors.frame_id": scalar()}
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[RematchParams, ForwardCamera]) -> None:
         super().__init__(ctx)
-        p = ctx.params
-        if not isinstance(p, RematchParams):
-            raise TypeError(f"visual_path_rematch needs RematchParams, got {type(p).__name__}")
-        _robot_params(ctx)
-        self.p = p
+        self.p = ctx.params
         self.last_frame = -1
         self.n = 0
 
@@ -737,7 +731,7 @@ class VisualPathRematch(Task):
             p = self.p
             if "points" in obs.sensors:  # geometric camera: the landmarks seen in both
                 cur, kfp, _ = _by_id(obs.sensors["points"], obs.sensors["keyframe_points"][p.keyframe.id])
-                self.n = int(estimate_homography(cur, kfp, _robot_params(self.ctx).camera.K())[1].sum()) \
+                self.n = int(estimate_homography(cur, kfp, self.ctx.robot_params.camera.K())[1].sum()) \
                     if len(cur) >= 8 else len(cur)
             else:
                 matched, _ = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id,

@@ -25,6 +25,17 @@ class ToyPoint(Robot):
     command_keys = {"v": 1}
 
 
+class ToyWheelParams(StrictModel):
+    radius: float = 0.1
+
+
+class ToyWheel(Robot):
+    """A robot ``toy_goto`` cannot drive: its parameters have no ``v_max``."""
+
+    Params = ToyWheelParams
+    command_keys = {"v": 1}
+
+
 class ToyWorldParams(StrictModel):
     start: float = 0.0
     lose_at: list[float] = []
@@ -104,17 +115,23 @@ class GotoParams(StrictModel):
     target: float
 
 
-class ToyGoto(Task):
+class ToyLimits(StrictModel):
+    v_max: float
+
+
+class ToyGoto(Task[GotoParams, ToyLimits]):
     Params = GotoParams
     slots = {"gains": GainsModel}
+    robot_params = ToyLimits
     metrics = {"pos_error": "m", "feature_error": "px", "yaw_error": "rad"}
     events = ("arrived",)
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[GotoParams, ToyLimits]) -> None:
         super().__init__(ctx)
-        self.kp = ctx.profiles["gains"].kp  # type: ignore[attr-defined]
-        self.target = ctx.params.target  # type: ignore[attr-defined]
+        self.kp = ctx.profile("gains", GainsModel).kp
+        self.target = ctx.params.target
         self.ctx.memory.setdefault("entries", []).append(self.target)
+        self.ctx.memory["robot_params"] = ctx.robot_params
 
     def step(self, obs: Observation) -> StepResult:
         e = self.target - obs.state["x"]
@@ -123,6 +140,7 @@ class ToyGoto(Task):
 
 
 def register() -> None:
-    for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (WORLDS, "toy_line", ToyLine), (TASKS, "toy_goto", ToyGoto)):
+    for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (ROBOTS, "toy_wheel", ToyWheel), (WORLDS, "toy_line", ToyLine),
+                           (TASKS, "toy_goto", ToyGoto)):
         if name not in reg._items:
             reg.add(name, cls)

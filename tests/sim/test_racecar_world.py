@@ -10,7 +10,7 @@ import pytest
 
 from taskflow_robots.racecar import Racecar
 from taskflow_sim.flat_ground import FlatGround
-from taskflow.api import TaskContext
+from taskflow.testing import task_context
 from taskflow_tasks.car_goto import CarGains, CarGoto
 
 ROBOT = Racecar(Racecar.Params())
@@ -124,13 +124,7 @@ def test_car_goto_reaches_a_target_at_90_degrees():
     """Target 2 m straight to the left of the control point: within 5 cm (ground truth) in 15 s."""
     world = make_world(start=(0.0, 0.0, 0.0))
     target = [L, 2.0]
-    ctx = TaskContext(
-        t=0.0,
-        params=CarGoto.Params(target=target),
-        profiles={"gains": CarGains(k1=(2.0, 1.0), d=L)},
-        memory={},
-        robot=ROBOT,
-    )
+    ctx = task_context(CarGoto, CarGoto.Params(target=target), ROBOT, {"gains": CarGains(k1=(2.0, 1.0), d=L)})
     task = CarGoto(ctx)
     try:
         for _ in range(round(15.0 / DT)):

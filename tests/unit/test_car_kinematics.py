@@ -11,7 +11,8 @@ from hypothesis import strategies as st
 from pydantic import ValidationError
 
 from taskflow_robots.racecar import Racecar
-from taskflow.api import Observation, TaskContext
+from taskflow.api import Observation
+from taskflow.testing import task_context
 from taskflow_tasks.car_goto import CarGains, CarGoto
 from taskflow_robots.racecar_kinematics import ackermann_wheel_angles, bicycle_from_wheel_angles, differential_wheel_speeds
 from taskflow_tasks.car_kinematics import (
@@ -162,13 +163,7 @@ def test_car_goto_on_ideal_bicycle_converges_in_every_direction():
             target = control_point([0, 0, 0], L) + rng.uniform(1.0, 3.0) * np.array(
                 [math.cos(ang), math.sin(ang)]
             )
-            ctx = TaskContext(
-                t=0.0,
-                params=CarGoto.Params(target=list(target)),
-                profiles={"gains": CarGains(k1=k1)},
-                memory={},
-                robot=robot,
-            )
+            ctx = task_context(CarGoto, CarGoto.Params(target=list(target)), robot, {"gains": CarGains(k1=k1)})
             x, result = bicycle_observations(CarGoto(ctx), (0.0, 0.0, 0.0), 15.0)
             assert np.linalg.norm(control_point(x, L) - target) < 0.01, (k1, ang)
             assert result.metrics["pos_error"] < 0.01

@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from taskflow.api import Observation, TaskContext
+from taskflow.api import Observation
+from taskflow.testing import task_context
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow import spatial
 from taskflow_tasks import pbvs
@@ -42,7 +43,7 @@ def test_platform_pid_integrates_the_control_period_at_40_hz():
     zero = PidProfile(kp=[0] * 6)
     params = PlatformParams.model_validate({"camera_target": CAMERA_TARGET})
     memory: dict = {}
-    task = PbvsPlatform(TaskContext(0.0, params, {"platform": pid, "arm": zero}, memory, ROBOT, dt=DT))
+    task = PbvsPlatform(task_context(PbvsPlatform, params, ROBOT, {"platform": pid, "arm": zero}, memory=memory, dt=DT))
     H_co = marker_offset_along_base_x(params.camera_target.matrix(), 0.01)
     q = np.array(ROBOT.params.q_home)
     np.testing.assert_allclose(pbvs.camera_error_vector(H_co @ spatial.inverse(params.camera_target.matrix()),
@@ -60,7 +61,8 @@ def test_the_period_does_not_come_from_observation_times():
     pid = PidProfile(kp=[0] * 6, ki=[0, 0, 0, 1.0, 0, 0], **NO_LIMITS)
     params = PlatformParams.model_validate({"camera_target": CAMERA_TARGET})
     memory: dict = {}
-    task = PbvsPlatform(TaskContext(0.0, params, {"platform": pid, "arm": PidProfile(kp=[0] * 6)}, memory, ROBOT, dt=DT))
+    task = PbvsPlatform(task_context(PbvsPlatform, params, ROBOT, {"platform": pid, "arm": PidProfile(kp=[0] * 6)}, memory=memory,
+                                     dt=DT))
     H_co = marker_offset_along_base_x(params.camera_target.matrix(), 0.02)
     q = np.array(ROBOT.params.q_home)
     for t in (3.0, 3.025, 7.0):  # e.g. after a searching state without a task
@@ -74,8 +76,8 @@ def test_arm_step_and_admittance_use_the_control_period_at_40_hz():
     params = ArmParams.model_validate({"camera_target": CAMERA_TARGET,
                                        "target": {"xyz": [0.14, 0.06, 0.0075], "rpy_deg": [180, 0, -90]}})
     memory: dict = {}
-    task = PbvsArm(TaskContext(0.0, params, {"platform": PidProfile(kp=[0] * 6), "arm": arm, "impedance": imp},
-                               memory, ROBOT, dt=DT))
+    task = PbvsArm(task_context(PbvsArm, params, ROBOT, {"platform": PidProfile(kp=[0] * 6), "arm": arm, "impedance": imp},
+                                memory=memory, dt=DT))
     q = np.array(ROBOT.params.q_home)
     f = np.array([0.5, -0.2, -1.0])
     task.step(obs(0.0, params.camera_target.matrix(), q, force=f))
@@ -91,7 +93,7 @@ def test_arm_step_and_admittance_use_the_control_period_at_40_hz():
 
 def test_arm_home_ramps_at_its_speed_over_the_control_period():
     memory: dict = {}
-    task = ArmHome(TaskContext(0.0, HomeParams(speed=0.6), {}, memory, ROBOT, dt=DT))
+    task = ArmHome(task_context(ArmHome, HomeParams(speed=0.6), ROBOT, memory=memory, dt=DT))
     home = np.array(ROBOT.params.q_home)
     q0 = home + np.array([0.0, 0.3, 0.0, -0.1, 0.0, 0.0, 0.0])
     q_ref = q0.copy()
@@ -110,4 +112,4 @@ def test_arm_home_ramps_at_its_speed_over_the_control_period():
 def test_a_task_without_a_control_period_is_refused(cls, params):
     profiles = {"platform": PidProfile(kp=[1.0] * 6), "arm": PidProfile(kp=[0] * 6)} if cls is PbvsPlatform else {}
     with pytest.raises(ValueError, match="TaskContext.dt"):
-        cls(TaskContext(0.0, params, profiles, {}, ROBOT))
+        cls(task_context(cls, params, ROBOT, profiles))

@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from taskflow.api import Observation, TaskContext
+from taskflow.api import Observation
+from taskflow.testing import task_context
 from taskflow_robots.husky import Husky
 from taskflow_tasks.unicycle_goto import UnicycleGains, UnicycleGoto, saturate, unicycle_point_law
 
@@ -56,8 +57,7 @@ def test_closed_loop_bearing_decays_as_exp_minus_k_alpha_t():
 
 def test_task_commands_the_unicycle_interface_within_the_robot_limits():
     robot = Husky(Husky.Params(v_max=0.5, w_max=1.0))
-    ctx = TaskContext(t=0.0, params=UnicycleGoto.Params(target=[10.0, 0.0]), profiles={"gains": UnicycleGains()},
-                      memory={}, robot=robot)
+    ctx = task_context(UnicycleGoto, UnicycleGoto.Params(target=[10.0, 0.0]), robot, {"gains": UnicycleGains()})
     res = UnicycleGoto(ctx).step(Observation(t=0.0, state={"pose": np.zeros(3), "v": 0.0, "w": 0.0}))
     assert set(res.command) == set(Husky.command_keys)
     assert float(res.command["v"][0]) == pytest.approx(0.5) and float(res.command["w"][0]) == pytest.approx(0.0)

@@ -10,7 +10,8 @@ from pydantic import ValidationError
 
 from taskflow_robots.racecar import Racecar
 from taskflow_robots.sensors import Detection
-from taskflow.api import Observation, TaskContext
+from taskflow.api import Observation
+from taskflow.testing import task_context
 from taskflow_tasks.car_goto import CarGains
 from taskflow_tasks.car_kinematics import kinematic_control
 from taskflow_tasks.viki_hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
@@ -27,8 +28,7 @@ W_MAX = RP.v_max * math.tan(RP.psi_max) / RP.wheelbase
 def make_task(memory=None, t=0.0, gains=REAR, **params):
     p = dict(camera="rear", desired=(-0.9, 0.0), smoothing=False)
     p.update(params)
-    ctx = TaskContext(t=t, params=ViKiHyCoParams(**p), profiles={"gains": ViKiGains(**gains)},
-                      memory={} if memory is None else memory, robot=ROBOT)
+    ctx = task_context(ViKiHyCo, ViKiHyCoParams(**p), ROBOT, {"gains": ViKiGains(**gains)}, t=t, memory=memory)
     return ViKiHyCo(ctx)
 
 
@@ -172,8 +172,8 @@ def test_reverse_control_backs_toward_a_point_behind():
 
 
 def make_rotate(memory, **params):
-    ctx = TaskContext(t=0.0, params=ViKiRotate.Params(**params), profiles={"gains": CarGains(k1=(2.0, 2.0))},
-                      memory=memory, robot=ROBOT)
+    ctx = task_context(ViKiRotate, ViKiRotate.Params(**params), ROBOT, {"gains": CarGains(k1=(2.0, 2.0))},
+                       memory=memory)
     return ViKiRotate(ctx)
 
 

@@ -1,0 +1,93 @@
+"""A task declares the robot parameters it reads (``Task.robot_params``); the loader checks the mission's
+robot has them, by field and type — not by robot name — and the framework hands the task a typed view of
+them, so no task checks its robot, parameters or profiles again."""
+
+from __future__ import annotations
+
+import pytest
+from pydantic import Field
+
+from taskflow.api import Robot, StrictModel
+from taskflow.contracts import build_robot_params, robot_params_problem
+from taskflow.errors import MissionError
+from taskflow.loader import load_mission_text
+from taskflow.registry import ROBOTS
+from taskflow.testing import assert_outcome, run_on_world
+from taskflow_robots.husky import Husky
+from taskflow_robots.racecar import Racecar
+from taskflow_tasks.car_goto import CarGeometry, CarGoto
+from taskflow_tasks.unicycle_goto import UnicycleGoto
+
+MISSION = """
+mission: m
+robot: %s
+world: toy_line
+rate_hz: 20
+max_time: 5 s
+machine:
+  initial: go
+  states:
+    go:
+      task: {name: toy_goto, params: {target: 1.0}}
+      bind: {gains: {kp: 1.0}}
+      transitions: [{to: done, when: "pos_error < 1 cm"}]
+    done: {final: succeeded}
+"""
+
+
+class _StrParams(StrictModel):
+    v_max: str = "fast"
+
+
+class _StrRobot(Robot):
+    Params = _StrParams
+    command_keys = {"v": 1}
+
+
+class _FastParams(StrictModel):
+    v_max: float = Field(default=2.5, gt=0)
+    mass: float = 3.0
+
+
+class _FastRobot(Robot):
+    Params = _FastParams
+    command_keys = {"v": 1}
+
+
+@pytest.fixture(autouse=True)
+def _robots():
+    for name, cls in (("toy_str", _StrRobot), ("toy_fast", _FastRobot)):
+        if name not in ROBOTS._items:
+            ROBOTS.add(name, cls)
+
+
+def test_a_robot_without_the_parameters_a_task_reads_is_refused_at_the_task_line() -> None:
+    with pytest.raises(MissionError) as exc:
+        load_mission_text(MISSION % "toy_wheel", "m.yaml")
+    p = exc.value.first
+    assert (p.line, p.col) == (11, 14), p  # the task's name
+    assert "reads robot parameters v_max (ToyLimits); robot 'toy_wheel' has no v_max" in p.message, p
+    assert "toy_point" in p.hint and "toy_fast" in p.hint and "toy_wheel" not in p.hint
+
+
+def test_a_parameter_of_the_wrong_type_is_named() -> None:
+    with pytest.raises(MissionError, match="has v_max as str, not float"):
+        load_mission_text(MISSION % "toy_str", "m.yaml")
+
+
+def test_any_robot_with_the_fields_is_accepted_and_the_task_gets_a_typed_view() -> None:
+    r = run_on_world(load_mission_text(MISSION % "toy_fast", "m.yaml"))
+    assert_outcome(r, "succeeded")
+    view = r.executor.memory["robot_params"]
+    assert type(view).__name__ == "ToyLimits" and view.v_max == 2.5 and not hasattr(view, "mass")
+
+
+def test_shipped_tasks_state_what_they_read_from_a_robot() -> None:
+    assert robot_params_problem(CarGoto, Racecar) is None
+    msg, hint = robot_params_problem(CarGoto, Husky)  # type: ignore[misc]
+    assert "robot 'husky' has no psi_max" in msg and "racecar" in hint
+    msg, _ = robot_params_problem(UnicycleGoto, Racecar)  # type: ignore[misc]
+    assert "robot 'racecar' has no w_max" in msg
+    racecar = Racecar(Racecar.Params(wheelbase=0.4))
+    view = build_robot_params(CarGoto, racecar)
+    assert isinstance(view, CarGeometry) and view.wheelbase == 0.4 and view.psi_max == racecar.params.psi_max
