@@ -77,3 +77,22 @@ def test_a_sequence_of_messages_checks_every_element():
     assert str(sequence(of=m.Image, optional=True)) == "sequence[Image]?"
     assert sequence(of=m.Image).satisfies(sequence()) and sequence(of=m.Image).satisfies(sequence(of=m.Message))
     assert not sequence().satisfies(sequence(of=m.Image)) and not sequence(of=m.Image).satisfies(sequence(of=m.FeatureView))
+
+
+def test_the_compiler_refuses_a_task_reading_another_message_class_than_the_world_sends():
+    from taskflow.api import Task
+    from taskflow.contracts import task_problem
+    from taskflow.registry import ROBOTS, TASKS, WORLDS
+
+    world, robot = WORLDS.get("screw_conveyor"), ROBOTS.get("mobile_iiwa")
+    assert task_problem(TASKS.get("pbvs_arm"), robot, world) is None
+
+    class ReadsMarkerAsImage(Task):
+        name = "reads_marker_as_image"
+        requires = {"sensors.marker": message(m.Image)}
+
+    msg, hint = task_problem(ReadsMarkerAsImage, robot, world)
+    assert "reads observation sensors.marker as Image?, but it is MarkerPose?" in msg
+    assert "sensors.wrench (Wrench)" in hint
+    for name in ("visual_path_servo", "visual_path_rematch"):  # both camera messages are declared by quad_room
+        assert task_problem(TASKS.get(name), ROBOTS.get("quadcopter"), WORLDS.get("quad_room")) is None
