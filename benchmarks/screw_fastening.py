@@ -128,6 +128,7 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
 
     from taskflow_robots.mobile_iiwa import MobileIiwa
     from taskflow.api import Observation, TaskContext
+    from taskflow.messages import MarkerPose, Wrench
     from taskflow_tasks.impedance import ImpedanceProfile
     from taskflow_tasks.pid import PidProfile
     from taskflow_tasks.screw_tasks import ArmParams, PbvsArm, Prediction
@@ -145,9 +146,10 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     times = []
     for k in range(n):
         t = k / 100.0
-        marker = {"H_co": H_co, "t": t - 0.03, "seq": k // 3}
+        marker = MarkerPose(stamp=t - 0.03, frame="camera", T_camera_object=H_co, seq=k // 3)
+        wrench = Wrench(stamp=t, frame="tool", force=np.array([0.1, -0.2, -3.0]), torque=np.zeros(3))
         obs = Observation(t, state={"q": q, "q_ref": q, "odom": np.array([0.05 * t, 0.0, 0.0])},
-                          sensors={"marker": marker, "wrench": np.array([0.1, -0.2, -3.0, 0.0, 0.0, 0.0])})
+                          sensors={"marker": marker, "wrench": wrench})
         t0 = time.perf_counter()
         task.step(obs)
         times.append(time.perf_counter() - t0)

@@ -38,8 +38,8 @@ import taskflow_sim.viki_world  # noqa: F401  registers viki_ground (forked batc
 import taskflow_tasks.viki_hyco  # noqa: F401  registers viki_hyco
 import taskflow_tasks.viki_rotation  # noqa: F401  registers viki_rotate
 from taskflow_robots.racecar import Racecar
-from taskflow_robots.sensors import Detection
 from taskflow.api import Observation, TaskContext
+from taskflow.messages import Detection
 from taskflow.batch import run_batch
 from taskflow_tasks.viki_hyco import ViKiGains, ViKiHyCo
 from taskflow_tasks.viki_laws import ServoInputs, viki_velocity
@@ -108,8 +108,8 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
                       profiles={"gains": ViKiGains(lam=(0.85, 1.05, 1.0, 1.0, 1.0), k1=(1.0, 2.0))}, memory={},
                       robot=robot)
     task = ViKiHyCo(ctx)
-    det = Detection("rear", 0.0, 0, (300.0, 120.0, 330.0, 190.0), 1.4, K, 640, 360, True, lambda u, v: 1.1,
-                    lambda box: 1.1)
+    det = Detection(stamp=0.0, frame="rear_camera", camera="rear", seq=0, bbox=(300.0, 120.0, 330.0, 190.0), depth=1.4,
+                    intrinsics=K, width=640, height=360, depth_at=lambda u, v: 1.1, depth_in=lambda box: 1.1)
     obs = Observation(t=0.0, state={"pose": np.array([0.1, 0.2, 0.3]), "v": 0.0}, sensors={"detection": det})
     out["task_step_us"] = min(timeit.repeat(lambda: task.step(obs), number=number, repeat=repeat)) / number * 1e6
     return out

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,17 +25,6 @@ from numpy.typing import NDArray
 from taskflow_sim.quad_scene import Column, Room
 
 Array = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class PointView:
-    """Landmarks seen in one frame: their ids (sorted) and pixel coordinates (N, 2)."""
-
-    ids: NDArray[np.int64]
-    uv: Array
-
-    def __len__(self) -> int:
-        return len(self.ids)
 
 
 def sample_landmarks(room: Room, density: float, rng: np.random.Generator) -> Array:

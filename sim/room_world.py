@@ -19,12 +19,14 @@ keyframe images of the visual path; no pose ever enters an observation.
 * **Camera faults.**  ``blackout`` intervals return black frames (lost video or occlusion) so missions
   can exercise their lost-features handling.
 * **Perception modes.**  ``perception: rendered`` (default, the faithful pipeline) puts the rendered
-  frame in ``obs.sensors["image"]`` and the keyframe images in ``obs.sensors["keyframes"]``.
-  ``perception: geometric`` (fast, for tests and batches) renders nothing: landmarks on the room's
-  surfaces are projected exactly (:mod:`taskflow_sim.room_landmarks`) with ``pixel_noise``, so
-  ``obs.sensors["points"]`` and ``obs.sensors["keyframe_points"]`` hold ``PointView``s (landmark ids
-  and pixels) and ``obs.sensors["obstacle"]`` the widest column's ``(u_left, u_right,
-  touches_border)`` at the middle row, or ``None``.
+  frame in ``obs.sensors["image"]`` (an :class:`taskflow.messages.Image`) and the keyframe images in
+  ``obs.sensors["keyframes"]`` (a tuple of them).  ``perception: geometric`` (fast, for tests and
+  batches) renders nothing: landmarks on the room's surfaces are projected exactly
+  (:mod:`taskflow_sim.room_landmarks`) with ``pixel_noise``, so ``obs.sensors["points"]`` and
+  ``obs.sensors["keyframe_points"]`` hold :class:`taskflow.messages.FeatureView`s (landmark ids and
+  pixels) and ``obs.sensors["obstacle"]`` the widest column's :class:`taskflow.messages.Silhouette`
+  at the middle row, or ``None``.  Current-frame messages are in the frame ``camera`` stamped with
+  the capture time; keyframe ``k``'s in ``keyframe_k`` (the camera at its taught pose), stamped 0.
 """
 
 from __future__ import annotations
@@ -42,8 +44,9 @@ from pydantic import Field, field_validator, model_validator
 
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.quad_scene import Column, QuadScene, Room
-from taskflow_sim.room_landmarks import PointView, column_silhouette, project, sample_landmarks, visible_landmarks
-from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message, scalar, sequence
+from taskflow_sim.room_landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
+from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, message, scalar, sequence
+from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow.registry import register_world
 
 Pose = tuple[float, float, float, float]
@@ -176,9 +179,9 @@ class QuadRoom(World):
                                                     "obstacle_clearance", "wall_clearance")
     needs: ClassVar[RobotNeeds] = RobotNeeds(interfaces=("body_velocity",), sensors={"camera": "rgb_camera"})
     observations: ClassVar[dict[str, ObsSpec]] = {  # geometric mode: points, obstacle; rendered: image, keyframes
-        "sensors.frame_id": scalar(), "sensors.frame_t": scalar(), "sensors.points": message(PointView),
-        "sensors.obstacle": sequence(optional=True), "sensors.keyframe_points": sequence(optional=True),
-        "sensors.image": array(None, None, 3, optional=True), "sensors.keyframes": sequence(optional=True)}
+        "sensors.frame_id": scalar(), "sensors.frame_t": scalar(), "sensors.points": message(FeatureView),
+        "sensors.obstacle": message(Silhouette), "sensors.keyframe_points": sequence(optional=True, of=FeatureView),
+        "sensors.image": message(Image), "sensors.keyframes": sequence(optional=True, of=Image)}
 
     params: QuadRoomParams
     robot: Quadcopter
@@ -214,9 +217,9 @@ class QuadRoom(World):
         self._dev_sum, self._dev_n, self.max_path_deviation = 0.0, 0, 0.0
         self.keyframe_images: tuple[NDArray[np.uint8], ...] = ()
         self.keyframe_depths: list[NDArray[np.float64] | None] = []
-        self.keyframe_points: tuple[PointView, ...] = ()
-        self._points: PointView | None = None
-        self._obstacle: tuple[float, float, bool] | None = None
+        self.keyframe_points: tuple[FeatureView, ...] = ()
+        self._points: FeatureView | None = None
+        self._obstacle: Silhouette | None = None
 
     # --- lifecycle -----------------------------------------------------------------------------
     def reset(self) -> None:
@@ -234,7 +237,7 @@ class QuadRoom(World):
         self.columns = cols
         self.landmarks = sample_landmarks(room, wp.landmark_density, np.random.default_rng(wp.texture_seed))
         if wp.perception == "geometric":
-            self.keyframe_points = tuple(self._point_view(k.pose) for k in wp.keyframes)
+            self.keyframe_points = tuple(self._point_view(k.pose, 0.0, f"keyframe_{k.id}") for k in wp.keyframes)
         else:
             self._load_or_teach_keyframes()
         self.scene.set_drone_pose(*self.pose)
@@ -287,14 +290,15 @@ class QuadRoom(World):
         R, t = cam.pose_in_world(pose)
         return R, t, cam.K(), (cam.width, cam.height)
 
-    def _point_view(self, pose: Sequence[float]) -> PointView:
-        """Landmarks seen from ``pose`` with this frame's pixel noise (geometric mode)."""
+    def _point_view(self, pose: Sequence[float], stamp: float, frame: str) -> FeatureView:
+        """Landmarks seen from ``pose`` with this frame's pixel noise (geometric mode), as a message
+        stamped ``stamp`` in ``frame``."""
         ids, uv = visible_landmarks(self.landmarks, self.columns, *self._camera_at(pose))
         if self.params.pixel_noise > 0.0:
             uv = uv + self._rng.normal(0.0, self.params.pixel_noise, uv.shape)
         uv.setflags(write=False)
         ids.setflags(write=False)
-        return PointView(ids, uv)
+        return FeatureView(stamp=stamp, frame=frame, ids=ids, uv=uv)
 
     def _widest_column(self, pose: Sequence[float]) -> tuple[float, float, bool] | None:
         view = self._camera_at(pose)
@@ -312,9 +316,11 @@ class QuadRoom(World):
         self._frame_id += 1
         self._frame_t = t
         if self.params.perception == "geometric":
-            empty = PointView(np.zeros(0, dtype=np.int64), np.zeros((0, 2)))
-            self._points = empty if dark else self._point_view(self.pose)
-            self._obstacle = None if dark else self._widest_column(self.pose)
+            empty = FeatureView(stamp=t, frame="camera", ids=np.zeros(0, dtype=np.int64), uv=np.zeros((0, 2)))
+            self._points = empty if dark else self._point_view(self.pose, t, "camera")
+            edges = None if dark else self._widest_column(self.pose)
+            self._obstacle = None if edges is None else Silhouette(stamp=t, frame="camera", u_left=edges[0],
+                                                                   u_right=edges[1], touches_border=edges[2])
             return
         if dark:
             img = np.zeros((cam.height, cam.width, 3), dtype=np.uint8)
@@ -324,7 +330,7 @@ class QuadRoom(World):
                 noisy = img.astype(np.float32) + self._rng.normal(0.0, self.params.image_noise, img.shape)
                 img = np.clip(noisy, 0, 255).astype(np.uint8)
         img.setflags(write=False)
-        self._frame = img
+        self._frame = Image(stamp=t, frame="camera", pixels=img)
 
     def observe(self) -> Observation:
         cam = self.robot.params.camera
@@ -337,7 +343,8 @@ class QuadRoom(World):
         if self.params.perception == "geometric":
             sensors.update(points=self._points, obstacle=self._obstacle, keyframe_points=self.keyframe_points)
         else:
-            sensors.update(image=self._frame, keyframes=self.keyframe_images)
+            sensors.update(image=self._frame, keyframes=tuple(Image(stamp=0.0, frame=f"keyframe_{k}", pixels=img)
+                                                              for k, img in enumerate(self.keyframe_images)))
         return Observation(t=self.t, state={"nu": self.vel.copy()}, sensors=sensors, events=events)
 
     def apply(self, command: Command) -> None:

@@ -6,10 +6,11 @@ follows it.  What the robot gets (:meth:`observe`):
 
 * ``state``: ``q``/``qd`` (measured joints), ``q_ref`` (the joint reference the arm servo is
   heading to), ``base_twist`` (platform odometry twist ``v_x, v_y, ω_z``), ``odom`` (platform pose);
-* ``sensors``: ``marker`` — the latest marker detection ``{"H_co": 4x4, "t": capture time, "seq": n}``
-  once its latency has passed (None before the first), ``wrench`` — the tool's contact wrench
-  (force N, torque N·m about the tool joint) in the tool frame, from PyBullet's F/T sensor on the
-  fixed ``tool_joint`` minus the screwdriver's weight (a gravity-compensated sensor);
+* ``sensors``: ``marker`` — the latest marker detection, a :class:`taskflow.messages.MarkerPose`
+  (``T_camera_object``, stamped with its capture time, ``seq`` = n) once its latency has passed (None
+  before the first), ``wrench`` — the tool's contact :class:`taskflow.messages.Wrench` (force N, torque
+  N·m about the tool joint) in the ``tool`` frame, from PyBullet's F/T sensor on the fixed
+  ``tool_joint`` minus the screwdriver's weight (a gravity-compensated sensor);
 * ``events``: ``target_found`` on the first detection after the marker was lost (or never seen),
   ``target_lost`` when no detection has been captured for ``lost_after`` seconds; the screwdriver's
   end events.
@@ -80,7 +81,8 @@ from taskflow_sim import screw_scene as sc
 from taskflow_sim.screw_motion import PartMotion
 from taskflow_sim.screw_perception import MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody
-from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, mapping
+from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, message
+from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import register_world
 from taskflow.spatial import rotation_angle
 
@@ -165,7 +167,8 @@ class ScrewConveyor(World):
     actions: ClassVar[dict[str, tuple[str, ...]]] = {"screwdriver": ("tool_activated", "tool_failed", "screw_done")}
     action_params: ClassVar[dict[str, type[BaseModel]]] = {"screwdriver": ScrewdriverParams}
     needs: ClassVar[RobotNeeds] = RobotNeeds(interfaces=("base_arm",), sensors={"camera": "rgb_camera"})
-    observations: ClassVar[dict[str, ObsSpec]] = {"sensors.marker": mapping(optional=True), "sensors.wrench": array(6)}
+    observations: ClassVar[dict[str, ObsSpec]] = {"sensors.marker": message(MarkerPose),
+                                                  "sensors.wrench": message(Wrench, optional=False)}
 
     params: ScrewWorldParams
     robot: MobileIiwa
@@ -226,7 +229,7 @@ class ScrewConveyor(World):
         self._frame = 0
         self._queue: list[MarkerDetection] = []
         self._perr: list[tuple[float, float, float]] = []
-        self._marker: dict[str, Any] | None = None
+        self._marker: MarkerPose | None = None
         self._seq = 0
         self._last_seen: float | None = None
         self._visible = False
@@ -309,7 +312,8 @@ class ScrewConveyor(World):
         ps = self.body.platform
         state = {"q": q, "qd": qd, "q_ref": self.body.q_ref_target.copy(), "base_twist": ps.twist.copy(),
                  "odom": ps.pose.copy()}
-        sensors = {"marker": self._marker, "wrench": self._wrench.copy()}
+        sensors = {"marker": self._marker,
+                   "wrench": Wrench(stamp=self.t, frame="tool", force=self._wrench[:3].copy(), torque=self._wrench[3:].copy())}
         return Observation(t=self.t, state=state, sensors=sensors, events=tuple(self._events))
 
     def apply(self, command: Command) -> None:
@@ -397,7 +401,7 @@ class ScrewConveyor(World):
             det = self._queue.pop(0)
             if det.H_co is not None:
                 self._seq += 1
-                self._marker = {"H_co": det.H_co, "t": det.t, "seq": self._seq}
+                self._marker = MarkerPose(stamp=det.t, frame="camera", T_camera_object=det.H_co, seq=self._seq)
                 self._last_seen = det.t
                 if not self._visible:
                     self._visible = True

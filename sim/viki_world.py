@@ -8,7 +8,7 @@ so a batch is a Monte Carlo campaign.
 
 Perception (``perception: geometric | rendered``, :mod:`taskflow_sim.perception_geometric`,
 :mod:`taskflow_sim.perception_rendered`) fills ``obs.sensors["detection"]`` with a
-:class:`taskflow_robots.sensors.Detection` of the **active camera** at the camera's rate (15 Hz by default; the
+:class:`taskflow.messages.Detection` of the **active camera** at the camera's rate (15 Hz by default; the
 control runs at the mission's rate and sees the latest frame with ``fresh = False`` in between).
 
 Active camera: chosen by the running task through its command (``camera_front`` / ``camera_rear`` keys,
@@ -44,7 +44,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from taskflow_robots.racecar import CameraMount
-from taskflow_robots.sensors import CAMERAS, Detection, active_camera_from_command
+from taskflow_robots.sensors import CAMERAS, active_camera_from_command
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
 from taskflow.spatial import rotation_from_unit_quaternion, transform
 from taskflow_sim.perception_common import CameraModel, DropoutModel
@@ -52,6 +52,7 @@ from taskflow_sim.perception_geometric import GeometricPerception
 from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
 from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, message, text
+from taskflow.messages import Detection
 from taskflow.registry import register_world
 
 CAMERA_CODE = {None: 0.0, "front": 1.0, "rear": 2.0}
@@ -238,8 +239,9 @@ class VikiGround(FlatGround):
         self._stream_k = max(self._stream_k + 1, math.floor((self.t - self._stream_t0) * rate + 1e-6) + 1)
         self._next_frame = self._stream_t0 + self._stream_k / rate
         self._frame += 1
-        self._last = Detection(name, self.t, self._frame, bbox, depth, cam.intrinsics, cam.width, cam.height,
-                               True, depth_at, depth_in)
+        self._last = Detection(stamp=self.t, frame=f"{name}_camera", camera=name, seq=self._frame, bbox=bbox, depth=depth,
+                               intrinsics=cam.intrinsics, width=cam.width, height=cam.height, depth_at=depth_at,
+                               depth_in=depth_in)
         detected = self._last.detected
         if detected != self._last_detected and (self._last_detected is not None or detected):
             self._events.append("target_found" if detected else "target_lost")

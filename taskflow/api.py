@@ -34,7 +34,8 @@ class ObsSpec:
 
     ``kind`` is ``"array"`` (a numpy float/int array of ``shape``; ``None`` in the shape matches any
     length), ``"scalar"`` (a real number), ``"text"`` (a string), ``"message"`` (an instance of ``cls``,
-    e.g. :class:`taskflow_robots.sensors.Detection`) or ``"sequence"`` (a tuple or list) or ``"mapping"`` (a dict).  ``optional``
+    e.g. :class:`taskflow.messages.Detection`) or ``"sequence"`` (a tuple or list; of instances of ``cls``
+    when it is set, e.g. the keyframes' :class:`taskflow.messages.Image`) or ``"mapping"`` (a dict).  ``optional``
     entries may be absent or ``None`` on a tick (a camera between frames, a perception mode that does
     not produce them).  Robots and worlds declare what they provide, tasks what they require; the
     compiler matches the two and :mod:`taskflow.conformance` checks real observations against them.
@@ -46,7 +47,8 @@ class ObsSpec:
     optional: bool = False
 
     def __str__(self) -> str:
-        base = {"array": f"array{list(self.shape)}", "message": self.cls.__name__ if self.cls else "message"}
+        base = {"array": f"array{list(self.shape)}", "message": self.cls.__name__ if self.cls else "message",
+                "sequence": f"sequence[{self.cls.__name__}]" if self.cls else "sequence"}
         return base.get(self.kind, self.kind) + ("?" if self.optional else "")
 
     def satisfies(self, required: "ObsSpec") -> bool:
@@ -58,6 +60,8 @@ class ObsSpec:
                 r is None or s == r for s, r in zip(self.shape, required.shape))
         if self.kind == "message":
             return self.cls is not None and required.cls is not None and issubclass(self.cls, required.cls)
+        if self.kind == "sequence" and required.cls is not None:
+            return self.cls is not None and issubclass(self.cls, required.cls)
         return True
 
     def problem(self, value: Any) -> str | None:
@@ -76,7 +80,12 @@ class ObsSpec:
         if self.kind == "text":
             return None if isinstance(value, str) else f"is {type(value).__name__}, not a string"
         if self.kind == "sequence":
-            return None if isinstance(value, (tuple, list)) else f"is {type(value).__name__}, not a tuple or list"
+            if not isinstance(value, (tuple, list)):
+                return f"is {type(value).__name__}, not a tuple or list"
+            for i, x in enumerate(value):
+                if self.cls is not None and not isinstance(x, self.cls):
+                    return f"has element {i} of type {type(x).__name__}, not {self.cls.__name__}"
+            return None
         if self.kind == "mapping":
             return None if isinstance(value, Mapping) else f"is {type(value).__name__}, not a mapping"
         assert self.cls is not None
@@ -96,8 +105,9 @@ def text(optional: bool = False) -> ObsSpec:
     return ObsSpec("text", optional=optional)
 
 
-def sequence(optional: bool = False) -> ObsSpec:
-    return ObsSpec("sequence", optional=optional)
+def sequence(optional: bool = False, of: type | None = None) -> ObsSpec:
+    """A tuple or list entry; ``of``: the class every element is an instance of (e.g. a message type)."""
+    return ObsSpec("sequence", cls=of, optional=optional)
 
 
 def mapping(optional: bool = False) -> ObsSpec:

@@ -46,7 +46,8 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator
 
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, mapping
+from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
+from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import register_task
 from taskflow.spatial import inverse, transform_xyz_yaw
 from taskflow_tasks import pbvs
@@ -136,7 +137,7 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
     command_interface: ClassVar[str] = "base_arm"
     robot_params: ClassVar[type[BaseModel]] = MobileIiwaParams
     requires: ClassVar[dict[str, ObsSpec]] = {"state.odom": array(3), "state.q": array(7), "state.q_ref": array(7),
-                                              "sensors.marker": mapping(optional=True), "sensors.wrench": array(6)}
+                                              "sensors.marker": message(MarkerPose), "sensors.wrench": message(Wrench)}
 
     def __init__(self, ctx: TaskContext[Any, MobileIiwaParams]) -> None:
         super().__init__(ctx)
@@ -177,9 +178,9 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
         the part's planar velocity and yaw rate (once per marker), and each tick the latest pose is
         propagated over its age and brought back into the current base frame.
         """
-        marker = obs.sensors.get("marker")
+        marker: MarkerPose | None = obs.sensors.get("marker")
         if not self.pred.enabled:
-            return (None if marker is None else marker["H_co"]), _ZERO3, _ZERO3
+            return (None if marker is None else marker.T_camera_object), _ZERO3, _ZERO3
         m = self.mem
         odom = obs.state["odom"]
         times: list[float] = m.setdefault(MEM + "odom_t", [])
@@ -191,24 +192,24 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
             del times[:cut], poses[:cut]
         if marker is None:
             return None, _ZERO3, _ZERO3
-        if marker["seq"] != m.get(MEM + "obj_seq"):
-            m[MEM + "obj_seq"] = marker["seq"]
-            H_wo = _T_world_base(_interp_odom(times, poses, marker["t"])) @ self.H_bc @ marker["H_co"]
+        if marker.seq != m.get(MEM + "obj_seq"):
+            m[MEM + "obj_seq"] = marker.seq
+            H_wo = _T_world_base(_interp_odom(times, poses, marker.stamp)) @ self.H_bc @ marker.T_camera_object
             objs: list[tuple[float, float, float, float]] = m.setdefault(MEM + "obj_hist", [])
             yaw = math.atan2(H_wo[1, 0], H_wo[0, 0])
             if objs:
                 yaw = objs[-1][3] + math.remainder(yaw - objs[-1][3], 2 * math.pi)  # unwrapped
-            objs.append((marker["t"], H_wo[0, 3], H_wo[1, 3], yaw))
-            while len(objs) > 2 and objs[0][0] < marker["t"] - self.pred.window:
+            objs.append((marker.stamp, H_wo[0, 3], H_wo[1, 3], yaw))
+            while len(objs) > 2 and objs[0][0] < marker.stamp - self.pred.window:
                 objs.pop(0)
             slope = np.zeros(3)
             if len(objs) >= 3:
                 arr = np.array(objs)
                 _, slope = pbvs.fit_velocity(arr[:, 0], arr[:, 1:])
-            m[MEM + "obj_fit"] = (marker["t"], H_wo, slope)
+            m[MEM + "obj_fit"] = (marker.stamp, H_wo, slope)
         t_cap, H_wo, slope = m[MEM + "obj_fit"]
         if not slope.any():
-            return marker["H_co"], _ZERO3, _ZERO3
+            return marker.T_camera_object, _ZERO3, _ZERO3
         # propagate the latest measurement over its age with the fitted motion (latency compensation)
         age = min(self.pred.max_age, max(0.0, t - t_cap))
         vx, vy, wz = float(slope[0]), float(slope[1]), float(slope[2])
@@ -241,8 +242,8 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
         H_co, v_o, w_o = self._object_pose(obs, t)
         predicting = self.pred.enabled and bool(v_o.any() or w_o.any())
         metrics: dict[str, float] = {}
-        wrench = obs.sensors.get("wrench")
-        force = np.asarray(wrench[:3], dtype=np.float64) if wrench is not None else _ZERO3
+        wrench: Wrench | None = obs.sensors.get("wrench")
+        force = np.asarray(wrench.force, dtype=np.float64) if wrench is not None else _ZERO3
         metrics["contact_force"] = float(math.sqrt(force @ force))
         if H_co is None:  # the target was never seen: hold still
             m[MEM + "q_nom"] = q_nom

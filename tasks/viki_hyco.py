@@ -57,8 +57,9 @@ import numpy as np
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.racecar import CameraMount
-from taskflow_robots.sensors import Detection, camera_command
+from taskflow_robots.sensors import camera_command
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
+from taskflow.messages import Detection
 from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry
 from taskflow.spatial import twist_adjoint_inverse
@@ -203,7 +204,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         pose = np.asarray(obs.state["pose"], dtype=float)
         raw = obs.sensors.get("detection")
         det = raw if isinstance(raw, Detection) and raw.camera == self.camera else None
-        usable = det is not None and det.detected and obs.t - det.t <= self.p.max_age + 1e-9
+        usable = det is not None and det.detected and obs.t - det.stamp <= self.p.max_age + 1e-9
         events: tuple[str, ...] = ()
         bbox = Z_o = Z_d = centre = None
         if det is not None and usable:
@@ -235,7 +236,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
                 else:  # eq. 19 with eq. 17's rule: the current box moved to the desired centre
                     hw, hh = 0.5 * (bbox[2] - bbox[0]), 0.5 * (bbox[3] - bbox[1])
                     Z_d = det.depth_in((centre[0] - hw, centre[1] - hh, centre[0] + hw, centre[1] + hh))
-            self.last_detection_t = det.t
+            self.last_detection_t = det.stamp
         if self.target is None and MEM_OBJECT in self.memory:
             self._set_target(pose)
         out = viki_velocity(

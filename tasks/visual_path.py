@@ -22,12 +22,14 @@ tracked points that a new matching of the keyframe cannot bring back to ``min_po
 ``features_lost`` event and command a hover; ``visual_path_rematch`` hovers and re-matches until it
 raises ``features_found``.
 
-Only images are used: the current frame (``obs.sensors["image"]``) and the keyframe images
-(``obs.sensors["keyframes"]``); the keyframe poses in the parameters are ground truth for the world's
-summary and are never read here.  With the world's geometric camera (``obs.sensors["points"]`` and
-``["keyframe_points"]``: landmark ids and noisy pixels, ``["obstacle"]``: a column's silhouette) the
-correspondences come by landmark id instead of ORB matching and LK tracking; everything from the
-homography on is the same code.
+Only images are used: the current frame (``obs.sensors["image"]``, an :class:`~taskflow.messages.Image`)
+and the keyframe images (``obs.sensors["keyframes"]``); the keyframe poses in the parameters are ground
+truth for the world's summary and are never read here.  With the world's geometric camera the frame's
+message is a :class:`~taskflow.messages.FeatureView` instead (``obs.sensors["points"]``, and
+``["keyframe_points"]``: landmark ids and noisy pixels; ``["obstacle"]``: a column's
+:class:`~taskflow.messages.Silhouette`): the type of the camera's message (:func:`camera_view`) chooses
+the pipeline, correspondences by landmark id instead of ORB matching and LK tracking; everything from
+the homography on is the same code.
 
 Feed-forward (Alg. 2, lines 2–15): the velocity ``nu_p`` of each segment ``k → k+1`` is computed once
 per run from the keyframe images (kept in the mission memory) and applied while servoing toward
@@ -82,7 +84,8 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
 
 from taskflow_robots.quadcopter import QuadCamera
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, scalar
+from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, message, scalar, sequence
+from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow.registry import register_task
 from taskflow.spatial import twist_adjoint
 from taskflow_tasks.hierarchy import (
@@ -313,7 +316,7 @@ def segment_velocities(keyframes: tuple[NDArray[np.uint8], ...], K: NDArray[np.f
     return out
 
 
-def segment_velocities_from_points(views: tuple[Any, ...], K: NDArray[np.float64], Ad_body_camera: NDArray[np.float64],
+def segment_velocities_from_points(views: tuple[FeatureView, ...], K: NDArray[np.float64], Ad_body_camera: NDArray[np.float64],
                                    gains: VisualGains, gamma: float) -> list[NDArray[np.float64]]:
     """:func:`segment_velocities` for the geometric camera: keyframe ``k``'s and ``k+1``'s landmark
     views (``.ids``, ``.uv``) correspond by id."""
@@ -339,7 +342,7 @@ def _segment_velocity(cur: NDArray[np.float64], kf: NDArray[np.float64], K: NDAr
     return feedforward_velocity(e, gain_matrix(lam, gains.homography_gains()), gamma, Ad_body_camera)
 
 
-def _by_id(view: Any, kf: Any) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+def _by_id(view: FeatureView, kf: FeatureView) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
     """Pixels of the landmarks seen in both ``view`` and ``kf`` (geometric camera), and their ids."""
     ids, i, j = np.intersect1d(view.ids, kf.ids, assume_unique=True, return_indices=True)
     return np.asarray(view.uv)[i], np.asarray(kf.uv)[j], ids
@@ -376,7 +379,29 @@ def _keyframe_image(obs: Observation, kf_id: int) -> NDArray[np.uint8]:
     kfs = obs.sensors.get("keyframes", ())
     if kf_id >= len(kfs):
         raise RuntimeError(f"keyframe {kf_id} has no image: the world provides {len(kfs)} keyframe images")
-    return kfs[kf_id]
+    return kfs[kf_id].pixels
+
+
+def camera_view(obs: Observation) -> FeatureView | Image:
+    """This tick's camera message, whose type chooses the perception pipeline: the geometric camera's
+    landmark :class:`FeatureView` (``sensors.points``: correspondences by id) or the rendered camera's
+    :class:`Image` (``sensors.image``: ORB matching and LK tracking)."""
+    view = obs.sensors.get("points")
+    if isinstance(view, FeatureView):
+        return view
+    image = obs.sensors.get("image")
+    if isinstance(image, Image):
+        return image
+    raise RuntimeError("visual path tasks read the camera's sensors.points (FeatureView) or sensors.image (Image); "
+                       f"this observation has: {', '.join(sorted(obs.sensors)) or 'no sensors'}")
+
+
+# what both visual path tasks read: one camera message per frame (FeatureView or Image, by the world's
+# perception mode) and the keyframes' messages of the same type
+_CAMERA: dict[str, ObsSpec] = {
+    "sensors.frame_id": scalar(),
+    "sensors.points": message(FeatureView), "sensors.keyframe_points": sequence(optional=True, of=FeatureView),
+    "sensors.image": message(Image), "sensors.keyframes": sequence(optional=True, of=Image)}
 
 
 class ServoLaw:
@@ -513,7 +538,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
     events: ClassVar[tuple[str, ...]] = ("features_lost",)
     command_interface: ClassVar[str] = "body_velocity"
     robot_params: ClassVar[type[BaseModel]] = ForwardCamera
-    requires: ClassVar[dict[str, ObsSpec]] = {"sensors.frame_id": scalar()}
+    requires: ClassVar[dict[str, ObsSpec]] = {**_CAMERA, "sensors.obstacle": message(Silhouette)}
 
     def __init__(self, ctx: TaskContext[VisualPathParams, ForwardCamera]) -> None:
         super().__init__(ctx)
@@ -546,11 +571,11 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         self.command = np.zeros(4)
         return StepResult({"nu": self.command.copy()}, dict(self.metrics_out), events)
 
-    def _feedforward(self, obs: Observation) -> NDArray[np.float64]:
+    def _feedforward(self, obs: Observation, view: FeatureView | Image) -> NDArray[np.float64]:
         if not self.p.feedforward or self.p.is_last:
             return np.zeros(4)
         mem = self.ctx.memory
-        geometric = "keyframe_points" in obs.sensors
+        geometric = isinstance(view, FeatureView)
         key = ("visual_path.feedforward", "points" if geometric else self.p.features, self.p.n_features,
                self.path_gains.gamma, self.visual)
         table = mem.get(key)
@@ -559,7 +584,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
                 table = segment_velocities_from_points(tuple(obs.sensors["keyframe_points"]), self.K, self.Ad_body_camera,
                                                        self.visual, self.path_gains.gamma)
             else:
-                kfs = tuple(obs.sensors.get("keyframes", ()))
+                kfs = tuple(k.pixels for k in obs.sensors.get("keyframes", ()))
                 table = segment_velocities(kfs, self.K, self.Ad_body_camera, self.visual, self.path_gains.gamma, self.p.features,
                                            self.p.n_features, mem)
             mem[key] = table
@@ -571,10 +596,11 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         if fid == self.last_frame:  # no new image: hold the command (zero-order hold)
             return StepResult({"nu": self.command.copy()}, dict(self.metrics_out))
         self.last_frame = fid
-        if "points" in obs.sensors:
-            return self._step_points(obs)
+        view = camera_view(obs)
+        if isinstance(view, FeatureView):
+            return self._step_points(obs, view)
         tic = time.perf_counter()
-        image = obs.sensors["image"]
+        image = view.pixels
         grey = to_grey(image)
         p = self.p
         if self.tracker is None:
@@ -586,7 +612,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
             self.tracker = PointTracker(grey, cur, kfp)
             self.n_matched = len(cur)
             self.law = ServoLaw(self.K, self.Ad_body_camera, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
-                                self._feedforward(obs))
+                                self._feedforward(obs, view))
         elif self._track(obs, grey) < p.min_points:
             self.metrics_out.update(n_points=float(len(self.tracker)))
             return self._hover(("features_lost",))
@@ -639,7 +665,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         self.n_matched = len(tr)
         return len(tr)
 
-    def _step_points(self, obs: Observation) -> StepResult:
+    def _step_points(self, obs: Observation, view: FeatureView) -> StepResult:
         """One frame of the geometric camera: correspondences by landmark id instead of ORB + LK.
 
         As with tracked points, the first frame keeps the RANSAC inliers of one plane and later frames
@@ -649,7 +675,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         kf_views = obs.sensors.get("keyframe_points", ())
         if p.keyframe.id >= len(kf_views):
             raise RuntimeError(f"keyframe {p.keyframe.id} has no view: the world provides {len(kf_views)}")
-        cur, kfp, ids = _by_id(obs.sensors["points"], kf_views[p.keyframe.id])
+        cur, kfp, ids = _by_id(view, kf_views[p.keyframe.id])
         if self.plane_ids is not None:
             keep = np.isin(ids, self.plane_ids, assume_unique=True)
             cur, kfp, ids = cur[keep], kfp[keep], ids[keep]
@@ -671,7 +697,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         cur, kfp = cur[order], kfp[order]
         if self.law is None:
             self.law = ServoLaw(self.K, self.Ad_body_camera, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
-                                self._feedforward(obs))
+                                self._feedforward(obs, view))
         obstacle = _silhouette(obs.sensors.get("obstacle"), self.size, self.hier.min_obstacle_px) \
             if self.hier.collision else None
         return self._control(obs, tic, cur, kfp, obstacle, H)
@@ -690,12 +716,12 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
                           timings={"perception": tic2 - tic, "control": toc - tic2, "frame": toc - tic})  # timing.json only
 
 
-def _silhouette(edges: tuple[float, float, bool] | None, size: tuple[int, int], min_area: int) -> ObstacleDetection | None:
-    """The geometric camera's column silhouette ``(u_left, u_right, touches_border)`` as the
-    detection :func:`obstacle_edges` makes from pixels (a full-height blob)."""
+def _silhouette(edges: Silhouette | None, size: tuple[int, int], min_area: int) -> ObstacleDetection | None:
+    """The geometric camera's column :class:`Silhouette` as the detection :func:`obstacle_edges` makes
+    from pixels (a full-height blob)."""
     if edges is None:
         return None
-    u0, u1, border = edges
+    u0, u1, border = edges.u_left, edges.u_right, edges.touches_border
     w, h = size
     area = int(round((u1 - u0) * h))
     if area < min_area:
@@ -715,7 +741,7 @@ class VisualPathRematch(Task[RematchParams, ForwardCamera]):
     events: ClassVar[tuple[str, ...]] = ("features_found",)
     command_interface: ClassVar[str] = "body_velocity"
     robot_params: ClassVar[type[BaseModel]] = ForwardCamera
-    requires: ClassVar[dict[str, ObsSpec]] = {"sensors.frame_id": scalar()}
+    requires: ClassVar[dict[str, ObsSpec]] = _CAMERA
 
     def __init__(self, ctx: TaskContext[RematchParams, ForwardCamera]) -> None:
         super().__init__(ctx)
@@ -729,13 +755,14 @@ class VisualPathRematch(Task[RematchParams, ForwardCamera]):
         if fid != self.last_frame:
             self.last_frame = fid
             p = self.p
-            if "points" in obs.sensors:  # geometric camera: the landmarks seen in both
-                cur, kfp, _ = _by_id(obs.sensors["points"], obs.sensors["keyframe_points"][p.keyframe.id])
+            view = camera_view(obs)
+            if isinstance(view, FeatureView):  # geometric camera: the landmarks seen in both
+                cur, kfp, _ = _by_id(view, obs.sensors["keyframe_points"][p.keyframe.id])
                 self.n = int(estimate_homography(cur, kfp, self.ctx.robot_params.camera.K())[1].sum()) \
                     if len(cur) >= 8 else len(cur)
             else:
                 matched, _ = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id,
-                                              to_grey(obs.sensors["image"]), p)
+                                              to_grey(view.pixels), p)
                 self.n = len(matched)
             if self.n >= p.min_points:
                 events = ("features_found",)

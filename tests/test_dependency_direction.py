@@ -20,6 +20,7 @@ _PLUGINS = ("taskflow_sim", "taskflow_tasks", "taskflow_robots", "sim", "tasks",
 PUBLIC_API = (
     "taskflow.api",  # the contracts: Task, Robot, World, Observation, StrictModel, ...
     "taskflow.registry",  # register_task / register_robot / register_world
+    "taskflow.messages",  # typed sensor messages: worlds produce them, tasks read them
     "taskflow.spatial",  # rigid-body maths named by direction
     "taskflow.shaping",  # the papers' activation h(t), shared with the executor's blend
     "taskflow.units",  # quantities and units

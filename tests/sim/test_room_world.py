@@ -12,6 +12,7 @@ from pydantic import ValidationError
 
 import taskflow_tasks.visual_path  # noqa: F401 - registers the tasks the missions use
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
+from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow_sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir
 from taskflow_sim.room_world import teach as _teach
 from taskflow.errors import MissionError
@@ -66,9 +67,12 @@ def test_camera_frames_at_the_camera_rate(world):
     world.advance(0.04)
     o3 = world.observe()
     assert o3.sensors["frame_id"] == o1.sensors["frame_id"] + 1
-    img = o3.sensors["image"]
-    assert img.shape == (240, 320, 3) and img.dtype == np.uint8 and img.std() > 20
-    assert len(o3.sensors["keyframes"]) == 2
+    msg = o3.sensors["image"]
+    assert isinstance(msg, Image) and msg.frame == "camera" and msg.stamp == o3.sensors["frame_t"] == o3.t
+    img = msg.pixels
+    assert img.shape == (240, 320, 3) and img.dtype == np.uint8 and img.std() > 20 and not img.flags.writeable
+    kfs = o3.sensors["keyframes"]
+    assert [k.frame for k in kfs] == ["keyframe_0", "keyframe_1"] and kfs[1].pixels is world.keyframe_images[1]
     assert "x" not in o3.state and "pose" not in o3.state  # no ground truth in observations
 
 
@@ -95,9 +99,9 @@ def test_collision_events_and_clearance(world):
 def test_blackout_frames():
     w = make_world(blackout=[(0.0, 0.1)])
     try:
-        assert w.observe().sensors["image"].max() == 0
+        assert w.observe().sensors["image"].pixels.max() == 0
         w.advance(0.12)
-        assert w.observe().sensors["image"].max() > 0
+        assert w.observe().sensors["image"].pixels.max() > 0
     finally:
         w.close()
 
@@ -158,7 +162,7 @@ def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, p
 
     cam = geo_world.robot.params.camera
     geo_world.pose[:] = pose
-    view = geo_world._point_view(pose)
+    view = geo_world._point_view(pose, 0.0, "camera")
     assert len(view) > 50
     _, depth = geo_world._require_scene().render_with_depth(pose)
     R, t = cam.pose_in_world(pose)
@@ -188,8 +192,10 @@ def test_geometric_observations_carry_points_and_no_image(geo_world):
     geo_world.advance(0.04)
     o = geo_world.observe()
     assert "image" not in o.sensors and "keyframes" not in o.sensors
-    assert len(o.sensors["points"]) > 50 and len(o.sensors["keyframe_points"]) == 2
-    assert o.sensors["obstacle"] is not None
+    pts, kfs, obstacle = o.sensors["points"], o.sensors["keyframe_points"], o.sensors["obstacle"]
+    assert isinstance(pts, FeatureView) and len(pts) > 50 and (pts.frame, pts.stamp) == ("camera", o.sensors["frame_t"])
+    assert [k.frame for k in kfs] == ["keyframe_0", "keyframe_1"] and all(isinstance(k, FeatureView) for k in kfs)
+    assert isinstance(obstacle, Silhouette) and obstacle.u_left < obstacle.u_right and obstacle.frame == "camera"
     assert geo_world.epsilon_to_keyframe(1, pose=KF[1]["pose"]) == pytest.approx(0.0, abs=1e-9)
     assert geo_world.epsilon_to_keyframe(1, pose=[1.4, 0.3, 0.8, 0.3]) > 2.0
 

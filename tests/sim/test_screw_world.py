@@ -89,10 +89,10 @@ def test_pose_mode_marker_latency_noise_and_lost_found_events():
         assert 1.6 + lat <= t_found1 <= 1.6 + lat + late  # the first frame after the occlusion
         o = w.observe()
         m = o.sensors["marker"]
-        assert o.t - m["t"] >= lat - 1e-9
-        err = spatial.inverse(m["H_co"]) @ w.true_H_co()
+        assert o.t - m.stamp >= lat - 1e-9 and m.frame == "camera"
+        err = spatial.inverse(m.T_camera_object) @ w.true_H_co()
         # the measurement is stale by its age: the part moved 50 mm/s x age relative to the camera
-        assert np.linalg.norm(err[:3, 3]) < 0.05 * (o.t - m["t"]) + 0.002
+        assert np.linalg.norm(err[:3, 3]) < 0.05 * (o.t - m.stamp) + 0.002
     finally:
         w.close()
 
@@ -104,7 +104,7 @@ def test_rendered_mode_finds_the_marker_to_a_fraction_of_a_millimetre():
         m = w.observe().sensors["marker"]
         assert m is not None
         truth = w.true_H_co()  # nothing moves: the truth at capture is the truth now
-        H = m["H_co"]
+        H = m.T_camera_object
         assert np.linalg.norm(truth[:3, 3] - H[:3, 3]) < 0.001
         assert spatial.rotation_angle(H[:3, :3] @ truth[:3, :3].T) < math.radians(0.2)
         assert w.detector.frames >= 4
@@ -118,7 +118,8 @@ def test_force_torque_sensor_reads_the_contact_force_without_the_tool_weight():
     w = make(speed=0.0)
     try:
         run(w, 0.2)
-        assert np.linalg.norm(w.observe().sensors["wrench"][:3]) < 0.3  # weight compensated
+        wrench = w.observe().sensors["wrench"]
+        assert wrench.frame == "tool" and np.linalg.norm(wrench.force) < 0.3  # weight compensated
         H_wb = w.body.base_pose()
         bolt = spatial.inverse(H_wb) @ w.bolt_poses()[0]
         q = ik(np.array(ROBOT.params.q_home), bolt @ spatial.transform(np.eye(3), np.array([0.0, 0.0, 0.001])))
@@ -126,7 +127,7 @@ def test_force_torque_sensor_reads_the_contact_force_without_the_tool_weight():
         w.apply({"base_twist": np.zeros(3), "arm_dq": q - w.body.q_ref_target})
         w.advance(0.5)
         run(w, 0.5)
-        f = w.observe().sensors["wrench"][:3]
+        f = w.observe().sensors["wrench"].force
         contacts = p.getContactPoints(w.body.id, w.part.part, physicsClientId=w.client)
         normal = sum(c[9] for c in contacts)
         assert normal > 1.0
@@ -181,7 +182,7 @@ def test_same_seed_same_trolley_and_noise():
         try:
             run(w, 1.0)
             m = w.observe().sensors["marker"]
-            return [w.ground_truth()["part_x"], w.ground_truth()["part_yaw"], float(m["H_co"][0, 3])]
+            return [w.ground_truth()["part_x"], w.ground_truth()["part_yaw"], float(m.T_camera_object[0, 3])]
         finally:
             w.close()
 

@@ -13,6 +13,7 @@ from taskflow.testing import task_context
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow import spatial
 from taskflow_tasks import pbvs
+from taskflow.messages import MarkerPose, Wrench
 from taskflow_tasks.impedance import ImpedanceProfile
 from taskflow_tasks.pid import PidProfile
 from taskflow_tasks.screw_tasks import MEM, ArmHome, ArmParams, HomeParams, PbvsArm, PbvsPlatform, PlatformParams
@@ -25,8 +26,8 @@ NO_LIMITS = {"u_max": [math.inf] * 6, "i_limit": [math.inf] * 6}
 
 def obs(t: float, H_co: np.ndarray, q: np.ndarray, force=(0.0, 0.0, 0.0)) -> Observation:
     return Observation(t, state={"q": q, "qd": np.zeros(7), "q_ref": q, "odom": np.zeros(3), "base_twist": np.zeros(3)},
-                       sensors={"marker": {"H_co": H_co, "t": t - 0.025, "seq": 1},
-                                "wrench": np.array([*force, 0.0, 0.0, 0.0])})
+                       sensors={"marker": MarkerPose(stamp=t - 0.025, frame="camera", T_camera_object=H_co, seq=1),
+                                "wrench": Wrench(stamp=t, frame="tool", force=np.array(force, dtype=float), torque=np.zeros(3))})
 
 
 def marker_offset_along_base_x(H_co_star: np.ndarray, d: float) -> np.ndarray:

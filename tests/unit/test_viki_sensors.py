@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from taskflow_robots.racecar import Racecar
-from taskflow_robots.sensors import Detection, active_camera_from_command, camera_command
+from taskflow_robots.sensors import active_camera_from_command, camera_command
+from taskflow.messages import Detection
 from taskflow_sim.perception_common import CameraModel, DropoutModel, pixel_box, quantise_box
 
 RP = Racecar(Racecar.Params()).params
@@ -25,10 +26,17 @@ def test_camera_command_and_selection():
 
 
 def test_detection_usable_and_stale():
-    d = Detection("front", 1.0, 3, (1.0, 2.0, 5.0, 9.0), 1.2, (1.0, 1.0, 0.0, 0.0), 8, 8)
+    def make(bbox, depth):
+        return Detection(stamp=1.0, frame="front_camera", camera="front", seq=3, bbox=bbox, depth=depth,
+                         intrinsics=(1.0, 1.0, 0.0, 0.0), width=8, height=8)
+
+    d = make((1.0, 2.0, 5.0, 9.0), 1.2)
     assert d.detected and d.fresh and not d.stale().fresh and d.stale().bbox == d.bbox
-    assert not Detection("front", 1.0, 3, None, None, (1.0, 1.0, 0.0, 0.0), 8, 8).detected
-    assert not Detection("front", 1.0, 3, (1.0, 2.0, 5.0, 9.0), 0.0, (1.0, 1.0, 0.0, 0.0), 8, 8).detected
+    assert d.stale().stamp == d.stamp and d.stale().frame == "front_camera"
+    s = d.stale()
+    assert s.stale() is s
+    assert not make(None, None).detected
+    assert not make((1.0, 2.0, 5.0, 9.0), 0.0).detected
 
 
 def test_camera_model_principal_point_and_depth_scaled_rays():

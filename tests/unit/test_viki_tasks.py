@@ -9,7 +9,7 @@ import pytest
 from pydantic import ValidationError
 
 from taskflow_robots.racecar import Racecar
-from taskflow_robots.sensors import Detection
+from taskflow.messages import Detection
 from taskflow.api import Observation
 from taskflow.testing import task_context
 from taskflow_tasks.car_goto import CarGains
@@ -33,7 +33,8 @@ def make_task(memory=None, t=0.0, gains=REAR, **params):
 
 
 def det(t, bbox=(300.0, 110.0, 340.0, 190.0), depth=1.3, camera="rear", zd=1.25):
-    return Detection(camera, t, int(t * 15), bbox, depth, K, 640, 360, True, lambda u, v: zd, lambda box: zd)
+    return Detection(stamp=t, frame=f"{camera}_camera", camera=camera, seq=int(t * 15), bbox=bbox, depth=depth,
+                     intrinsics=K, width=640, height=360, depth_at=lambda u, v: zd, depth_in=lambda box: zd)
 
 
 def obs(t, detection=None, pose=(0.0, 0.0, 0.0)):
@@ -200,9 +201,9 @@ def test_rotation_radius_below_the_car_minimum_is_refused():
 @pytest.mark.parametrize("zd", ["window", "pixel"])
 def test_zd_is_read_at_the_desired_centre(zd):
     calls = []
-    d = Detection("rear", 0.0, 0, (300.0, 110.0, 340.0, 190.0), 1.3, K, 640, 360, True,
-                  lambda u, v: calls.append(("pixel", (u, v))) or 1.2,
-                  lambda box: calls.append(("window", box)) or 1.2)
+    d = Detection(stamp=0.0, frame="rear_camera", camera="rear", seq=0, bbox=(300.0, 110.0, 340.0, 190.0), depth=1.3,
+                  intrinsics=K, width=640, height=360, depth_at=lambda u, v: calls.append(("pixel", (u, v))) or 1.2,
+                  depth_in=lambda box: calls.append(("window", box)) or 1.2)
     task = make_task(zd=zd)
     task.step(obs(0.0, d))
     fd = task.last.f_d
