@@ -40,7 +40,7 @@ from typing import Any, ClassVar, Literal
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, field_validator, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.quad_scene import Column, QuadScene, Room
@@ -457,8 +457,10 @@ class QuadRoom(World):
         proj = Xn[front, :2] / Xn[front, 2:3] * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
         return float(np.mean(np.linalg.norm(proj - uv[front], axis=1)))
 
+    teaches: ClassVar[bool] = True
+
     @classmethod
-    def teach(cls, robot: Robot, params: StrictModel, out_dir: str | Path, seed: int, name: str = "") -> list[Path]:
+    def teach(cls, robot: Robot, params: BaseModel, out_dir: str | Path, seed: int, name: str = "") -> list[Path]:
         """Hook for the ``taskflow teach MISSION`` command (which loads the mission and passes its robot,
         world parameters drawn with ``seed``, the output folder and the mission's name): see :func:`teach`."""
         return teach(robot, params, out_dir, seed, name)

@@ -18,6 +18,7 @@ expressions may write ``2 cm`` or ``3 deg`` and are converted when the mission l
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar, Generic, Literal, Mapping, TypeVar, cast
 
 import numpy as np
@@ -351,3 +352,14 @@ class World:
     def safe_stop(self) -> None:
         """Bring the robot to rest; default: send the robot's stop command."""
         self.apply(self.robot.stop_command())
+
+    # --- teach-by-showing (optional) ----------------------------------------------------------
+    teaches: ClassVar[bool] = False
+    """Whether :meth:`teach` is implemented (``taskflow teach MISSION`` refuses worlds that do not)."""
+
+    @classmethod
+    def teach(cls, robot: Robot, params: BaseModel, out_dir: "str | Path", seed: int, name: str = "") -> list["Path"]:
+        """Render what a mission on this world is taught (e.g. visual-path keyframes) into ``out_dir``
+        and return the written paths.  ``params`` are the world's parameters drawn with ``seed``;
+        ``name`` is the mission's.  Worlds that teach set :attr:`teaches` and override this."""
+        raise NotImplementedError(f"world {cls.name!r} has nothing to teach")

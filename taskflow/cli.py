@@ -146,14 +146,13 @@ def cmd_batch(args: argparse.Namespace) -> int:
 
 def cmd_teach(args: argparse.Namespace) -> int:
     mission = _load(args.mission, args.set)
-    teach = getattr(mission.world_cls, "teach", None)
-    if teach is None:
+    if not mission.world_cls.teaches:
         print(f"{args.mission}: world {mission.world_cls.name!r} has nothing to teach "
               "(teach-by-showing needs a world with keyframes, e.g. quad_room)", file=sys.stderr)
         return 1
     seed = mission.spec.seed if args.seed is None else args.seed
     out = Path(args.out) if args.out is not None else Path(mission.file).resolve().parent / "keyframes" / mission.name
-    for path in teach(mission.build_robot(), mission.world_params(seed), out, seed, mission.name):
+    for path in mission.world_cls.teach(mission.build_robot(), mission.world_params(seed), out, seed, mission.name):
         print(path)
     return 0
 

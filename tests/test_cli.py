@@ -297,3 +297,11 @@ def test_a_world_that_cannot_be_built_ends_the_run_aborted_with_its_record(tmp_p
     summary = json.loads((out / "summary.json").read_text())
     assert summary["outcome"] == "aborted" and "lost_after" in summary["reason"] and summary["ticks"] == 0
     assert (out / "error.txt").read_text().startswith("Traceback") and (out / "mission.yaml").exists()
+
+
+def test_teach_refuses_a_world_that_has_nothing_to_teach(capsys: pytest.CaptureFixture[str]) -> None:
+    car = Path(__file__).resolve().parent.parent / "missions" / "car_waypoints.yaml"
+    assert main(["teach", str(car)]) == 1
+    err = capsys.readouterr().err
+    assert "world 'flat_ground' has nothing to teach" in err and "quad_room" in err
+    _no_traceback(err)

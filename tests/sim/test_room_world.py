@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 import json
 import math
 from pathlib import Path
@@ -14,7 +17,7 @@ import taskflow_tasks.visual_path  # noqa: F401 - registers the tasks the missio
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow_sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir
-from taskflow_sim.room_world import teach as _teach
+from taskflow.cli import main as cli_main
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission
 
@@ -23,9 +26,11 @@ POSE_REG = ROOT / "missions" / "visual_path_pose_regulation.yaml"
 
 
 def teach(path, out_dir):
-    """What ``taskflow teach`` does: load the mission, pass its robot, world parameters, seed and name."""
-    m = load_mission(path)
-    return _teach(m.build_robot(), m.world_params(m.spec.seed), out_dir, m.spec.seed, m.name)
+    """``taskflow teach MISSION --out DIR``: the paths it prints, one a line."""
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert cli_main(["teach", str(path), "--out", str(out_dir)]) == 0
+    return [Path(line) for line in buf.getvalue().splitlines()]
 KF = [{"id": 0, "pose": [1.0, 0.0, 1.0, 0.0]}, {"id": 1, "pose": [1.5, 0.3, 0.8, 0.3]}]
 
 
