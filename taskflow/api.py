@@ -178,6 +178,38 @@ class StepResult:
     timings: dict[str, float] = field(default_factory=dict)
 
 
+ValueT = TypeVar("ValueT")
+
+
+@dataclass(frozen=True)
+class MemoryKey(Generic[ValueT]):
+    """One entry of a run's shared memory (:attr:`TaskContext.memory`), defined once by the module that
+    writes it: its whole name (the owner's namespace and the entry, ``"screw.pid_b"``) and, through its
+    type parameter, what it holds — ``PID_B: MemoryKey[PidState] = MemoryKey("screw.pid_b")``.  The memory
+    stays a plain dict (tests and tools read it by name); tasks go through keys instead of spelling names."""
+
+    name: str
+
+    def get(self, memory: Mapping[str, Any]) -> ValueT | None:
+        return cast("ValueT | None", memory.get(self.name))
+
+    def __call__(self, memory: Mapping[str, Any]) -> ValueT:
+        """The entry, which must be there (a clear error names it otherwise)."""
+        try:
+            return cast(ValueT, memory[self.name])
+        except KeyError:
+            raise KeyError(f"shared memory has no {self.name!r} yet (written by an earlier state)") from None
+
+    def set(self, memory: dict[str, Any], value: ValueT) -> None:
+        memory[self.name] = value
+
+    def setdefault(self, memory: dict[str, Any], default: ValueT) -> ValueT:
+        return cast(ValueT, memory.setdefault(self.name, default))
+
+    def present(self, memory: Mapping[str, Any]) -> bool:
+        return self.name in memory
+
+
 ParamsT = TypeVar("ParamsT", bound=BaseModel)
 RobotParamsT = TypeVar("RobotParamsT", bound=BaseModel)
 ProfileT = TypeVar("ProfileT", bound=BaseModel)

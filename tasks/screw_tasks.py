@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator
 
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
+from taskflow.api import MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
 from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import register_task
 from taskflow.spatial import inverse, transform_xyz_yaw
@@ -54,7 +54,16 @@ from taskflow_tasks import pbvs
 from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step
 from taskflow_tasks.pid import PidProfile, PidState, pid_step
 
-MEM = "screw."  # prefix of this mission's keys in the shared memory
+# what the screw tasks keep in the run's shared memory, across states (one definition each)
+PID_B: MemoryKey[PidState] = MemoryKey("screw.pid_b")  # platform PID state (eqs. 25-33)
+PID_A: MemoryKey[PidState] = MemoryKey("screw.pid_a")  # arm PID state (eqs. 34-36)
+Q_NOM: MemoryKey[NDArray[np.float64]] = MemoryKey("screw.q_nom")  # the arm's nominal joint trajectory q*
+ADMITTANCE: MemoryKey[AdmittanceState] = MemoryKey("screw.adm")  # compliance offset (eqs. 38-40)
+ODOM_T: MemoryKey[list[float]] = MemoryKey("screw.odom_t")  # odometry history: times ...
+ODOM_P: MemoryKey[list[tuple[float, float, float]]] = MemoryKey("screw.odom_p")  # ... and poses
+OBJ_SEQ: MemoryKey[int] = MemoryKey("screw.obj_seq")  # the last marker used
+OBJ_HIST: MemoryKey[list[tuple[float, float, float, float]]] = MemoryKey("screw.obj_hist")  # (t, x, y, yaw) of the part
+OBJ_FIT: MemoryKey[tuple[float, NDArray[np.float64], NDArray[np.float64]]] = MemoryKey("screw.obj_fit")  # (t, H_wo, slope)
 ODOM_HISTORY_S = 0.5  # odometry kept to place a marker pose at its capture time (latency ≪ this)
 RELAX_TAU = 0.1  # s: a state without an impedance set lets the compliance offset decay with this time constant
 _ZERO3 = np.zeros(3)
@@ -159,9 +168,9 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
         self.H_ot, self.H_tp = self._arm_target(ctx.params)
         m = ctx.memory
         self.mem = m
-        for key in ("pid_b", "pid_a"):
-            st = m.get(MEM + key)
-            if isinstance(st, PidState):
+        for key in (PID_B, PID_A):
+            st = key.get(m)
+            if st is not None:
                 st.reset_derivative()  # a new set-point or gain set: no derivative kick
         self.arm_gains_zero = not (np.any(self.g_a.kp) or np.any(self.g_a.ki) or np.any(self.g_a.kd))
 
@@ -183,8 +192,8 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
             return (None if marker is None else marker.T_camera_object), _ZERO3, _ZERO3
         m = self.mem
         odom = obs.state["odom"]
-        times: list[float] = m.setdefault(MEM + "odom_t", [])
-        poses: list[tuple[float, float, float]] = m.setdefault(MEM + "odom_p", [])
+        times: list[float] = ODOM_T.setdefault(m, [])
+        poses: list[tuple[float, float, float]] = ODOM_P.setdefault(m, [])
         times.append(t)
         poses.append((float(odom[0]), float(odom[1]), float(odom[2])))
         if times[0] < t - 1.5 * ODOM_HISTORY_S:  # trimmed in blocks: keep ODOM_HISTORY_S, at any rate
@@ -192,10 +201,10 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
             del times[:cut], poses[:cut]
         if marker is None:
             return None, _ZERO3, _ZERO3
-        if marker.seq != m.get(MEM + "obj_seq"):
-            m[MEM + "obj_seq"] = marker.seq
+        if marker.seq != OBJ_SEQ.get(m):
+            OBJ_SEQ.set(m, marker.seq)
             H_wo = _T_world_base(_interp_odom(times, poses, marker.stamp)) @ self.H_bc @ marker.T_camera_object
-            objs: list[tuple[float, float, float, float]] = m.setdefault(MEM + "obj_hist", [])
+            objs: list[tuple[float, float, float, float]] = OBJ_HIST.setdefault(m, [])
             yaw = math.atan2(H_wo[1, 0], H_wo[0, 0])
             if objs:
                 yaw = objs[-1][3] + math.remainder(yaw - objs[-1][3], 2 * math.pi)  # unwrapped
@@ -206,8 +215,8 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
             if len(objs) >= 3:
                 arr = np.array(objs)
                 _, slope = pbvs.fit_velocity(arr[:, 0], arr[:, 1:])
-            m[MEM + "obj_fit"] = (marker.stamp, H_wo, slope)
-        t_cap, H_wo, slope = m[MEM + "obj_fit"]
+            OBJ_FIT.set(m, (marker.stamp, H_wo, slope))
+        t_cap, H_wo, slope = OBJ_FIT(m)
         if not slope.any():
             return marker.T_camera_object, _ZERO3, _ZERO3
         # propagate the latest measurement over its age with the fitted motion (latency compensation)
@@ -236,7 +245,7 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
         dt = self.dt
         q = np.asarray(obs.state["q"], dtype=np.float64)
         q_ref = np.asarray(obs.state["q_ref"], dtype=np.float64)
-        q_nom = m.get(MEM + "q_nom")
+        q_nom = Q_NOM.get(m)
         if q_nom is None:
             q_nom = q_ref.copy()
         H_co, v_o, w_o = self._object_pose(obs, t)
@@ -246,7 +255,7 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
         force = np.asarray(wrench.force, dtype=np.float64) if wrench is not None else _ZERO3
         metrics["contact_force"] = float(math.sqrt(force @ force))
         if H_co is None:  # the target was never seen: hold still
-            m[MEM + "q_nom"] = q_nom
+            Q_NOM.set(m, q_nom)
             return StepResult({"base_twist": np.zeros(3), "arm_dq": q_nom - q_ref}, metrics)
         H_bo = self.H_bc @ H_co
         # 1. platform (eqs. 10, 25-33)
@@ -254,9 +263,9 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
         et, er = pbvs.pose_error_norms(E_co)
         metrics["camera_error.t"], metrics["camera_error.r"] = et, er
         L_Eo = pbvs.camera_error_vector(E_co, self.R_bc)
-        st_b = m.get(MEM + "pid_b") or PidState()
+        st_b = PID_B.get(m) or PidState()
         V_b, st_b = pid_step(L_Eo, st_b, self.g_b, dt)
-        m[MEM + "pid_b"] = st_b
+        PID_B.set(m, st_b)
         # the PID acts on the nominal pose q* (the twist controller's own trajectory); the measured
         # pose (with the compliance displacement and servo lag) gives the transition metrics of eq. 12
         H_be, J = self.kin.fk_jacobian(q_nom)
@@ -277,9 +286,9 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
             if not self.arm_gains_zero:
                 V_be = pbvs.platform_induced_twist(V_b_eff, p_be)
                 L_c = pbvs.compensate_error(L_Ee, V_be, dt)
-                st_a = m.get(MEM + "pid_a") or PidState()
+                st_a = PID_A.get(m) or PidState()
                 V_a, st_a = pid_step(L_c, st_a, self.g_a, dt)
-                m[MEM + "pid_a"] = st_a
+                PID_A.set(m, st_a)
                 if predicting:
                     V_a = V_a + pbvs.arm_feedforward(v_o, w_o, H_bo[:3, 3], H_be_star[:3, 3], V_b_eff)
         # 3. arm twist controller (eq. 37), joint speed limited
@@ -290,15 +299,15 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
             if peak > lim:
                 dq *= lim / peak
             q_nom = np.clip(q_nom + dq, self.kin.lower, self.kin.upper)
-        m[MEM + "q_nom"] = q_nom
+        Q_NOM.set(m, q_nom)
         # 4. admittance (eqs. 38-40)
         q_cmd = q_nom
-        adm = m.get(MEM + "adm") or AdmittanceState()
+        adm = ADMITTANCE.get(m) or AdmittanceState()
         if self.g_i is not None:
             adm = admittance_step(force, adm, self.g_i, dt)
         else:  # no compliance in this state: let the offset decay
             adm = AdmittanceState(adm.x * math.exp(-dt / RELAX_TAU), adm.v * 0.0)
-        m[MEM + "adm"] = adm
+        ADMITTANCE.set(m, adm)
         if float(adm.x @ adm.x) > 1e-12:  # displacements under a micrometre (stiff set) are not worth a Jacobian
             dX = np.zeros(6)
             dX[3:] = H_be[:3, :3] @ adm.x  # tool-frame displacement in the base frame (at q*)
@@ -372,14 +381,14 @@ class ArmHome(Task[HomeParams, HomePose]):
         m = self.mem
         dt = self.dt
         q_ref = np.asarray(obs.state["q_ref"], dtype=np.float64)
-        q_nom = m.get(MEM + "q_nom")
+        q_nom = Q_NOM.get(m)
         q_nom = q_ref.copy() if q_nom is None else q_nom
         d = self.home - q_nom
         peak = float(np.max(np.abs(d)))
         step = self.speed * dt
         q_nom = self.home.copy() if peak <= step else q_nom + d * (step / peak)
-        m[MEM + "q_nom"] = q_nom
-        m[MEM + "adm"] = AdmittanceState()
+        Q_NOM.set(m, q_nom)
+        ADMITTANCE.set(m, AdmittanceState())
         q = np.asarray(obs.state["q"], dtype=np.float64)
         return StepResult({"base_twist": np.zeros(3), "arm_dq": q_nom - q_ref},
                           {"joint_error": float(np.max(np.abs(self.home - q)))})

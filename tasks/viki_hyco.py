@@ -54,11 +54,12 @@ import math
 from typing import Any, ClassVar, Literal
 
 import numpy as np
+from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.racecar import CameraMount
 from taskflow_robots.sensors import camera_command
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
+from taskflow.api import MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
 from taskflow.messages import Detection
 from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry
@@ -73,9 +74,10 @@ from taskflow_tasks.viki_laws import (
     viki_velocity,
 )
 
-MEM_OBJECT = "viki.object"  # odometry (x, y) of the object's base centre, fixed by the first detection
-MEM_TARGET = "viki.target"  # the active state's kinematic control-point target (x, y)
-MEM_FIRST = "viki.first_detection"  # {"t", "camera"} of the detection that fixed the object
+# what the ViKi-HyCo tasks keep in the run's shared memory, across states (one definition each)
+MEM_OBJECT: MemoryKey[NDArray[np.float64]] = MemoryKey("viki.object")  # odometry (x, y) of the object's base centre
+MEM_TARGET: MemoryKey[NDArray[np.float64]] = MemoryKey("viki.target")  # the active state's control-point target (x, y)
+MEM_FIRST: MemoryKey[dict[str, Any]] = MemoryKey("viki.first_detection")  # {"t", "camera"} of the fixing detection
 
 
 class ViKiGains(CarGains):
@@ -184,11 +186,11 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
 
     # -- the kinematic target --------------------------------------------------------------------
     def _set_target(self, pose: np.ndarray) -> None:
-        O = self.memory[MEM_OBJECT]
+        O = MEM_OBJECT(self.memory)
         if self.theta_f is None:
             self.theta_f = goal_heading(pose, O, self.goal)
         self.target = kinematic_target(O, self.goal, self.theta_f, self.d_point)
-        self.memory[MEM_TARGET] = self.target.copy()
+        MEM_TARGET.set(self.memory, self.target.copy())
 
     def _object_from(self, det: Detection, pose: np.ndarray) -> tuple[np.ndarray, float, float]:
         """Object base centre in odometry, half-width and height (eq. 18 + base estimate)."""
@@ -209,10 +211,10 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         bbox = Z_o = Z_d = centre = None
         if det is not None and usable:
             O, r, z_c = self._object_from(det, pose)
-            if MEM_OBJECT not in self.memory or self.p.target_update == "latest":
-                if MEM_OBJECT not in self.memory:
-                    self.memory[MEM_FIRST] = {"t": obs.t, "camera": self.camera}
-                self.memory[MEM_OBJECT] = O
+            if not MEM_OBJECT.present(self.memory) or self.p.target_update == "latest":
+                if not MEM_OBJECT.present(self.memory):
+                    MEM_FIRST.set(self.memory, {"t": obs.t, "camera": self.camera})
+                MEM_OBJECT.set(self.memory, O)
                 if self.p.target_update == "latest":
                     self.theta_f = None
                 self.target = None
@@ -237,7 +239,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
                     hw, hh = 0.5 * (bbox[2] - bbox[0]), 0.5 * (bbox[3] - bbox[1])
                     Z_d = det.depth_in((centre[0] - hw, centre[1] - hh, centre[0] + hw, centre[1] + hh))
             self.last_detection_t = det.stamp
-        if self.target is None and MEM_OBJECT in self.memory:
+        if self.target is None and MEM_OBJECT.present(self.memory):
             self._set_target(pose)
         out = viki_velocity(
             ServoInputs(pose=pose, detected=bool(usable), bbox=bbox, Z_o=Z_o, Z_d=Z_d, centre=centre,
@@ -263,8 +265,8 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             c, s = math.cos(pose[2]), math.sin(pose[2])
             h = pose[:2] + self.d_point * np.array([c, s])  # the controlled point, eq. 1
             metrics["pos_error"] = float(np.hypot(*(self.target - h)))
-        if MEM_OBJECT in self.memory:
-            O = np.asarray(self.memory[MEM_OBJECT], dtype=float)
+        if MEM_OBJECT.present(self.memory):
+            O = np.asarray(MEM_OBJECT(self.memory), dtype=float)
             c, s = math.cos(pose[2]), math.sin(pose[2])
             dx, dy = O[0] - pose[0], O[1] - pose[1]
             metrics["object_x"], metrics["object_y"] = c * dx + s * dy, -s * dx + c * dy

@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 
 from taskflow_robots.sensors import camera_command
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array
+from taskflow.api import MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array
 from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
@@ -47,7 +47,7 @@ from taskflow_tasks.viki_hyco import MEM_OBJECT
 from taskflow_tasks.viki_laws import reverse_control
 
 FloatArray = NDArray[np.float64]
-MEM_ROTATION = "viki.rotation_target"
+MEM_ROTATION: MemoryKey[NDArray[np.float64]] = MemoryKey("viki.rotation_target")  # the K-turn's end pose
 
 
 def k_turn_legs(start: tuple[float, float], heading: float, radius: float, turn: int, d: float,
@@ -135,19 +135,19 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
         self._cam = camera_command(None if params.camera == "none" else params.camera)
 
     def _plan(self, pose: FloatArray) -> None:
-        O = np.asarray(self.memory[MEM_OBJECT], dtype=float)
+        O = np.asarray(MEM_OBJECT(self.memory), dtype=float)
         heading = math.atan2(O[1] - pose[1], O[0] - pose[0])
         turn = 1 if self.p.turn == "left" else -1
         self.legs = k_turn_legs((float(pose[0]), float(pose[1])), heading, self.p.radius, turn, self.d)
         self.final = self.legs[-1][0][-1].copy()
         self.final_heading = wrap_angle(heading + math.pi)
-        self.memory[MEM_ROTATION] = self.final.copy()
+        MEM_ROTATION.set(self.memory, self.final.copy())
 
     def step(self, obs: Observation) -> StepResult:
         pose = np.asarray(obs.state["pose"], dtype=float)
         speed = abs(float(obs.state.get("v", 0.0)))
         if self.legs is None:
-            if MEM_OBJECT not in self.memory:
+            if not MEM_OBJECT.present(self.memory):
                 stop = {"v": np.zeros(1), "steer": np.zeros(1), **self._cam}
                 return StepResult(stop, {"speed": speed}, ("no_target",))
             self._plan(pose)

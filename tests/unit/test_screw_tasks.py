@@ -16,7 +16,7 @@ from taskflow_tasks import pbvs
 from taskflow.messages import MarkerPose, Wrench
 from taskflow_tasks.impedance import ImpedanceProfile
 from taskflow_tasks.pid import PidProfile
-from taskflow_tasks.screw_tasks import MEM, ArmHome, ArmParams, HomeParams, PbvsArm, PbvsPlatform, PlatformParams
+from taskflow_tasks.screw_tasks import ADMITTANCE, PID_B, Q_NOM, ArmHome, ArmParams, HomeParams, PbvsArm, PbvsPlatform, PlatformParams
 
 ROBOT = MobileIiwa(MobileIiwa.Params())
 DT = 1.0 / 40.0  # the paper's control rate
@@ -52,7 +52,7 @@ def test_platform_pid_integrates_the_control_period_at_40_hz():
     for k in range(1, 4):
         r = task.step(obs(k * DT, H_co, q))
         # ∫e dt grows by e · 0.025 s per tick, from the first tick on (1 cm error → 0.25 mm·s per tick)
-        assert memory[MEM + "pid_b"].integral[3] == pytest.approx(k * 0.01 * 0.025, rel=1e-9)
+        assert PID_B(memory).integral[3] == pytest.approx(k * 0.01 * 0.025, rel=1e-9)
         # v_x = kp e + ki ∫e dt
         assert r.command["base_twist"][0] == pytest.approx(2.0 * 0.01 + 1.5 * k * 0.01 * 0.025, rel=1e-9)
 
@@ -68,7 +68,7 @@ def test_the_period_does_not_come_from_observation_times():
     q = np.array(ROBOT.params.q_home)
     for t in (3.0, 3.025, 7.0):  # e.g. after a searching state without a task
         task.step(obs(t, H_co, q))
-    assert memory[MEM + "pid_b"].integral[3] == pytest.approx(3 * 0.02 * 0.025, rel=1e-9)
+    assert PID_B(memory).integral[3] == pytest.approx(3 * 0.02 * 0.025, rel=1e-9)
 
 
 def test_arm_step_and_admittance_use_the_control_period_at_40_hz():
@@ -84,12 +84,12 @@ def test_arm_step_and_admittance_use_the_control_period_at_40_hz():
     task.step(obs(0.0, params.camera_target.matrix(), q, force=f))
     # eq. 37 with the joint-speed limit: the tool starts ~0.3 m from the bolt, so the step is the limit
     # qd_max · dt = 1.5 rad/s · 0.025 s on the fastest joint
-    dq = memory[MEM + "q_nom"] - q
+    dq = Q_NOM(memory) - q
     assert float(np.max(np.abs(dq))) == pytest.approx(ROBOT.params.qd_max * 0.025, rel=1e-9)
     # eq. 39 as meant, from rest, one implicit-Euler step of 25 ms: x = ΔF / (M/dt² + D/dt + K)
     dF = f + np.array([0.0, 0.0, 3.0])
     x = dF / (np.array([1.0, 1.0, 1.0]) / 0.025**2 + np.array([120.0, 120.0, 80.0]) / 0.025 + np.array([1000.0, 1000.0, 600.0]))
-    np.testing.assert_allclose(memory[MEM + "adm"].x, x, rtol=1e-12)
+    np.testing.assert_allclose(ADMITTANCE(memory).x, x, rtol=1e-12)
 
 
 def test_arm_home_ramps_at_its_speed_over_the_control_period():

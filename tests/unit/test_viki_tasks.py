@@ -88,16 +88,16 @@ def test_first_detection_fixes_the_object_and_later_states_use_it():
     memory: dict = {}
     task = make_task(memory)
     task.step(obs(0.0, det(0.0)))
-    O1 = memory[MEM_OBJECT].copy()
+    O1 = MEM_OBJECT(memory).copy()
     target1 = task.target.copy()
     task.step(obs(0.05, det(0.05, bbox=(200.0, 60.0, 230.0, 120.0), depth=2.0)))  # the box moved a lot
-    np.testing.assert_array_equal(memory[MEM_OBJECT], O1)
+    np.testing.assert_array_equal(MEM_OBJECT(memory), O1)
     np.testing.assert_array_equal(task.target, target1)
     # a later state (same mission memory) has a target before it sees anything, and drives toward it
     later = make_task(memory, t=1.0, gains=dict(lam=(0.85, 0.3, 1, 1, 1), k1=(2.0, 1.0)))
     r = later.step(obs(1.0, None, pose=(0.5, 0.2, 0.0)))
     assert r.metrics["detected"] == 0.0 and "pos_error" in r.metrics and abs(r.command["v"][0]) > 0.0
-    np.testing.assert_allclose(memory[MEM_TARGET], later.target)
+    np.testing.assert_allclose(MEM_TARGET(memory), later.target)
     # the object seen from the new pose, in the robot frame, comes from the memory
     assert (r.metrics["object_x"], r.metrics["object_y"]) == pytest.approx((O1[0] - 0.5, O1[1] - 0.2))
 
@@ -106,9 +106,9 @@ def test_target_update_latest_re_anchors_on_every_detection():
     memory: dict = {}
     task = make_task(memory, target_update="latest")
     task.step(obs(0.0, det(0.0)))
-    O1 = memory[MEM_OBJECT].copy()
+    O1 = MEM_OBJECT(memory).copy()
     task.step(obs(0.05, det(0.05, bbox=(200.0, 60.0, 230.0, 120.0), depth=2.0)))
-    assert not np.allclose(memory[MEM_OBJECT], O1)
+    assert not np.allclose(MEM_OBJECT(memory), O1)
 
 
 def test_vs_only_stops_when_the_detection_drops():
@@ -121,9 +121,9 @@ def test_vs_only_stops_when_the_detection_drops():
 def test_other_camera_and_stale_frames_count_as_no_detection():
     task = make_task()
     r = task.step(obs(0.0, det(0.0, camera="front")))
-    assert r.metrics["detected"] == 0.0 and MEM_OBJECT not in task.memory
+    assert r.metrics["detected"] == 0.0 and not MEM_OBJECT.present(task.memory)
     r = task.step(obs(0.5, det(0.1)))  # 0.4 s old > max_age
-    assert r.metrics["detected"] == 0.0 and MEM_OBJECT not in task.memory
+    assert r.metrics["detected"] == 0.0 and not MEM_OBJECT.present(task.memory)
 
 
 def test_no_detection_at_the_start_raises_no_target_after_the_timeout():
@@ -132,7 +132,7 @@ def test_no_detection_at_the_start_raises_no_target_after_the_timeout():
     r = task.step(obs(1.0))
     assert r.events == ("no_target",) and r.command["v"][0] == 0.0
     # with the object already in memory there is something to drive to: no event
-    task2 = make_task({MEM_OBJECT: np.array([-2.0, 0.0])}, search_timeout=1.0)
+    task2 = make_task({MEM_OBJECT.name: np.array([-2.0, 0.0])}, search_timeout=1.0)
     assert task2.step(obs(1.5)).events == ()
 
 
@@ -179,7 +179,7 @@ def make_rotate(memory, **params):
 
 
 def test_rotation_plans_from_the_memory_object_and_starts_reversing():
-    memory = {MEM_OBJECT: np.array([1.0, 0.0])}
+    memory = {MEM_OBJECT.name: np.array([1.0, 0.0])}
     task = make_rotate(memory)
     r = task.step(obs(0.0))
     assert r.command["v"][0] < 0.0 and r.command["camera_front"][0] == 0.0 and r.command["camera_rear"][0] == 0.0
