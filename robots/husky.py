@@ -57,7 +57,3 @@ class Husky(Robot):
 
     params: HuskyParams
 
-    def __init__(self, params: HuskyParams) -> None:
-        if not isinstance(params, HuskyParams):
-            raise TypeError(f"Husky needs Husky.Params, got {type(params).__name__}")
-        super().__init__(params)

@@ -216,11 +216,6 @@ class MobileIiwa(Robot):
 
     params: MobileIiwaParams
 
-    def __init__(self, params: MobileIiwaParams) -> None:
-        if not isinstance(params, MobileIiwaParams):
-            raise TypeError(f"MobileIiwa needs MobileIiwa.Params, got {type(params).__name__}")
-        super().__init__(params)
-
     @cached_property
     def urdf_text(self) -> str:
         """The run-time URDF (absolute mesh paths, tool and camera frames); the sim writes it to a file."""

@@ -96,11 +96,6 @@ class Quadcopter(Robot):
 
     params: QuadcopterParams
 
-    def __init__(self, params: QuadcopterParams) -> None:
-        if not isinstance(params, QuadcopterParams):
-            raise TypeError(f"Quadcopter needs Quadcopter.Params, got {type(params).__name__}")
-        super().__init__(params)
-
     def saturate(self, nu: NDArray[np.float64]) -> NDArray[np.float64]:
         """Clip a command to the velocity limits (each axis separately)."""
         p = self.params

@@ -126,7 +126,3 @@ class Racecar(Robot):
 
     params: RacecarParams
 
-    def __init__(self, params: RacecarParams) -> None:
-        if not isinstance(params, RacecarParams):
-            raise TypeError(f"Racecar needs Racecar.Params, got {type(params).__name__}")
-        super().__init__(params)

@@ -300,7 +300,7 @@ class Robot:
     maps each command name to its length; :meth:`stop_command` is what the runtime sends for a safe stop.
     ``observations`` are the entries its proprioception puts in every observation on any world that hosts
     it (``"state.pose": array(3)``), ``sensors`` the sensors it carries (mount name → kind) for worlds to
-    render.  A robot instance is built from its validated ``Params``.
+    render.  A robot instance is built from its validated ``Params`` (the base class refuses any other model).
     """
 
     name: ClassVar[str] = ""
@@ -311,6 +311,9 @@ class Robot:
     sensors: ClassVar[dict[str, str]] = {}
 
     def __init__(self, params: BaseModel) -> None:
+        if not isinstance(params, self.Params):
+            raise TypeError(f"robot {self.name or type(self).__name__!r} needs {self.Params.__name__} parameters, "
+                            f"got {type(params).__name__}")
         self.params = params
 
     def stop_command(self) -> Command:

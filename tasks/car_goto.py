@@ -25,6 +25,7 @@ from pydantic import BaseModel, Field, field_validator
 
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, scalar
 from taskflow.registry import register_task
+from taskflow_tasks.targets import PlanarTarget
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 
 
@@ -51,17 +52,8 @@ class CarGeometry(StrictModel):
     psi_max: float
 
 
-class CarGotoParams(StrictModel):
+class CarGotoParams(PlanarTarget):
     """Target of the control point: ``[x, y]`` or ``[x, y, yaw]`` (m, m, rad) in the odometry frame."""
-
-    target: list[float]
-
-    @field_validator("target")
-    @classmethod
-    def _shape(cls, target: list[float]) -> list[float]:
-        if len(target) not in (2, 3) or not all(math.isfinite(v) for v in target):
-            raise ValueError(f"target must be [x, y] or [x, y, yaw] with finite values, got {target}")
-        return target
 
 
 @register_task("car_goto")

@@ -30,10 +30,11 @@ from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, Field, field_validator
+from pydantic import BaseModel, Field
 
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, scalar
 from taskflow.registry import register_task
+from taskflow_tasks.targets import PlanarTarget
 
 
 def wrap(a: float) -> float:
@@ -74,17 +75,8 @@ class UnicycleGains(StrictModel):
     k_alpha: float = Field(default=1.5, gt=0.0)
 
 
-class UnicycleGotoParams(StrictModel):
+class UnicycleGotoParams(PlanarTarget):
     """Target ``[x, y]`` or ``[x, y, yaw]`` (m, m, rad) in the odometry frame (yaw is reported only)."""
-
-    target: list[float]
-
-    @field_validator("target")
-    @classmethod
-    def _shape(cls, target: list[float]) -> list[float]:
-        if len(target) not in (2, 3) or not all(math.isfinite(v) for v in target):
-            raise ValueError(f"target must be [x, y] or [x, y, yaw] with finite values, got {target}")
-        return target
 
 
 @register_task("unicycle_goto")

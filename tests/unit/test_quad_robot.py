@@ -44,6 +44,8 @@ def test_saturation_per_axis_and_command_layout():
     assert np.all(rob.stop_command()["nu"] == 0)
     with pytest.raises(TypeError):
         Quadcopter(QuadCamera())  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="robot .quadcopter. needs QuadcopterParams parameters, got QuadCamera"):
+        Quadcopter(QuadCamera())  # type: ignore[arg-type]
     with pytest.raises(ValidationError):
         QuadcopterParams(tau=-1)
 
