@@ -161,7 +161,7 @@ class QuadRoomParams(StrictModel):
 
 
 @register_world("quad_room")
-class QuadRoom(SteppedWorld):
+class QuadRoom(SteppedWorld[QuadScene]):
     """A textured room, green columns and the quadcopter with its forward camera."""
 
     Params: ClassVar[type[QuadRoomParams]] = QuadRoomParams
@@ -182,7 +182,6 @@ class QuadRoom(SteppedWorld):
             raise TypeError(f"world quad_room flies a quadcopter, got {type(robot).__name__}")
         super().__init__(robot, params, seed, gui)
         self.blackout = IntervalFault(params.blackout, "blackout")
-        self.scene: QuadScene | None = None
         self._rng = np.random.default_rng(seed)
         self.columns: list[Column] = []
         self.landmarks = np.zeros((0, 3))
@@ -259,16 +258,6 @@ class QuadRoom(SteppedWorld):
 
     def _depth_at(self, pose: Sequence[float]) -> NDArray[np.float64]:
         return self._require_scene().render_with_depth(tuple(pose))[1]
-
-    def close(self) -> None:
-        if self.scene is not None:
-            self.scene.close()
-            self.scene = None
-
-    def _require_scene(self) -> QuadScene:
-        if self.scene is None:
-            raise RuntimeError("quad_room: call reset() before using the world")
-        return self.scene
 
     # --- the loop ------------------------------------------------------------------------------
     def _camera_at(self, pose: Sequence[float]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],

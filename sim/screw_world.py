@@ -79,6 +79,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_robots.mobile_iiwa import ToolParams
 from taskflow_sim import screw_scene as sc
+from taskflow_sim.car_scene import connect
 from taskflow_sim.faults import FaultIntervals, IntervalFault
 from taskflow_sim.screw_motion import PartMotion
 from taskflow_sim.screw_perception import MarkerDetection, PoseNoise, RenderedDetector, visible
@@ -235,14 +236,7 @@ class ScrewConveyor(SteppedWorld):
     def reset(self) -> None:
         self.close()
         wp, rp = self.params, self.robot.params
-        c = p.connect(p.GUI if self.gui else p.DIRECT)
-        if c < 0:
-            raise RuntimeError("pybullet.connect failed")
-        self.client = c
-        p.resetSimulation(physicsClientId=c)
-        p.setGravity(0.0, 0.0, -GRAVITY, physicsClientId=c)
-        p.setTimeStep(1.0 / self.physics_hz, physicsClientId=c)
-        p.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=c)
+        self.client = c = connect(self.gui, self.physics_hz)
         sc.add_floor_and_conveyor(c)
         self.part = sc.add_part(c, wp.contact_stiffness, wp.contact_damping)
         root = np.random.SeedSequence(self.seed)
@@ -359,8 +353,7 @@ class ScrewConveyor(SteppedWorld):
 
     # -- stepping (SteppedWorld hooks) --------------------------------------------------------------
     def _before_steps(self) -> None:
-        if self.client is None:
-            raise RuntimeError("screw_conveyor: call reset() first")
+        self._require_client()
         self._events = []
 
     def begin_steps(self, n: int, h: float) -> None:

@@ -14,6 +14,7 @@ steps, never the wall clock.  A world keeps its scoring (ground truth, summary m
 from __future__ import annotations
 
 import math
+from typing import Generic, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -80,17 +81,40 @@ class SensorSchedule:
         return True
 
 
-class SteppedWorld(World):
+class Scene(Protocol):
+    """What a stepped world builds in ``reset``: a simulator client and its bodies, closed by ``close``."""
+
+    def close(self) -> None: ...
+
+
+SceneT = TypeVar("SceneT", bound=Scene)
+
+
+class SteppedWorld(World, Generic[SceneT]):
     """A world advanced in whole physics steps of ``1 / physics_hz`` (a ``physics_hz`` parameter, or
     the class's).  Subclasses implement :meth:`physics_step` and call :meth:`restart_clock` in ``reset``;
     the hooks :meth:`begin_steps`, :meth:`after_physics_step` and :meth:`end_steps` frame the steps
-    of one ``advance``."""
+    of one ``advance``.  A world that keeps its simulator in ``self.scene`` (built by ``reset``) gets
+    :meth:`close` and :meth:`_require_scene`."""
+
+    scene: SceneT | None
 
     def __init__(self, robot: Robot, params: BaseModel, seed: int, gui: bool = False) -> None:
         super().__init__(robot, params, seed, gui)
         self.physics_hz = float(getattr(params, "physics_hz", type(self).physics_hz))
+        self.scene = None
         self._steps = 0
         self._carry = 0.0
+
+    def close(self) -> None:
+        if self.scene is not None:
+            self.scene.close()
+            self.scene = None
+
+    def _require_scene(self) -> SceneT:
+        if self.scene is None:
+            raise RuntimeError(f"{self.name or type(self).__name__}: call reset() before using the world")
+        return self.scene
 
     def restart_clock(self) -> None:
         self._steps = 0
