@@ -76,8 +76,7 @@ import pybullet as p
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field
 
-from taskflow_robots.mobile_iiwa import MobileIiwa
-from taskflow_robots.mobile_iiwa import ToolParams
+from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
 from taskflow_sim import screw_scene as sc
 from taskflow_sim.car_scene import connect
 from taskflow_sim.faults import FaultIntervals, IntervalFault

@@ -23,7 +23,7 @@ from pydantic import BaseModel
 from taskflow.api import Command, Robot, World
 
 EPS_T = 1e-9
-"""Slack (s) when comparing a tick's time to a scheduled time: both are sums of float steps."""
+"""Slack (s) when comparing a tick's time (steps / physics_hz) with a time computed another way (k / rate)."""
 
 
 def check_command(robot: Robot, command: Command) -> dict[str, NDArray[np.float64]]:
