@@ -122,7 +122,7 @@ class VikiGround(FlatGround):
         self._active: str | None = None
         # frames of the active camera on a fixed grid from its stream's start, at its rate (set in _populate
         # and on every switch; 15 Hz camera, 20 Hz control: 3 frames in 4 ticks)
-        self._frames = SensorSchedule(1.0)
+        self._frame_schedule = SensorSchedule(1.0)
         self._frame = 0
         self._last: Detection | None = None
         self._last_detected: bool | None = None
@@ -162,7 +162,7 @@ class VikiGround(FlatGround):
         self._dropout = DropoutModel(det_rng, wp.dropout, wp.dropout_burst, wp.static_motion_m,
                                      wp.static_motion_rad, wp.static_flip)
         self._active = None if wp.initial_camera == "none" else wp.initial_camera
-        self._frames.restart(0.0, self.cameras[self._active or "front"].mount.rate_hz)
+        self._frame_schedule.restart(0.0, self.cameras[self._active or "front"].mount.rate_hz)
 
     def _perceptor(self, name: str) -> Any:
         per = self._perceptors.get(name)
@@ -202,7 +202,7 @@ class VikiGround(FlatGround):
         if self._last_xy is not None:
             self._path += math.hypot(x - self._last_xy[0], y - self._last_xy[1])
         self._last_xy = (float(x), float(y))
-        if self._active is not None and self._frames.due(self.t):
+        if self._active is not None and self._frame_schedule.due(self.t):
             obs.timings = {"perception": self._new_frame(self._active)}
         elif self._last is not None and self._last.fresh:
             self._last = self._last.stale()
@@ -235,7 +235,7 @@ class VikiGround(FlatGround):
                 self.detections += 1
                 if self.first_detection_t is None:
                     self.first_detection_t = self.t
-        self._frames.fire(self.t)
+        self._frame_schedule.fire(self.t)
         self._frame += 1
         self._last = Detection(name, self.t, self._frame, bbox, depth, cam.intrinsics, cam.width, cam.height,
                                True, depth_at, depth_in)
@@ -254,7 +254,7 @@ class VikiGround(FlatGround):
             self._last = None
             self._last_detected = None
             if active is not None:  # first frame of the new camera at the next observation
-                self._frames.restart(self.t, self.cameras[active].mount.rate_hz)
+                self._frame_schedule.restart(self.t, self.cameras[active].mount.rate_hz)
             if self._dropout is not None:
                 self._dropout.reset()
         motion = {k: v for k, v in command.items() if not k.startswith("camera_")}
