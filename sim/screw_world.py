@@ -361,11 +361,11 @@ class ScrewConveyor(SteppedWorld):
             return
         self.body.command_arm(self._dq_pending, n)
         self._dq_pending = np.zeros(7)
-        self._last_step = self._steps + n - 1
+        self._last_substep = n - 1
 
     def physics_step(self, h: float) -> None:
         """The part moves, the platform's and arm's actuators act, the solver steps."""
-        if self._steps == self._last_step:  # the platform's pose before the last step (ground-truth rates)
+        if self.substep == self._last_substep:  # the platform's pose before the last step (ground-truth rates)
             self._base_before = self.body.sim_base_planar()
         self.motion.step(h)
         m = self.motion

@@ -104,6 +104,7 @@ class SteppedWorld(World, Generic[SceneT]):
         self.physics_hz = float(getattr(params, "physics_hz", type(self).physics_hz))
         self.scene = None
         self._steps = 0
+        self.substep = 0
         self._carry = 0.0
 
     def close(self) -> None:
@@ -118,12 +119,15 @@ class SteppedWorld(World, Generic[SceneT]):
 
     def restart_clock(self) -> None:
         self._steps = 0
+        self.substep = 0
         self._carry = 0.0
 
     @property
     def t(self) -> float:
-        """Simulation time (s): physics steps taken since :meth:`reset` over ``physics_hz``."""
-        return self._steps / self.physics_hz
+        """Simulation time (s): physics steps taken since :meth:`reset` over ``physics_hz``.  The steps of
+        an ``advance`` count once it returns; inside it (in :meth:`after_physics_step`) the steps taken
+        so far count too, so an ``advance`` cut short (Ctrl-C) leaves the clock where it was."""
+        return (self._steps + self.substep) / self.physics_hz
 
     def physics_step(self, h: float) -> None:  # pragma: no cover - interface
         """One physics step of ``h`` seconds."""
@@ -139,10 +143,14 @@ class SteppedWorld(World, Generic[SceneT]):
         self._carry -= n
         h = 1.0 / self.physics_hz
         self.begin_steps(n, h)
-        for _ in range(n):
-            self.physics_step(h)
-            self._steps += 1
-            self.after_physics_step(h)
+        try:
+            for _ in range(n):  # substep: index of the step being taken (after it: the steps taken)
+                self.physics_step(h)
+                self.substep += 1
+                self.after_physics_step(h)
+        finally:
+            self.substep = 0
+        self._steps += n
         self.end_steps(n, h)
 
     def _before_steps(self) -> None:
