@@ -1,17 +1,13 @@
-"""Building blocks shared by the car worlds: a PyBullet client, a box floor and the racecar on it.
+"""Building blocks shared by the worlds: a PyBullet client and a box floor.
 
-``flat_ground`` is just this scene; a ViKi-HyCo world adds the object, cameras and LiDAR on top of it
-(subclass :class:`taskflow_sim.flat_ground.FlatGround` and override its ``_populate`` hook, or build a
-:class:`CarScene` directly).
+``flat_ground`` is a floor and a robot body; a ViKi-HyCo world adds the object, cameras and LiDAR on top
+of it (subclass :class:`taskflow_sim.flat_ground.FlatGround` and override its ``_populate`` hook);
+``screw_conveyor`` uses the client (:func:`connect`) with its own conveyor scene.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import pybullet as p
-
-from taskflow_sim.racecar_body import Actuation, RacecarBody
 
 FLOOR_THICKNESS = 0.02
 
@@ -49,37 +45,3 @@ def add_floor(
     )
     p.changeDynamics(floor, -1, lateralFriction=friction, physicsClientId=client)
     return floor
-
-
-@dataclass
-class CarScene:
-    """A floor and one racecar in a fresh client."""
-
-    client: int
-    floor: int
-    car: RacecarBody
-
-    @classmethod
-    def build(
-        cls,
-        *,
-        gui: bool,
-        physics_hz: float,
-        start: tuple[float, float, float],
-        actuation: Actuation,
-        floor_half_size: float = 25.0,
-        friction: float = 1.0,
-    ) -> CarScene:
-        client = connect(gui, physics_hz)
-        floor = add_floor(client, floor_half_size, friction)
-        car = RacecarBody(client, start, actuation, tire_friction=friction)
-        return cls(client=client, floor=floor, car=car)
-
-    def step(self, h: float) -> None:
-        """One physics step of ``h`` seconds (actuator response, then the solver)."""
-        self.car.update(h)
-        p.stepSimulation(physicsClientId=self.client)
-
-    def close(self) -> None:
-        if p.isConnected(physicsClientId=self.client):
-            p.disconnect(physicsClientId=self.client)

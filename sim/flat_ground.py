@@ -61,7 +61,7 @@ class FlatGroundParams(StrictModel):
 
 
 @register_world("flat_ground")
-class FlatGround(SteppedWorld):
+class FlatGround(SteppedWorld[GroundScene]):
     """A floor and one wheeled robot; ``observe`` gives its odometry and proprioception."""
 
     Params: ClassVar[type[FlatGroundParams]] = FlatGroundParams
@@ -72,7 +72,6 @@ class FlatGround(SteppedWorld):
 
     def __init__(self, robot: Robot, params: FlatGroundParams, seed: int, gui: bool = False) -> None:
         super().__init__(robot, params, seed, gui)
-        self.scene: GroundScene | None = None
         self._rng = np.random.default_rng(seed)
 
     # --- lifecycle -----------------------------------------------------------------------------
@@ -93,16 +92,6 @@ class FlatGround(SteppedWorld):
 
     def _populate(self) -> None:
         """Hook for subclasses: add bodies and sensors to ``self.scene`` after the robot is built."""
-
-    def close(self) -> None:
-        if self.scene is not None:
-            self.scene.close()
-            self.scene = None
-
-    def _require_scene(self) -> GroundScene:
-        if self.scene is None:
-            raise RuntimeError("flat_ground: call reset() before using the world")
-        return self.scene
 
     # --- the loop ------------------------------------------------------------------------------
     def observe(self) -> Observation:

@@ -43,9 +43,11 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
+from taskflow_sim.faults import FaultIntervals, IntervalFault
 from taskflow_sim.quad_scene import Column, QuadScene, Room
 from taskflow_sim.room_landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
-from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, message, scalar, sequence
+from taskflow_sim.stepped import SensorSchedule, SteppedWorld, check_command
+from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message, scalar, sequence
 from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow.registry import register_world
 
@@ -121,7 +123,7 @@ class QuadRoomParams(StrictModel):
     physics_hz: float = Field(default=250.0, ge=25.0, le=10_000.0,
                               description="integration rate of the velocity lag (Hz); a whole multiple of rate_hz")
     image_noise: float = Field(default=0.0, ge=0.0, le=50.0, description="std of Gaussian pixel noise (grey levels)")
-    blackout: list[tuple[float, float]] = Field(default=[], description="[t0, t1] intervals of black frames (s)")
+    blackout: FaultIntervals = Field(default=[], description="[t0, t1] intervals of black frames (s)")
     obstacle_height: float = Field(default=3.0, gt=0.0)
     perception: Literal["rendered", "geometric"] = Field(
         default="rendered", description="rendered frames (faithful) or projected landmarks (fast)")
@@ -134,14 +136,6 @@ class QuadRoomParams(StrictModel):
     def _ids(cls, v: list[KeyframeSpec]) -> list[KeyframeSpec]:
         if [k.id for k in v] != list(range(len(v))):
             raise ValueError(f"keyframe ids must be 0, 1, 2, ... in order, got {[k.id for k in v]}")
-        return v
-
-    @field_validator("blackout")
-    @classmethod
-    def _intervals(cls, v: list[tuple[float, float]]) -> list[tuple[float, float]]:
-        for a, b in v:
-            if not (0.0 <= a < b):
-                raise ValueError(f"blackout interval [{a}, {b}] must have 0 <= t0 < t1")
         return v
 
     @model_validator(mode="after")
@@ -170,7 +164,7 @@ class QuadRoomParams(StrictModel):
 
 
 @register_world("quad_room")
-class QuadRoom(World):
+class QuadRoom(SteppedWorld[QuadScene]):
     """A textured room, green columns and the quadcopter with its forward camera."""
 
     Params: ClassVar[type[QuadRoomParams]] = QuadRoomParams
@@ -190,8 +184,7 @@ class QuadRoom(World):
         if not isinstance(robot, Quadcopter):
             raise TypeError(f"world quad_room flies a quadcopter, got {type(robot).__name__}")
         super().__init__(robot, params, seed, gui)
-        self.physics_hz = float(params.physics_hz)
-        self.scene: QuadScene | None = None
+        self.blackout = IntervalFault(params.blackout, "blackout")
         self._rng = np.random.default_rng(seed)
         self.columns: list[Column] = []
         self.landmarks = np.zeros((0, 3))
@@ -199,8 +192,9 @@ class QuadRoom(World):
         self._init_state()
 
     def _init_state(self) -> None:
-        self._steps = 0
-        self._carry = 0.0
+        self.restart_clock()
+        self.camera_schedule = SensorSchedule(self.robot.params.camera.rate_hz)
+        self._lag = 1.0
         self.pose = np.asarray(self.params.start, dtype=np.float64).copy()
         self.vel = np.zeros(4)
         self.cmd = np.zeros(4)
@@ -268,20 +262,6 @@ class QuadRoom(World):
     def _depth_at(self, pose: Sequence[float]) -> NDArray[np.float64]:
         return self._require_scene().render_with_depth(tuple(pose))[1]
 
-    def close(self) -> None:
-        if self.scene is not None:
-            self.scene.close()
-            self.scene = None
-
-    def _require_scene(self) -> QuadScene:
-        if self.scene is None:
-            raise RuntimeError("quad_room: call reset() before using the world")
-        return self.scene
-
-    @property
-    def t(self) -> float:
-        return self._steps / self.physics_hz
-
     # --- the loop ------------------------------------------------------------------------------
     def _camera_at(self, pose: Sequence[float]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
                                                           tuple[int, int]]:
@@ -312,7 +292,7 @@ class QuadRoom(World):
     def _capture(self) -> None:
         cam = self.robot.params.camera
         t = self.t
-        dark = any(a <= t < b for a, b in self.params.blackout)
+        dark = self.blackout.active(t)
         self._frame_id += 1
         self._frame_t = t
         if self.params.perception == "geometric":
@@ -333,9 +313,7 @@ class QuadRoom(World):
         self._frame = Image(stamp=t, frame="camera", pixels=img)
 
     def observe(self) -> Observation:
-        cam = self.robot.params.camera
-        period = 1.0 / cam.rate_hz
-        if self._frame_id < 0 or self.t - self._frame_t >= period - 0.5 / self.physics_hz:
+        if self.camera_schedule.poll(self.t):
             self._capture()
         events = tuple(self._events)
         self._events.clear()
@@ -348,36 +326,28 @@ class QuadRoom(World):
         return Observation(t=self.t, state={"nu": self.vel.copy()}, sensors=sensors, events=events)
 
     def apply(self, command: Command) -> None:
-        if set(command) != {"nu"}:
-            raise ValueError(f"quadcopter command needs the key 'nu', got {sorted(command)}")
-        nu = np.asarray(command["nu"], dtype=np.float64).reshape(-1)
-        if nu.shape != (4,) or not np.all(np.isfinite(nu)):
-            raise ValueError(f"quadcopter command 'nu' must be 4 finite values [vx, vy, vz, wz], got {nu}")
-        self.cmd = self.robot.saturate(nu)
+        """``nu`` = ``[vx, vy, vz, wz]`` (4 finite values), saturated to the robot's limits."""
+        self.cmd = self.robot.saturate(check_command(self.robot, command)["nu"])
 
-    def advance(self, dt: float) -> None:
-        if not (math.isfinite(dt) and dt >= 0.0):
-            raise ValueError(f"advance(dt) needs a finite dt >= 0, got {dt!r}")
-        self._carry += dt * self.physics_hz
-        n = round(self._carry)
-        self._carry -= n
-        h = 1.0 / self.physics_hz
+    # --- stepping (SteppedWorld hooks) ----------------------------------------------------------
+    def begin_steps(self, n: int, h: float) -> None:
         tau = self.robot.params.tau
-        a = 1.0 - math.exp(-h / tau) if tau > 0.0 else 1.0
+        self._lag = 1.0 - math.exp(-h / tau) if tau > 0.0 else 1.0
+        self._start_xyz = tuple(self.pose[:3])
+
+    def physics_step(self, h: float) -> None:
+        """The velocity lag, then the body moved by the new body-frame velocity."""
         x, y, z, yaw = self.pose
-        vel, cmd = self.vel, self.cmd
-        x0, y0, z0 = x, y, z
-        for _ in range(n):
-            vel += a * (cmd - vel)
-            c, s = math.cos(yaw), math.sin(yaw)
-            x += h * (c * vel[0] - s * vel[1])
-            y += h * (s * vel[0] + c * vel[1])
-            z += h * vel[2]
-            yaw = math.remainder(yaw + h * vel[3], 2.0 * math.pi)
-        self.path_length += math.dist((x0, y0, z0), (x, y, z))
-        self.pose[:] = (x, y, z, yaw)
+        vel = self.vel
+        vel += self._lag * (self.cmd - vel)
+        c, s = math.cos(yaw), math.sin(yaw)
+        self.pose[:] = (x + h * (c * vel[0] - s * vel[1]), y + h * (s * vel[0] + c * vel[1]), z + h * vel[2],
+                        math.remainder(yaw + h * vel[3], 2.0 * math.pi))
+
+    def end_steps(self, n: int, h: float) -> None:
+        x, y, z, yaw = self.pose
+        self.path_length += math.dist(self._start_xyz, (x, y, z))
         self._track_path_deviation()
-        self._steps += n
         self._require_scene().set_drone_pose(x, y, z, yaw)
         self._check_contacts()
 

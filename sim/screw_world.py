@@ -69,19 +69,24 @@ screwdriver.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal, Mapping
 
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field
 
-from taskflow_robots.mobile_iiwa import MobileIiwa
+from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
 from taskflow_sim import screw_scene as sc
+from taskflow_sim.car_scene import connect
+from taskflow_sim.faults import FaultIntervals, IntervalFault
 from taskflow_sim.screw_motion import PartMotion
 from taskflow_sim.screw_perception import MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody
-from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, message
+from taskflow_sim.screwdriver import BitErrors, Screwdriver
+from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
+from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message
 from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import register_world
 from taskflow.spatial import rotation_angle
@@ -117,20 +122,12 @@ class ScrewWorldParams(StrictModel):
     dropout: float = Field(default=0.01, ge=0.0, lt=1.0, description="probability a frame misses the marker")
     roi_px: int = Field(default=224, gt=32, description="rendered mode: region-of-interest side (px)")
     lost_after: float = Field(default=0.2, gt=0.0, description="no detection for this long → target_lost (s); longer than one camera period")
-    occlusions: list[tuple[float, float]] = Field(default_factory=list, description="[t0, t1] intervals hiding the marker (s)")
+    occlusions: FaultIntervals = Field(default_factory=list, description="[t0, t1] intervals hiding the marker (s)")
     physics_hz: float = Field(default=100.0, ge=100.0, le=10_000.0, description="physics rate (Hz): one step per 100 Hz control tick; 250 gives the same benchmark errors at twice the cost; a whole multiple of rate_hz")
     contact_stiffness: float = Field(default=1e4, gt=0.0)
     contact_damping: float = Field(default=200.0, ge=0.0)
     ft_noise: float = Field(default=0.05, ge=0.0, description="F/T sensor force noise std (N)")
     fasten_s: float = Field(default=3.0, gt=0.0, le=600.0, description="default fastening duration (s)")
-
-    @field_validator("occlusions")
-    @classmethod
-    def _intervals(cls, v: list[tuple[float, float]]) -> list[tuple[float, float]]:
-        for a, b in v:
-            if not (0.0 <= a < b):
-                raise ValueError(f"an occlusion is [t0, t1] with 0 <= t0 < t1, got [{a}, {b}]")
-        return v
 
 
 class ScrewdriverParams(StrictModel):
@@ -154,8 +151,53 @@ def nominal_platform(part: tuple[float, float, float]) -> tuple[float, float, fl
     return (x - NOMINAL_DISTANCE * math.cos(th), y - NOMINAL_DISTANCE * math.sin(th), th)
 
 
+@dataclass
+class MarkerStream:
+    """The camera's marker detections: when frames are taken (``schedule``, at the camera's rate), the
+    occlusion fault, the pose-mode noise and dropout stream (``rng``) or the rendered ``detector``,
+    detections in flight (``queue``, delivered after the latency), the perception error of every
+    detection against the truth (``errors``: m across the view, m along it, rad) and the lost/found
+    bookkeeping (``last_seen``: capture time of the last delivered detection)."""
+
+    schedule: SensorSchedule
+    occlusions: IntervalFault
+    noise: PoseNoise
+    rng: np.random.Generator
+    detector: RenderedDetector | None
+    queue: list[MarkerDetection] = field(default_factory=list)
+    errors: list[tuple[float, float, float]] = field(default_factory=list)
+    last_seen: float | None = None
+    visible: bool = False
+
+
+@dataclass
+class WrenchSensor:
+    """The F/T sensor on the fixed tool joint, gravity-compensated for the screwdriver (``weight`` N,
+    centre of mass ``com`` in the tool frame), with white force noise of std ``noise`` N."""
+
+    rng: np.random.Generator
+    noise: float
+    com: NDArray[np.float64]
+    weight: float
+
+    @classmethod
+    def for_tool(cls, tool: ToolParams, rng: np.random.Generator, noise: float) -> WrenchSensor:
+        return cls(rng, noise, np.array([0.0, 0.0, 0.5 * (tool.length - tool.bit_length)]), tool.mass * GRAVITY)
+
+    def read(self, reading: NDArray[np.float64], R_wt: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The contact wrench (force N, torque N·m about the tool joint, tool frame) from the joint's
+        ``reading`` (force of the flange on the tool) and the tool's orientation ``R_wt``."""
+        w = R_wt[2] * -self.weight  # the tool's weight in the tool frame (Rᵀ [0, 0, −mg])
+        f = -reading[:3] - w
+        c = self.com
+        m = -reading[3:] - np.array([c[1] * w[2] - c[2] * w[1], c[2] * w[0] - c[0] * w[2], c[0] * w[1] - c[1] * w[0]])
+        if self.noise > 0.0:
+            f = f + self.rng.normal(0.0, self.noise, 3)
+        return np.concatenate([f, m])
+
+
 @register_world("screw_conveyor")
-class ScrewConveyor(World):
+class ScrewConveyor(SteppedWorld):
     """The mobile iiwa fastening four bolts on a part carried by a conveyor or a trolley."""
 
     Params: ClassVar[type[ScrewWorldParams]] = ScrewWorldParams
@@ -181,21 +223,22 @@ class ScrewConveyor(World):
             raise ValueError(f"screw_conveyor: lost_after ({params.lost_after:g} s) must be longer than one camera period "
                              f"({cam_period:g} s at {robot.params.camera.rate_hz:g} Hz), or the marker is lost between every two frames")
         super().__init__(robot, params, seed, gui)
-        self.physics_hz = float(params.physics_hz)
         self.client: int | None = None
+        self.occlusions = IntervalFault(params.occlusions, "occlusions")
+        rp = robot.params
+        self.H_bc = rp.H_bc()
+        # numpy's general (LU) inverse, not spatial.inverse: the closed form differs in the last bits and
+        # those propagate into the screw missions' traces (they were recorded with this one)
+        self._H_cb = np.linalg.inv(self.H_bc)
+        self._H_Pm = sc.marker_in_P()
+        self._bolts_P = sc.bolt_frames_in_P()
+        self._cam_K = rp.camera.K()
 
     # -- lifecycle -----------------------------------------------------------------------------
     def reset(self) -> None:
         self.close()
         wp, rp = self.params, self.robot.params
-        c = p.connect(p.GUI if self.gui else p.DIRECT)
-        if c < 0:
-            raise RuntimeError("pybullet.connect failed")
-        self.client = c
-        p.resetSimulation(physicsClientId=c)
-        p.setGravity(0.0, 0.0, -GRAVITY, physicsClientId=c)
-        p.setTimeStep(1.0 / self.physics_hz, physicsClientId=c)
-        p.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=c)
+        self.client = c = connect(self.gui, self.physics_hz)
         sc.add_floor_and_conveyor(c)
         self.part = sc.add_part(c, wp.contact_stiffness, wp.contact_damping)
         root = np.random.SeedSequence(self.seed)
@@ -212,39 +255,18 @@ class ScrewConveyor(World):
         self.body = MobileIiwaBody(c, self.robot, start, np.array(rp.q_home))
         p.changeDynamics(self.body.id, self.body.tool_link, contactStiffness=wp.contact_stiffness,
                          contactDamping=wp.contact_damping, lateralFriction=0.3, physicsClientId=c)
-        self._rng_sense = r_sense
-        self._rng_ft = r_ft
-        self.noise = PoseNoise(r_sense, wp.noise_xy, wp.noise_z, wp.noise_r, wp.noise_tau)
-        self.detector = RenderedDetector(c, rp.camera, roi=wp.roi_px) if wp.perception == "rendered" else None
-        self.H_bc = rp.H_bc()
-        # numpy's general (LU) inverse, not spatial.inverse: the closed form differs in the last bits and
-        # those propagate into the screw missions' traces (they were recorded with this one)
-        self._H_cb = np.linalg.inv(self.H_bc)
-        self._H_Pm = sc.marker_in_P()
-        self._cam_K = rp.camera.K()
-        self._steps = 0
-        self._carry = 0.0
-        self._cam_period = 1.0 / rp.camera.rate_hz
-        self._next_capture = 0.0
-        self._frame = 0
-        self._queue: list[MarkerDetection] = []
-        self._perr: list[tuple[float, float, float]] = []
-        self._marker: MarkerPose | None = None
-        self._seq = 0
-        self._last_seen: float | None = None
-        self._visible = False
+        self.stream = MarkerStream(
+            SensorSchedule(rp.camera.rate_hz), self.occlusions, PoseNoise(r_sense, wp.noise_xy, wp.noise_z, wp.noise_r, wp.noise_tau),
+            r_sense, RenderedDetector(c, rp.camera, roi=wp.roi_px) if wp.perception == "rendered" else None)
+        self.force = WrenchSensor.for_tool(rp.tool, r_ft, wp.ft_noise)
+        self.screwdriver = Screwdriver(rp.tool)
+        self.restart_clock()
         self._events: list[str] = []
         self._dq_pending = np.zeros(7)
-        self._action: dict[str, Any] | None = None
-        self._ops: list[dict[str, Any]] = []  # one record per screwdriver operation (summary: operation_log)
-        self._op_samples: list[tuple[list[float], list[float]]] = []  # per operation: errors to its bolt (m, rad)
-        self._bolts_done: set[int] = set()
-        self._coupled: int | None = None
         self._base_rate = (0.0, 0.0)  # ground truth: platform speed (m/s) and yaw rate (rad/s) over the last step
-        self._bolts_P = sc.bolt_frames_in_P()
-        tm = self.robot.params.tool.mass
-        self._tool_com = np.array([0.0, 0.0, 0.5 * (self.robot.params.tool.length - self.robot.params.tool.bit_length)])
-        self._tool_weight = tm * GRAVITY
+        # what the robot receives: the latest delivered marker detection (numbered) and the wrench
+        self._marker: MarkerPose | None = None
+        self._seq = 0
         self._wrench = np.zeros(6)
         if self.gui:
             p.resetDebugVisualizerCamera(1.8, 20.0, -30.0, [x0, y0, 0.8], physicsClientId=c)
@@ -258,8 +280,9 @@ class ScrewConveyor(World):
             self.client = None
 
     @property
-    def t(self) -> float:
-        return self._steps / self.physics_hz
+    def detector(self) -> RenderedDetector | None:
+        """The rendered mode's ArUco detector (None in the pose mode)."""
+        return self.stream.detector
 
     # -- geometry ------------------------------------------------------------------------------
     def part_pose(self) -> NDArray[np.float64]:
@@ -317,14 +340,10 @@ class ScrewConveyor(World):
         return Observation(t=self.t, state=state, sensors=sensors, events=tuple(self._events))
 
     def apply(self, command: Command) -> None:
-        if set(command) != set(self.robot.command_keys):
-            raise ValueError(f"mobile_iiwa command needs keys {sorted(self.robot.command_keys)}, got {sorted(command)}")
-        bt = np.asarray(command["base_twist"], dtype=np.float64).reshape(-1)
-        dq = np.asarray(command["arm_dq"], dtype=np.float64).reshape(-1)
-        if bt.shape != (3,) or dq.shape != (7,) or not (np.all(np.isfinite(bt)) and np.all(np.isfinite(dq))):
-            raise ValueError(f"mobile_iiwa command: base_twist (3) and arm_dq (7) finite, got {bt} {dq}")
-        self.body.command_base(bt)
-        self._dq_pending = dq
+        """``base_twist`` (3) to the platform now; ``arm_dq`` (7) spread over the next ``advance``'s steps."""
+        cmd = check_command(self.robot, command)
+        self.body.command_base(cmd["base_twist"])
+        self._dq_pending = cmd["arm_dq"]
 
     def safe_stop(self) -> None:
         """Bring the robot to rest: the platform brakes to zero at the robot's ``brake_decel``, the arm's
@@ -332,199 +351,136 @@ class ScrewConveyor(World):
         self.body.brake()
         self.body.hold()
         self._dq_pending = np.zeros(7)
-        if self._action is not None:
+        if self.screwdriver.running:
             self.cancel_action("screwdriver")
 
-    def advance(self, dt: float) -> None:
-        if not (math.isfinite(dt) and dt >= 0.0):
-            raise ValueError(f"advance(dt) needs a finite dt >= 0, got {dt!r}")
-        if self.client is None:
-            raise RuntimeError("screw_conveyor: call reset() first")
+    # -- stepping (SteppedWorld hooks) --------------------------------------------------------------
+    def _before_steps(self) -> None:
+        self._require_client()
         self._events = []
-        self._carry += dt * self.physics_hz
-        n = round(self._carry)
-        self._carry -= n
+
+    def begin_steps(self, n: int, h: float) -> None:
+        """The arm's pending joint increment, spread over the ``n`` steps (none when n = 0)."""
         if n <= 0:
             return
-        h = 1.0 / self.physics_hz
         self.body.command_arm(self._dq_pending, n)
         self._dq_pending = np.zeros(7)
-        c = self.client
-        for i in range(n):
-            if i == n - 1:
-                before = self.body.sim_base_planar()
-            self.motion.step(h)
-            m = self.motion
-            sc.set_part_planar(c, self.part, m.x, m.y, m.yaw)
-            self.body.before_step(h)
-            p.stepSimulation(physicsClientId=c)
-            self._steps += 1
-            t = self.t
-            if t + 1e-9 >= self._next_capture:
-                self._capture(t)  # the frame is taken at this physics step (stamped with its time)
-                self._frame += 1
-                self._next_capture = self._frame * self._cam_period
-            self._deliver(t)
-        after = self.body.sim_base_planar()
+        self._last_substep = n - 1
+
+    def physics_step(self, h: float) -> None:
+        """The part moves, the platform's and arm's actuators act, the solver steps."""
+        if self.substep == self._last_substep:  # the platform's pose before the last step (ground-truth rates)
+            self._base_before = self.body.sim_base_planar()
+        self.motion.step(h)
+        m = self.motion
+        sc.set_part_planar(self._require_client(), self.part, m.x, m.y, m.yaw)
+        self.body.before_step(h)
+        p.stepSimulation(physicsClientId=self.client)
+
+    def after_physics_step(self, h: float) -> None:
+        t = self.t
+        if self.stream.schedule.poll(t):
+            self._capture(t)  # the frame is taken at this physics step (stamped with its time)
+        self._deliver(t)
+
+    def end_steps(self, n: int, h: float) -> None:
+        if n <= 0:
+            return
+        before, after = self._base_before, self.body.sim_base_planar()
         self._base_rate = (math.hypot(after[0] - before[0], after[1] - before[1]) / h,
                            math.remainder(after[2] - before[2], 2.0 * math.pi) / h)
         self.body.sync_state()
         self._sense_wrench()
         self._update_action()
 
-    # -- perception -----------------------------------------------------------------------------
-    def _occluded(self, t: float) -> bool:
-        return any(a <= t < b for a, b in self.params.occlusions)
+    def _require_client(self) -> int:
+        if self.client is None:
+            raise RuntimeError("screw_conveyor: call reset() first")
+        return self.client
 
+    # -- perception -----------------------------------------------------------------------------
     def _capture(self, t: float) -> None:
-        wp = self.params
-        if self._occluded(t):
+        wp, st = self.params, self.stream
+        if st.occlusions.active(t):
             det = MarkerDetection(t, None)
-        elif self.detector is not None:
-            det = self.detector(self.body.camera_pose(), t)
+        elif st.detector is not None:
+            det = st.detector(self.body.camera_pose(), t)
         else:
             H = self.true_H_co()
-            if not visible(self.robot.params.camera, H, K=self._cam_K) or self._rng_sense.random() < wp.dropout:
+            if not visible(self.robot.params.camera, H, K=self._cam_K) or st.rng.random() < wp.dropout:
                 det = MarkerDetection(t, None)
             else:
-                det = MarkerDetection(t, self.noise.apply(H, t))
+                det = MarkerDetection(t, st.noise.apply(H, t))
         if det.H_co is not None:  # perception error against the truth at capture (camera frame)
             truth = self.true_H_co()
             d = det.H_co[:3, 3] - truth[:3, 3]
             R = det.H_co[:3, :3] @ truth[:3, :3].T
-            self._perr.append((math.hypot(d[0], d[1]), abs(d[2]), rotation_angle(R)))
-        self._queue.append(det)
+            st.errors.append((math.hypot(d[0], d[1]), abs(d[2]), rotation_angle(R)))
+        st.queue.append(det)
 
     def _deliver(self, t: float) -> None:
-        lat = self.params.latency
-        while self._queue and self._queue[0].t + lat <= t + 1e-9:
-            det = self._queue.pop(0)
+        lat, st = self.params.latency, self.stream
+        while st.queue and st.queue[0].t + lat <= t + EPS_T:
+            det = st.queue.pop(0)
             if det.H_co is not None:
                 self._seq += 1
                 self._marker = MarkerPose(stamp=det.t, frame="camera", T_camera_object=det.H_co, seq=self._seq)
-                self._last_seen = det.t
-                if not self._visible:
-                    self._visible = True
+                st.last_seen = det.t
+                if not st.visible:
+                    st.visible = True
                     self._events.append("target_found")
-        if self._visible and self._last_seen is not None and t - self._last_seen > self.params.lost_after + lat:
-            self._visible = False
+        if st.visible and st.last_seen is not None and t - st.last_seen > self.params.lost_after + lat:
+            st.visible = False
             self._events.append("target_lost")
 
     # -- force sensing ---------------------------------------------------------------------------
     def _sense_wrench(self) -> None:
         reading = self.body.tool_joint_wrench()  # force of the flange on the tool, tool frame
-        R_wt = self.body.link_rotation(self.body.tool_link)
-        w = R_wt[2] * -self._tool_weight  # the tool's weight in the tool frame (Rᵀ [0, 0, −mg])
-        f = -reading[:3] - w
-        c = self._tool_com
-        m = -reading[3:] - np.array([c[1] * w[2] - c[2] * w[1], c[2] * w[0] - c[0] * w[2], c[0] * w[1] - c[1] * w[0]])
-        if self.params.ft_noise > 0.0:
-            f = f + self._rng_ft.normal(0.0, self.params.ft_noise, 3)
-        self._wrench = np.concatenate([f, m])
+        self._wrench = self.force.read(reading, self.body.link_rotation(self.body.tool_link))
 
-    # -- the screwdriver -------------------------------------------------------------------------
+    # -- the screwdriver (the state machine is taskflow_sim.screwdriver) ----------------------------
+    def bit_errors(self, bolt: int | None = None) -> tuple[int, BitErrors]:
+        """The bolt (the nearest when ``bolt`` is None) and the bit's errors to it (:meth:`tool_errors`)."""
+        b, et, er, lat, ax, tilt = self.tool_errors(bolt)
+        return b, BitErrors(et, er, lat, ax, tilt)
+
     def start_action(self, name: str, params: Mapping[str, Any]) -> None:
         model = self.action_params.get(name)
         if model is None:
             raise KeyError(f"screw_conveyor has no action {name!r} — valid: {', '.join(self.action_params)}")
         sp = model.model_validate(dict(params))  # a ValidationError (ValueError) names the bad field
         assert isinstance(sp, ScrewdriverParams)
-        if self._action is not None:  # a new phase replaces one still running
+        sd = self.screwdriver
+        if sd.running:  # a new phase replaces one still running
             self.cancel_action(name)
-        tp = self.robot.params.tool
         t = self.t
         if sp.phase == "activate":
-            nearest, et, _, lat, ax, tilt = self.tool_errors()
-            on_bolt = lat <= tp.tol_t and abs(ax) <= tp.tol_axial and tilt <= tp.tol_r
-            self._coupled = None
-            op = self._new_operation(nearest, et, nearest if on_bolt else None, "activating")
-            duration = tp.activation_s if sp.duration is None else sp.duration
-            self._action = {"phase": "activate", "op": op, "bolt": self._ops[op]["bolt"], "end": t + duration,
-                            "ok": on_bolt, "failure": None if on_bolt else "no_bolt", "worst": 0.0}
+            nearest, e = self.bit_errors()
+            sd.activate(t, self.robot.params.tool.activation_s if sp.duration is None else sp.duration, nearest, e)
         else:
-            last = self._ops[-1] if self._ops else None
-            if (self._coupled is not None and last is not None and last["bolt"] == self._coupled
-                    and last["outcome"] in ("coupled", "interrupted")):
-                op, ok, failure = len(self._ops) - 1, True, None
-                last["outcome"] = "fastening"
-            else:  # fastening with no bolt coupled: an operation of its own that fails at once
-                nearest, et, *_ = self.tool_errors()
-                op, ok, failure = self._new_operation(nearest, et, None, "fastening"), False, "not_coupled"
             duration = self.params.fasten_s if sp.duration is None else sp.duration
-            self._action = {"phase": "fasten", "op": op, "bolt": self._ops[op]["bolt"], "end": t + duration,
-                            "ok": ok, "failure": failure, "worst": 0.0}
+            if sd.can_continue():
+                sd.fasten_coupled(t, duration)
+            else:  # fastening with no bolt coupled: an operation of its own that fails at once
+                nearest, e = self.bit_errors()
+                sd.fasten_uncoupled(t, duration, nearest, e.translation)
         self._sample_action()
-
-    def _new_operation(self, nearest: int, dist: float, bolt: int | None, outcome: str) -> int:
-        self._ops.append({"operation": len(self._ops), "bolt": bolt, "nearest_bolt": nearest,
-                          "nearest_bolt_mm": 1e3 * dist, "bolt_already_fastened": bolt is not None and bolt in self._bolts_done,
-                          "t_start": self.t, "t_end": None, "outcome": outcome, "failure": None, "coupling_error_mm": None})
-        self._op_samples.append(([], []))
-        return len(self._ops) - 1
 
     def cancel_action(self, name: str) -> None:
-        a = self._action
-        if a is None:
-            return
-        self._action = None
-        op = self._ops[a["op"]]
-        if a["phase"] == "activate":
-            self._coupled = None
-            if a["bolt"] is not None:
-                op["coupling_error_mm"] = 1e3 * a["worst"]
-            op.update(outcome="cancelled", t_end=self.t)
-        elif a["ok"]:
-            op["outcome"] = "interrupted"  # still coupled: the next fasten continues this operation
-        else:
-            op.update(outcome="cancelled", t_end=self.t)
+        self.screwdriver.cancel(self.t)
 
     def _sample_action(self) -> None:
-        a = self._action
-        if a is None or a["bolt"] is None:
-            return
-        tp = self.robot.params.tool
-        _, et, er, lat, ax, tilt = self.tool_errors(a["bolt"])
-        ts, rs = self._op_samples[a["op"]]
-        ts.append(et)
-        rs.append(er)
-        if a["phase"] == "activate":
-            a["worst"] = max(a["worst"], lat)
-            if a["ok"] and (lat > tp.tol_t or abs(ax) > tp.tol_axial or tilt > tp.tol_r):
-                a["ok"], a["failure"] = False, "coupling"
-        elif a["ok"] and (lat > tp.slip_t or abs(ax) > 2.0 * tp.tol_axial):
-            a["ok"], a["failure"] = False, "slipped"
+        bolt = self.screwdriver.bolt
+        if bolt is not None:
+            self.screwdriver.sample(self.bit_errors(bolt)[1])
 
     def _update_action(self) -> None:
-        a = self._action
-        if a is None:
+        if not self.screwdriver.running:
             return
         self._sample_action()
-        t = self.t
-        op = self._ops[a["op"]]
-        if a["phase"] == "activate":
-            if t + 1e-9 >= a["end"]:
-                self._action = None
-                if a["bolt"] is not None:
-                    op["coupling_error_mm"] = 1e3 * a["worst"]
-                if a["ok"]:
-                    self._coupled = a["bolt"]
-                    op["outcome"] = "coupled"
-                    self._events.append("tool_activated")
-                else:
-                    self._coupled = None
-                    op.update(outcome="failed", failure=a["failure"], t_end=t)
-                    self._events.append("tool_failed")
-        elif not a["ok"]:
-            self._action = None
-            self._coupled = None
-            op.update(outcome="failed", failure=a["failure"], t_end=t)
-            self._events.append("tool_failed")
-        elif t + 1e-9 >= a["end"]:
-            self._action = None
-            self._coupled = None
-            self._bolts_done.add(a["bolt"])
-            op.update(outcome="fastened", t_end=t, screwing_s=t - op["t_start"])
-            self._events.append("screw_done")
+        event = self.screwdriver.update(self.t)
+        if event is not None:
+            self._events.append(event)
 
     # -- records ----------------------------------------------------------------------------------
     def ground_truth(self) -> dict[str, float]:
@@ -541,9 +497,9 @@ class ScrewConveyor(World):
     def operation_log(self) -> list[dict[str, Any]]:
         """The operations with their errors to their bolt (see the module docstring)."""
         out = []
-        for op, (ts, rs) in zip(self._ops, self._op_samples, strict=True):
-            rec = dict(op)
-            t, r = np.array(ts), np.array(rs)
+        for op in self.screwdriver.log.ops:
+            rec = op.record()
+            t, r = np.array(op.err_t), np.array(op.err_r)
             rec["err_samples"] = int(len(t))
             rec["err_t_mean_mm"] = float(np.mean(t) * 1e3) if len(t) else None
             rec["err_t_max_mm"] = float(np.max(t) * 1e3) if len(t) else None
@@ -553,37 +509,38 @@ class ScrewConveyor(World):
         return out
 
     def summary_metrics(self) -> dict[str, Any]:
-        ops = self._ops
-        fastened = [i for i, op in enumerate(ops) if op["outcome"] == "fastened"]
-        failed = [i for i, op in enumerate(ops) if op["outcome"] == "failed"]
-        at_bolt = [i for i, op in enumerate(ops) if op["bolt"] is not None]
+        log = self.screwdriver.log
+        ops = log.ops
+        fastened = [i for i, op in enumerate(ops) if op.outcome == "fastened"]
+        failed = [i for i, op in enumerate(ops) if op.outcome == "failed"]
+        at_bolt = [i for i, op in enumerate(ops) if op.bolt is not None]
         out: dict[str, Any] = {
             "operations": len(ops),
             "operations_fastened": len(fastened),
             "operations_failed": len(failed),
-            "operations_no_bolt": sum(1 for op in ops if op["failure"] == "no_bolt"),
+            "operations_no_bolt": sum(1 for op in ops if op.failure == "no_bolt"),
             "operations_unfinished": len(ops) - len(fastened) - len(failed),
             "bolts_on_part": len(self._bolts_P),
-            "bolts_fastened": len(self._bolts_done),
+            "bolts_fastened": len(log.bolts_done),
             "operation_log": self.operation_log(),
         }
         for group, idx in (("fastened", fastened), ("at_bolt", at_bolt)):
-            ts = np.array([x for i in idx for x in self._op_samples[i][0]])
-            rs = np.array([x for i in idx for x in self._op_samples[i][1]])
+            ts = np.array([x for i in idx for x in ops[i].err_t])
+            rs = np.array([x for i in idx for x in ops[i].err_r])
             out[f"{group}_err_operations"] = len(idx)
             out[f"{group}_err_samples"] = int(len(ts))
             for name, arr, scale, unit in (("err_t", ts, 1e3, "mm"), ("err_r", rs, 180.0 / math.pi, "deg")):
                 for stat, fn in (("min", np.min), ("max", np.max), ("mean", np.mean)):
                     out[f"{group}_{name}_{stat}_{unit}"] = float(fn(arr) * scale) if len(arr) else None
-        times = [ops[i]["screwing_s"] for i in fastened]
+        times = [ops[i].screwing_s for i in fastened]
         out["screwing_time_mean_s"] = float(np.mean(times)) if times else None
         if self.client is not None:
             gt = self.ground_truth()
             out["final_base_speed_mps"] = gt["base_speed"]
             out["final_arm_speed_radps"] = gt["arm_speed"]
             out["final_part_x_m"] = gt["part_x"]
-        if self._perr:
-            pe = np.array(self._perr)
+        if self.stream.errors:
+            pe = np.array(self.stream.errors)
             rms = np.sqrt(np.mean(pe * pe, axis=0))
             out["perception_frames"] = int(len(pe))
             out["perception_rms_xy_mm"], out["perception_rms_z_mm"] = float(rms[0] * 1e3), float(rms[1] * 1e3)

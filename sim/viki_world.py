@@ -50,6 +50,7 @@ from taskflow.spatial import rotation_from_unit_quaternion, transform
 from taskflow_sim.perception_common import CameraModel, DropoutModel
 from taskflow_sim.perception_geometric import GeometricPerception
 from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
+from taskflow_sim.stepped import SensorSchedule
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
 from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, message, text
 from taskflow.messages import Detection
@@ -120,9 +121,9 @@ class VikiGround(FlatGround):
         self._lidar: LidarScanner | None = None
         self._dropout: DropoutModel | None = None
         self._active: str | None = None
-        self._next_frame = 0.0
-        self._stream_t0 = 0.0
-        self._stream_k = 0
+        # frames of the active camera on a fixed grid from its stream's start, at its rate (set in _populate
+        # and on every switch; 15 Hz camera, 20 Hz control: 3 frames in 4 ticks)
+        self._frame_schedule = SensorSchedule(1.0)
         self._frame = 0
         self._last: Detection | None = None
         self._last_detected: bool | None = None
@@ -162,6 +163,7 @@ class VikiGround(FlatGround):
         self._dropout = DropoutModel(det_rng, wp.dropout, wp.dropout_burst, wp.static_motion_m,
                                      wp.static_motion_rad, wp.static_flip)
         self._active = None if wp.initial_camera == "none" else wp.initial_camera
+        self._frame_schedule.restart(0.0, self.cameras[self._active or "front"].mount.rate_hz)
 
     def _perceptor(self, name: str) -> Any:
         per = self._perceptors.get(name)
@@ -201,7 +203,7 @@ class VikiGround(FlatGround):
         if self._last_xy is not None:
             self._path += math.hypot(x - self._last_xy[0], y - self._last_xy[1])
         self._last_xy = (float(x), float(y))
-        if self._active is not None and self.t + 1e-9 >= self._next_frame:
+        if self._active is not None and self._frame_schedule.due(self.t):
             obs.timings = {"perception": self._new_frame(self._active)}
         elif self._last is not None and self._last.fresh:
             self._last = self._last.stale()
@@ -234,10 +236,7 @@ class VikiGround(FlatGround):
                 self.detections += 1
                 if self.first_detection_t is None:
                     self.first_detection_t = self.t
-        # frames on a fixed grid from the stream's start (15 Hz camera, 20 Hz control: 3 frames / 4 ticks)
-        rate = cam.mount.rate_hz
-        self._stream_k = max(self._stream_k + 1, math.floor((self.t - self._stream_t0) * rate + 1e-6) + 1)
-        self._next_frame = self._stream_t0 + self._stream_k / rate
+        self._frame_schedule.fire(self.t)
         self._frame += 1
         self._last = Detection(stamp=self.t, frame=f"{name}_camera", camera=name, seq=self._frame, bbox=bbox, depth=depth,
                                intrinsics=cam.intrinsics, width=cam.width, height=cam.height, depth_at=depth_at,
@@ -256,8 +255,8 @@ class VikiGround(FlatGround):
             self._active = active
             self._last = None
             self._last_detected = None
-            self._next_frame = self._stream_t0 = self.t  # first frame of the new camera at the next observation
-            self._stream_k = 0
+            if active is not None:  # first frame of the new camera at the next observation
+                self._frame_schedule.restart(self.t, self.cameras[active].mount.rate_hz)
             if self._dropout is not None:
                 self._dropout.reset()
         motion = {k: v for k, v in command.items() if not k.startswith("camera_")}
