@@ -11,10 +11,11 @@ Perception (``perception: geometric | rendered``, :mod:`taskflow_sim.perception_
 :class:`taskflow.messages.Detection` of the **active camera** at the camera's rate (15 Hz by default; the
 control runs at the mission's rate and sees the latest frame with ``fresh = False`` in between).
 
-Active camera: chosen by the running task through its command (``camera_front`` / ``camera_rear`` keys,
-:func:`taskflow_robots.sensors.camera_command`); a command without camera keys keeps the current one (so a
-task-less "searching" state keeps looking); all keys 0 switches perception off (the kinematic rotation
-state: nothing is rendered).  ``initial_camera`` is the one used before the first command.  Only the
+Active camera: chosen by the running task, which names the mount it reads in its step result
+(``StepResult.sensors``, e.g. ``("rear_camera",)``; the runtime passes it to :meth:`VikiGround.select_sensors`);
+a task that names none (``None``) or no task keeps the current one (so a task-less "searching" state keeps
+looking); ``()`` switches perception off (the kinematic rotation state: nothing is rendered).
+``initial_camera`` is the one used before the first task names one.  Only the
 active camera is processed: in ``rendered`` mode one ``getCameraImage`` per frame (plus the LiDAR at its
 own rate for the front camera).
 
@@ -44,7 +45,6 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from taskflow_robots.racecar import CameraMount
-from taskflow_robots.sensors import CAMERAS, active_camera_from_command
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
 from taskflow.spatial import rotation_from_unit_quaternion, transform
 from taskflow_sim.perception_common import CameraModel, DropoutModel
@@ -150,7 +150,7 @@ class VikiGround(FlatGround):
         scene = self._require_scene()
         self.object_body = create_body(scene.client, self.object)
         mounts: dict[str, CameraMount] = {"front": rp.front_camera, "rear": rp.rear_camera}
-        for name in CAMERAS:
+        for name in ("front", "rear"):
             m = mounts[name]
             if wp.image_size is not None:
                 m = m.model_copy(update={"width": int(wp.image_size[0]), "height": int(wp.image_size[1])})
@@ -247,10 +247,15 @@ class VikiGround(FlatGround):
         self._last_detected = detected
         return perception_s
 
-    def apply(self, command: Command) -> None:
-        active = active_camera_from_command(command, self._active)
-        if active is not None and active not in self.cameras:
-            raise ValueError(f"viki_ground has no camera {active!r}; cameras: {', '.join(self.cameras)}")
+    def select_sensors(self, names: tuple[str, ...]) -> None:
+        """The active state's task names the camera mount it reads (``("front_camera",)``); ``()``: none.
+        Only that camera is processed; the LiDAR goes with the front camera (eq. 11-15)."""
+        cams = [n[:-len("_camera")] for n in names if n.endswith("_camera")]
+        unknown = [n for n in names if n != "lidar" and not (n.endswith("_camera") and n[:-len("_camera")] in self.cameras)]
+        if unknown or len(cams) > 1:
+            raise ValueError(f"viki_ground runs one camera at a time of {', '.join(f'{c}_camera' for c in self.cameras)}"
+                             f" (and the lidar); a task asked for {', '.join(names)}")
+        active = cams[0] if cams else None
         if active != self._active:
             self._active = active
             self._last = None
@@ -259,8 +264,6 @@ class VikiGround(FlatGround):
                 self._frame_schedule.restart(self.t, self.cameras[active].mount.rate_hz)
             if self._dropout is not None:
                 self._dropout.reset()
-        motion = {k: v for k, v in command.items() if not k.startswith("camera_")}
-        super().apply(motion)
 
     def object_in_robot_frame(self) -> tuple[float, float]:
         """Ground truth: object base centre in the robot frame (m)."""

@@ -170,12 +170,18 @@ class StepResult:
 
     ``timings`` is the wall-clock seconds of this step by part (e.g. ``{"perception": 0.008,
     "control": 0.0004}``); it goes to ``timing.json`` only.  Wall-clock values never belong in
-    ``metrics``: a guard or the trace would then depend on the machine's speed."""
+    ``metrics``: a guard or the trace would then depend on the machine's speed.
+
+    ``sensors`` names the robot's sensor mounts (keys of :attr:`Robot.sensors`) this task needs the world
+    to run from now on — ViKi-HyCo's ``("rear_camera",)``, ``()`` for none; ``None`` (the default) leaves
+    the world's choice as it is.  The runtime hands it to :meth:`World.select_sensors` before the command
+    is applied, so a world that renders on demand processes only what the active state reads."""
 
     command: Command
     metrics: dict[str, float] = field(default_factory=dict)
     events: tuple[str, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
+    sensors: tuple[str, ...] | None = None
 
 
 ValueT = TypeVar("ValueT")
@@ -387,6 +393,11 @@ class World:
     def safe_stop(self) -> None:
         """Bring the robot to rest; default: send the robot's stop command."""
         self.apply(self.robot.stop_command())
+
+    def select_sensors(self, names: tuple[str, ...]) -> None:
+        """Run only the robot's sensor mounts ``names`` from now on (a task's :attr:`StepResult.sensors`).
+        Default: nothing to choose (the world runs every sensor it has).  A world that renders on demand
+        overrides it and refuses names it does not have."""
 
     # --- teach-by-showing (optional) ----------------------------------------------------------
     teaches: ClassVar[bool] = False

@@ -72,6 +72,7 @@ class Executor:
         self.loop_failures: list[str] = []  # loops that finished failed by their success rule, for the reason
         self.item_counts: dict[str, ItemCount] = {}  # foreach path → items attempted / succeeded over the whole run
         self.step_timings: dict[str, float] = {}  # wall-clock seconds of the last task step's parts (never guarded on)
+        self.step_sensors: tuple[str, ...] | None = None  # the sensors the last task step asked the world to run
         self.path: list[str] = []  # leaves visited, in order
         self.time_in_state: dict[str, float] = {}
         self.transitions_fired: list[TransitionRecord] = []
@@ -296,6 +297,7 @@ class Executor:
         if task is not None:
             res = task.step(obs)
             self.step_timings = res.timings
+            self.step_sensors = res.sensors
             command = res.command
             metrics = {**obs.metrics, **res.metrics} if obs.metrics else res.metrics
             if res.events:
@@ -303,6 +305,7 @@ class Executor:
         else:
             command = self._stop
             metrics = obs.metrics
+            self.step_sensors = None
         if self._blend is not None:
             command = self._blended(command, t)
         self.last_command = command

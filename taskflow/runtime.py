@@ -190,6 +190,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                 break
             leaf = executor.state
             command, metrics, events = executor.tick(obs)
+            if executor.step_sensors is not None:
+                world.select_sensors(executor.step_sensors)
             world.apply(command)
             if recorder is not None:
                 recorder.tick(t, leaf, events, metrics, command, world.ground_truth())

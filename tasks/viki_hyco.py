@@ -13,9 +13,8 @@ One task, three ``mode`` s:
 Eq. 26 (as meant, never amplifying) smooths the output in every mode; eq. 5 and the robot's limits turn
 it into ``(v, steer)``.
 
-Camera: ``camera: front | rear`` picks the mount ``(R_rc, t_rc)`` of eq. 22 and is sent to the world in
-the command (``camera_front`` / ``camera_rear`` keys, :func:`taskflow_robots.sensors.camera_command`), so only that
-camera is processed.  A camera name the robot does not have is a load-time error.
+Camera: ``camera: front | rear`` picks the mount ``(R_rc, t_rc)`` of eq. 22 and is named in every step
+result (``StepResult.sensors = ("front_camera",)``), so the world processes only that camera.  A camera name the robot does not have is a load-time error.
 
 Desired features: ``desired: [x, y]`` is the object's desired position in the robot frame (e.g. the
 manipulation zone); the desired box centre follows from it and the measured object (see
@@ -58,7 +57,6 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.racecar import CameraMount
-from taskflow_robots.sensors import camera_command
 from taskflow.api import MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
 from taskflow.messages import Detection
 from taskflow.registry import register_task
@@ -181,7 +179,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         self.last_detection_t: float | None = None
         self.target: np.ndarray | None = None
         self.theta_f: float | None = None
-        self._cmd_cam = camera_command(self.camera)
+        self._sensors = (f"{self.camera}_camera",)
         self.last: Any = None  # last ServoOutput, for inspection
 
     # -- the kinematic target --------------------------------------------------------------------
@@ -272,8 +270,8 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             metrics["object_x"], metrics["object_y"] = c * dx + s * dy, -s * dx + c * dy
         elif obs.t - self.t0 >= self.p.search_timeout - 1e-9:
             events = ("no_target",)
-        command = {"v": np.array([out.v_cmd]), "steer": np.array([out.psi]), **self._cmd_cam}
-        return StepResult(command=command, metrics=metrics, events=events)
+        command = {"v": np.array([out.v_cmd]), "steer": np.array([out.psi])}
+        return StepResult(command=command, metrics=metrics, events=events, sensors=self._sensors)
 
     def _goal_depth(self, r: float, z_c: float) -> float:
         """MGBM's desired depth: camera Z of the object's box-centre point at the goal."""

@@ -38,7 +38,6 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 
-from taskflow_robots.sensors import camera_command
 from taskflow.api import MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array
 from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry
@@ -132,7 +131,7 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
         self.index = 0
         self.final: FloatArray | None = None
         self.final_heading = 0.0
-        self._cam = camera_command(None if params.camera == "none" else params.camera)
+        self._sensors: tuple[str, ...] = () if params.camera == "none" else (f"{params.camera}_camera",)
 
     def _plan(self, pose: FloatArray) -> None:
         O = np.asarray(MEM_OBJECT(self.memory), dtype=float)
@@ -148,8 +147,8 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
         speed = abs(float(obs.state.get("v", 0.0)))
         if self.legs is None:
             if not MEM_OBJECT.present(self.memory):
-                stop = {"v": np.zeros(1), "steer": np.zeros(1), **self._cam}
-                return StepResult(stop, {"speed": speed}, ("no_target",))
+                stop = {"v": np.zeros(1), "steer": np.zeros(1)}
+                return StepResult(stop, {"speed": speed}, ("no_target",), sensors=self._sensors)
             self._plan(pose)
         legs, final = self.legs, self.final
         if legs is None or final is None:
@@ -178,4 +177,4 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
             "heading_error": wrap_angle(self.final_heading - float(pose[2])),
             "speed": speed,
         }
-        return StepResult({"v": np.array([v_cmd]), "steer": np.array([psi]), **self._cam}, metrics)
+        return StepResult({"v": np.array([v_cmd]), "steer": np.array([psi])}, metrics, sensors=self._sensors)

@@ -7,16 +7,18 @@ from __future__ import annotations
 import pytest
 from pydantic import Field
 
-from taskflow.api import Robot, StrictModel
+from taskflow.api import Robot, StepResult, StrictModel
 from taskflow.contracts import build_robot_params, robot_params_problem
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission_text
-from taskflow.registry import ROBOTS
+from taskflow.registry import ROBOTS, TASKS, WORLDS
+from taskflow.runtime import run_mission
 from taskflow.testing import assert_outcome, run_on_world
 from taskflow_robots.husky import Husky
 from taskflow_robots.racecar import Racecar
 from taskflow_tasks.car_goto import CarGeometry, CarGoto
 from taskflow_tasks.unicycle_goto import UnicycleGoto
+from toys import ToyGoto, ToyLine
 
 MISSION = """
 mission: m
@@ -91,3 +93,36 @@ def test_shipped_tasks_state_what_they_read_from_a_robot() -> None:
     racecar = Racecar(Racecar.Params(wheelbase=0.4))
     view = build_robot_params(CarGoto, racecar)
     assert isinstance(view, CarGeometry) and view.wheelbase == 0.4 and view.psi_max == racecar.params.psi_max
+
+
+# -- what a task needs sensed: StepResult.sensors → World.select_sensors --------------------------------------
+
+class _Looker(ToyGoto):
+    """toy_goto that names the sensor it reads on its first step only."""
+
+    def step(self, obs):  # type: ignore[no-untyped-def]
+        res = super().step(obs)
+        first = not self.ctx.memory.get("looked")
+        self.ctx.memory["looked"] = True
+        return StepResult(res.command, res.metrics, sensors=("cam",) if first else None)
+
+
+class _Selecting(ToyLine):
+    def reset(self) -> None:
+        super().reset()
+        self.selected: list[tuple[int, tuple[str, ...]]] = []
+
+    def select_sensors(self, names: tuple[str, ...]) -> None:
+        self.selected.append((self.k, names))
+
+
+def test_the_sensors_a_step_names_reach_the_world_before_its_command() -> None:
+    for reg, name, cls in ((TASKS, "toy_look", _Looker), (WORLDS, "toy_selecting", _Selecting)):
+        if name not in reg._items:
+            reg.add(name, cls)
+    m = load_mission_text((MISSION % "toy_point").replace("world: toy_line", "world: toy_selecting")
+                          .replace("name: toy_goto", "name: toy_look"), "m.yaml")
+    world = _Selecting(m.build_robot(), m.world_params(0), 0)
+    r = run_mission(m, world=world, record=False)
+    assert_outcome(r, "succeeded")
+    assert [names for _, names in world.selected] == [("cam",)]  # once: None afterwards changes nothing

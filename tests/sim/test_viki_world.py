@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from taskflow_robots.racecar import Racecar
-from taskflow_robots.sensors import camera_command
 from taskflow_sim.viki_world import VikiGround
 
 ROBOT = Racecar(Racecar.Params())
@@ -74,21 +73,28 @@ def test_camera_rate_events_and_switching():
             fresh += o.sensors["detection"].fresh
             assert o.events == ()
         assert fresh == 16  # frames at t = 0, 1/15, ..., 1 s: 15 Hz
-        w.apply({**STILL, **camera_command(None)})  # the kinematic state: no camera at all
+        w.select_sensors(())  # the kinematic state: no camera at all
+        w.apply(STILL)
         w.advance(0.05)
         o = w.observe()
         assert "detection" not in o.sensors and o.sensors["camera"] is None and o.events == ()
-        w.apply({**STILL, **camera_command("rear")})  # the object is in front: the rear camera misses it
+        w.select_sensors(("rear_camera",))  # the object is in front: the rear camera misses it
+        w.apply(STILL)
         w.advance(0.05)
         o = w.observe()
         assert o.sensors["detection"].camera == "rear" and not o.sensors["detection"].detected
         assert o.events == ()  # nothing was seen by this camera, so nothing is lost
-        w.apply(STILL)  # no camera keys: the rear camera stays active
+        w.apply(STILL)  # nothing selected since: the rear camera stays active
         w.advance(0.05)
         assert w.observe().sensors["camera"] == "rear"
-        w.apply({**STILL, **camera_command("front")})
+        w.select_sensors(("front_camera", "lidar"))
+        w.apply(STILL)
         w.advance(0.05)
         assert w.observe().events == ("target_found",)
+        with pytest.raises(ValueError, match="one camera at a time of front_camera, rear_camera"):
+            w.select_sensors(("front_camera", "rear_camera"))
+        with pytest.raises(ValueError, match="asked for top_camera"):
+            w.select_sensors(("top_camera",))
         with pytest.raises(ValueError, match="keys"):
             w.apply({"v": np.zeros(1)})
     finally:

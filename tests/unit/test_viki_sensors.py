@@ -1,4 +1,4 @@
-"""The detection message, the camera selection in commands, the camera model and the dropout model."""
+"""The detection message, the camera model and the dropout model."""
 
 from __future__ import annotations
 
@@ -8,21 +8,10 @@ import numpy as np
 import pytest
 
 from taskflow_robots.racecar import Racecar
-from taskflow_robots.sensors import active_camera_from_command, camera_command
 from taskflow.messages import Detection
 from taskflow_sim.perception_common import CameraModel, DropoutModel, pixel_box, quantise_box
 
 RP = Racecar(Racecar.Params()).params
-
-
-def test_camera_command_and_selection():
-    assert active_camera_from_command({"v": np.zeros(1), **camera_command("rear")}, "front") == "rear"
-    assert active_camera_from_command({"v": np.zeros(1)}, "front") == "front"  # no camera keys: unchanged
-    assert active_camera_from_command(camera_command(None), "front") is None  # all zero: off
-    blended = {"camera_front": np.array([0.3]), "camera_rear": np.array([0.7])}
-    assert active_camera_from_command(blended, None) == "rear"
-    with pytest.raises(ValueError, match="unknown camera"):
-        camera_command("top")
 
 
 def test_detection_usable_and_stale():
