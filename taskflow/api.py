@@ -19,120 +19,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Generic, Literal, Mapping, TypeVar, cast
+from typing import Any, ClassVar, Generic, Mapping, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict
 
+from .specs import ObsSpec, RobotNeeds, array, mapping, message, scalar, sequence, text
+
+__all__ = ["Command", "MemoryKey", "NoParams", "ObsSpec", "Observation", "Robot", "RobotNeeds", "StepResult",
+           "StrictModel", "Task", "TaskContext", "World", "array", "mapping", "message", "scalar", "sequence", "text"]
+
 Command = dict[str, NDArray[np.float64]]
 """Robot command: named arrays (e.g. ``{"v": [0.3], "steer": [0.1]}``); keys are the robot's."""
-
-
-@dataclass(frozen=True)
-class ObsSpec:
-    """The declared type of one observation entry, named ``"state.<key>"`` or ``"sensors.<key>"``.
-
-    ``kind`` is ``"array"`` (a numpy float/int array of ``shape``; ``None`` in the shape matches any
-    length), ``"scalar"`` (a real number), ``"text"`` (a string), ``"message"`` (an instance of ``cls``,
-    e.g. :class:`taskflow.messages.Detection`) or ``"sequence"`` (a tuple or list; of instances of ``cls``
-    when it is set, e.g. the keyframes' :class:`taskflow.messages.Image`) or ``"mapping"`` (a dict).  ``optional``
-    entries may be absent or ``None`` on a tick (a camera between frames, a perception mode that does
-    not produce them).  Robots and worlds declare what they provide, tasks what they require; the
-    compiler matches the two and :mod:`taskflow.conformance` checks real observations against them.
-    """
-
-    kind: Literal["array", "scalar", "text", "message", "sequence", "mapping"]
-    shape: tuple[int | None, ...] = ()
-    cls: type | None = None
-    optional: bool = False
-
-    def __str__(self) -> str:
-        base = {"array": f"array{list(self.shape)}", "message": self.cls.__name__ if self.cls else "message",
-                "sequence": f"sequence[{self.cls.__name__}]" if self.cls else "sequence"}
-        return base.get(self.kind, self.kind) + ("?" if self.optional else "")
-
-    def satisfies(self, required: "ObsSpec") -> bool:
-        """Whether a provided entry of this type can serve a consumer that ``required`` it."""
-        if self.kind != required.kind:
-            return False
-        if self.kind == "array":
-            return len(self.shape) == len(required.shape) and all(
-                r is None or s == r for s, r in zip(self.shape, required.shape))
-        if self.kind == "message":
-            return self.cls is not None and required.cls is not None and issubclass(self.cls, required.cls)
-        if self.kind == "sequence" and required.cls is not None:
-            return self.cls is not None and issubclass(self.cls, required.cls)
-        return True
-
-    def problem(self, value: Any) -> str | None:
-        """Why ``value`` does not conform to this spec, or None."""
-        if value is None:
-            return None if self.optional else "is None"
-        if self.kind == "array":
-            if not isinstance(value, np.ndarray) or value.dtype.kind not in "fiub":
-                return f"is {type(value).__name__}, not a numeric numpy array"
-            if len(value.shape) != len(self.shape) or any(s is not None and n != s for n, s in zip(value.shape, self.shape)):
-                return f"has shape {value.shape}, declared {self.shape}"
-            return None
-        if self.kind == "scalar":
-            ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-            return None if ok else f"is {type(value).__name__}, not a real number"
-        if self.kind == "text":
-            return None if isinstance(value, str) else f"is {type(value).__name__}, not a string"
-        if self.kind == "sequence":
-            if not isinstance(value, (tuple, list)):
-                return f"is {type(value).__name__}, not a tuple or list"
-            for i, x in enumerate(value):
-                if self.cls is not None and not isinstance(x, self.cls):
-                    return f"has element {i} of type {type(x).__name__}, not {self.cls.__name__}"
-            return None
-        if self.kind == "mapping":
-            return None if isinstance(value, Mapping) else f"is {type(value).__name__}, not a mapping"
-        assert self.cls is not None
-        return None if isinstance(value, self.cls) else f"is {type(value).__name__}, not {self.cls.__name__}"
-
-
-def array(*shape: int | None, optional: bool = False) -> ObsSpec:
-    """An array entry of ``shape`` (``None``: any length on that axis)."""
-    return ObsSpec("array", tuple(shape), optional=optional)
-
-
-def scalar(optional: bool = False) -> ObsSpec:
-    return ObsSpec("scalar", optional=optional)
-
-
-def text(optional: bool = False) -> ObsSpec:
-    return ObsSpec("text", optional=optional)
-
-
-def sequence(optional: bool = False, of: type | None = None) -> ObsSpec:
-    """A tuple or list entry; ``of``: the class every element is an instance of (e.g. a message type)."""
-    return ObsSpec("sequence", cls=of, optional=optional)
-
-
-def mapping(optional: bool = False) -> ObsSpec:
-    return ObsSpec("mapping", optional=optional)
-
-
-def message(cls: type, optional: bool = True) -> ObsSpec:
-    """A typed sensor message (optional by default: a sensor may have no frame yet)."""
-    return ObsSpec("message", cls=cls, optional=optional)
-
-
-@dataclass(frozen=True)
-class RobotNeeds:
-    """What a world needs from the robot it hosts (:attr:`World.needs`).
-
-    ``interfaces``: the command interfaces it can actuate (empty: any); ``sensors``: mount name → sensor
-    kind the world renders from the robot's description (``{"front_camera": "rgbd_camera"}``);
-    ``body``: the world builds the robot from a registered simulator body (``taskflow.bodies`` entry
-    point named after the robot), so the robot needs one.
-    """
-
-    interfaces: tuple[str, ...] = ()
-    sensors: Mapping[str, str] = field(default_factory=dict)
-    body: bool = False
 
 
 class StrictModel(BaseModel):
