@@ -45,6 +45,13 @@ def describe_choices(name: str, valid: list[str]) -> str:
     return f"{hint}valid: {listing}"
 
 
+_CONTRACT_INSTEAD = {
+    "task": "`command_interface`, `requires` (observations) and `robot_params` (the robot parameters it reads)",
+    "world": "`needs` (a RobotNeeds: command interfaces, sensor mounts, a body) and `observations`",
+}
+"""What replaced the robot-name lists, by kind (docs/extending.md)."""
+
+
 class Registry(Generic[T]):
     """Registered classes of one kind, keyed by the name used in mission files."""
 
@@ -59,6 +66,10 @@ class Registry(Generic[T]):
             raise RegistryError(f"{self.kind} {name!r}: {cls!r} is not a subclass of {self.base.__name__}")
         if not name.isidentifier():
             raise RegistryError(f"{self.kind} name {name!r} must be an identifier")
+        if "robots" in vars(cls) and self.kind in _CONTRACT_INSTEAD:
+            raise RegistryError(
+                f"{self.kind} {name!r} ({cls.__module__}.{cls.__qualname__}) declares `robots`, a list of robot names "
+                f"taskflow no longer reads; declare what it needs instead: {_CONTRACT_INSTEAD[self.kind]}")
         existing = self._items.get(name)
         if existing is not None and existing is not cls:
             raise RegistryError(

@@ -80,3 +80,17 @@ def test_world_conformance(name):
     assert all(isinstance(s, ObsSpec) for s in cls.observations.values()), cls.observations
     for m in ("observe", "apply", "advance"):
         assert getattr(cls, m) is not getattr(World, m), f"{name} must implement {m}()"
+
+
+def test_a_plugin_still_declaring_robot_names_is_refused_with_what_replaced_them():
+    class OldTask(Task):
+        robots = ("racecar",)
+
+    class OldWorld(World):
+        robots = ("racecar",)
+
+    tasks, worlds = Registry("task", Task, "none.tasks"), Registry("world", World, "none.worlds")
+    with pytest.raises(RegistryError, match=r"task 'old_task' .* declares `robots`.*`command_interface`, `requires`"):
+        tasks.add("old_task", OldTask)
+    with pytest.raises(RegistryError, match=r"world 'old_world' .* declares `robots`.*`needs` \(a RobotNeeds"):
+        worlds.add("old_world", OldWorld)
