@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,10 +48,16 @@ class GroundBody(ABC):
     ``pose()`` is the ground-truth ``[x, y, yaw]`` (m, rad) of the robot's base frame (the point its
     description calls the robot frame, on the ground), ``twist()`` the ground-truth ``[v, w]``: signed
     forward speed of that point along the heading (m/s) and yaw rate (rad/s).  ``uid`` is the PyBullet
-    body id once spawned.
+    body id once spawned.  ``robot_cls`` is the robot description the body simulates; the base class
+    refuses any other.
     """
 
+    robot_cls: ClassVar[type[Robot]] = Robot
+
     def __init__(self, robot: Robot, options: BodyOptions) -> None:
+        if not isinstance(robot, self.robot_cls):
+            raise TypeError(f"the {self.robot_cls.name or self.robot_cls.__name__} body needs a "
+                            f"{self.robot_cls.__name__}, got {type(robot).__name__}")
         self.robot = robot
         self.options = options
         self.client = -1

@@ -25,7 +25,7 @@ import math
 import os
 import sys
 from contextlib import contextmanager
-from typing import Any, Iterator
+from typing import Any, ClassVar, Iterator
 
 import numpy as np
 import pybullet as p
@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from taskflow_robots.husky import Husky
 from taskflow_sim.bodies import BodyOptions, GroundBody
 from taskflow.api import Command, Robot
+from taskflow.spatial import yaw_from_quaternion
 
 URDF = os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf")
 LEFT = ("front_left_wheel", "rear_left_wheel")
@@ -60,11 +61,6 @@ def _quiet() -> Iterator[None]:
         os.close(saved[1])
 
 
-def _yaw(q: tuple[float, ...]) -> float:
-    x, y, z, w = q
-    return math.atan2(2.0 * (x * y + z * w), 1.0 - 2.0 * (y * y + z * z))
-
-
 def _toward(x: float, target: float, step: float) -> float:
     return x + min(max(target - x, -step), step)
 
@@ -73,10 +69,9 @@ class HuskyBody(GroundBody):
     """``husky`` body (see module doc)."""
 
     robot: Husky
+    robot_cls: ClassVar[type[Robot]] = Husky
 
     def __init__(self, robot: Robot, options: BodyOptions) -> None:
-        if not isinstance(robot, Husky):
-            raise TypeError(f"the husky body needs a Husky, got {type(robot).__name__}")
         super().__init__(robot, options)
         self._cmd = (0.0, 0.0)  # commanded (v, w), clipped
         self._ramp = (0.0, 0.0)  # after the acceleration limits
@@ -141,14 +136,14 @@ class HuskyBody(GroundBody):
 
     def pose(self) -> NDArray[np.float64]:
         pos, q = self._base_frame()
-        return np.array([pos[0], pos[1], _yaw(q)])
+        return np.array([pos[0], pos[1], yaw_from_quaternion(q)])
 
     def twist(self) -> NDArray[np.float64]:
         lin, ang = p.getBaseVelocity(self.uid, physicsClientId=self.client)
         com_pos, _ = p.getBasePositionAndOrientation(self.uid, physicsClientId=self.client)
         pos, q = self._base_frame()
         vel = np.asarray(lin) + np.cross(ang, np.subtract(pos, com_pos))
-        yaw = _yaw(q)
+        yaw = yaw_from_quaternion(q)
         return np.array([float(vel[0] * math.cos(yaw) + vel[1] * math.sin(yaw)), float(ang[2])])
 
     def proprioception(self) -> dict[str, Any]:

@@ -36,6 +36,7 @@ from taskflow_robots.racecar_kinematics import (
     bicycle_from_wheel_angles,
     differential_wheel_speeds,
 )
+from taskflow.spatial import yaw_from_quaternion
 
 URDF = os.path.join(pybullet_data.getDataPath(), "racecar", "racecar.urdf")
 
@@ -83,14 +84,6 @@ class Actuation:
         for name in ("speed_tau", "steer_tau"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"Actuation.{name} must be >= 0, got {getattr(self, name)!r}")
-
-
-def _yaw_from_quaternion(q: tuple[float, ...]) -> float:
-    """Heading of the body x axis projected on the ground (robust to small roll/pitch)."""
-    x, y, z, w = q
-    r00 = 1.0 - 2.0 * (y * y + z * z)
-    r10 = 2.0 * (x * y + z * w)
-    return math.atan2(r10, r00)
 
 
 class RacecarBody:
@@ -215,7 +208,7 @@ class RacecarBody:
     def pose(self) -> NDArray[np.float64]:
         """Ground-truth ``[x, y, yaw]`` of the base frame (rear-axle midpoint)."""
         pos, q = self._base_frame()
-        return np.array([pos[0], pos[1], _yaw_from_quaternion(q)])
+        return np.array([pos[0], pos[1], yaw_from_quaternion(q)])
 
     def _base_frame(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
         com_pos, com_q = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
@@ -228,7 +221,7 @@ class RacecarBody:
         pos, q = self._base_frame()
         r = np.subtract(pos, com_pos)
         vel = np.asarray(lin) + np.cross(ang, r)
-        yaw = _yaw_from_quaternion(q)
+        yaw = yaw_from_quaternion(q)
         return float(vel[0] * math.cos(yaw) + vel[1] * math.sin(yaw))
 
     def steering(self) -> float:

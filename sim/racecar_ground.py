@@ -7,7 +7,7 @@ written against the racecar body (the ViKi-HyCo scene's LiDAR and camera poses) 
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pybullet as p
@@ -23,10 +23,9 @@ class RacecarGround(GroundBody):
     """``racecar`` body: ``apply({"v", "steer"})`` → Ackermann hinges and electronic differential."""
 
     robot: Racecar
+    robot_cls: ClassVar[type[Robot]] = Racecar
 
     def __init__(self, robot: Robot, options: BodyOptions) -> None:
-        if not isinstance(robot, Racecar):
-            raise TypeError(f"the racecar body needs a Racecar, got {type(robot).__name__}")
         super().__init__(robot, options)
         rp = robot.params
         self.actuation = Actuation(v_max=rp.v_max, psi_max=rp.psi_max, speed_tau=options.speed_tau,

@@ -52,7 +52,7 @@ from taskflow_sim.perception_geometric import GeometricPerception
 from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
 from taskflow_sim.stepped import SensorSchedule
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
-from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, message, text
+from taskflow.api import ObsSpec, Observation, Robot, RobotNeeds, message, text
 from taskflow.messages import Detection
 from taskflow.registry import register_world
 

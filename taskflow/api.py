@@ -74,7 +74,7 @@ class StepResult:
     ``sensors`` names the robot's sensor mounts (keys of :attr:`Robot.sensors`) this task needs the world
     to run from now on — ViKi-HyCo's ``("rear_camera",)``, ``()`` for none; ``None`` (the default) leaves
     the world's choice as it is.  The runtime hands it to :meth:`World.select_sensors` before the command
-    is applied, so a world that renders on demand processes only what the active state reads."""
+    is applied, when it differs from the last selection, so a world that renders on demand processes only what the active state reads."""
 
     command: Command
     metrics: dict[str, float] = field(default_factory=dict)

@@ -41,8 +41,6 @@ blend_weight = activation
 """The papers' activation ``h(t)`` (quadcopter paper eq. 20), used by ``blend:``."""
 
 
-_NONE = object()
-
 TaskFactory = Callable[[type[Task], TaskContext], Task | None]
 
 
@@ -95,7 +93,9 @@ class Executor:
         }
         # per-leaf: a validated parameter model when the task's params hold no $reference
         self._static_params: dict[str, Any] = {}
-        self._robot_params: dict[type[Task], Any] = {}  # per task class: its view of the robot's parameters
+        # per task class of the mission: its view of the robot's parameters (Task.robot_params), built once
+        self._robot_params: dict[type[Task], Any] = {
+            n.task_cls: build_robot_params(n.task_cls, robot) for n in mission.states.values() if n.task_cls}
         self._scoped: set[str] = {n.path for n in mission.states.values() if any(a.loop for a in n.ancestors())}
         self._below: dict[str, list[MissionState]] = {
             n.path: [self._states[d.path] for d in n.walk() if d is not n] for n in mission.states.values() if n.children}
@@ -174,11 +174,8 @@ class Executor:
                     params = node.task_cls.Params.model_validate(resolve_refs(node.task_params, self.params, items))
                     if not has_refs(node.task_params):
                         self._static_params[node.path] = params
-                robot_params = self._robot_params.get(node.task_cls, _NONE)
-                if robot_params is _NONE:
-                    robot_params = self._robot_params[node.task_cls] = build_robot_params(node.task_cls, self.robot)
-                ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self.memory,
-                                  robot=self.robot, items=items, dt=self._dt, robot_params=robot_params)
+                ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self.memory, robot=self.robot,
+                                  items=items, dt=self._dt, robot_params=self._robot_params[node.task_cls])
                 self.task = self.task_factory(node.task_cls, ctx)
 
     def _exit(self, node: StateNode) -> None:

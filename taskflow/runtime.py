@@ -173,6 +173,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     reason = ""
     k = 0
     t_end = 0.0
+    selected: tuple[str, ...] | None = None  # the sensors last handed to world.select_sensors
     stop = _StopRequest()
     old_handlers = stop.install()
     try:
@@ -190,8 +191,10 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                 break
             leaf = executor.state
             command, metrics, events = executor.tick(obs)
-            if executor.step_sensors is not None:
-                world.select_sensors(executor.step_sensors)
+            sensors = executor.step_sensors
+            if sensors is not None and sensors != selected:  # the world hears of a change only
+                world.select_sensors(sensors)
+                selected = sensors
             world.apply(command)
             if recorder is not None:
                 recorder.tick(t, leaf, events, metrics, command, world.ground_truth())

@@ -228,7 +228,7 @@ def _script_events_at(script: Script, tick: int) -> set[str]:
 
 def _domain_of(tr: Any) -> Any:
     """UML external-transition domain: the common ancestor of source and target, or its parent when
-    one contains the other (written here independently of the executor's helper)."""
+    one contains the other (written here independently of `Transition.domain` in taskflow/model.py)."""
     src, dst = tr.source.ancestors(), tr.target.ancestors()
     common = [a for a, b in zip(src, dst) if a is b][-1]
     if common is tr.source or common is tr.target:
