@@ -116,6 +116,11 @@ def rpy_from_rotation(R: Array) -> tuple[float, float, float]:
     return (roll, pitch, yaw)
 
 
+def wrap_angle(a: float) -> float:
+    """An angle (rad) wrapped to ``[-pi, pi]`` by IEEE remainder (``pi`` and ``-pi`` both possible at the edge)."""
+    return math.remainder(a, 2.0 * math.pi)
+
+
 def rotation_angle(R: Array) -> float:
     """Angle of a rotation, ``θ = arccos((tr R − 1) / 2)`` in [0, π], the argument clipped to [−1, 1]
     (screw-fastening paper eqs. 11/14/27).  For the angle between two frames pass ``R_a_b.T @ R_a_c``."""

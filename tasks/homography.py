@@ -24,7 +24,6 @@ Conventions
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -332,8 +331,3 @@ def feedforward_blend(nu_e: ArrayLike, nu_p: ArrayLike, p: float) -> Array:
     if not (0.0 <= p <= 1.0):
         raise ValueError(f"p must be in [0, 1], got {p}")
     return p * np.asarray(nu_e, dtype=np.float64).reshape(4) + (1.0 - p) * np.asarray(nu_p, dtype=np.float64).reshape(4)
-
-
-def wrap_angle(a: float) -> float:
-    """Angle wrapped to ``(-pi, pi]``."""
-    return math.remainder(a, 2.0 * math.pi)

@@ -34,12 +34,8 @@ from pydantic import BaseModel, Field
 
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, scalar
 from taskflow.registry import register_task
+from taskflow.spatial import wrap_angle
 from taskflow_tasks.targets import PlanarTarget
-
-
-def wrap(a: float) -> float:
-    """Angle in ``[-pi, pi]``."""
-    return math.remainder(a, 2.0 * math.pi)
 
 
 def unicycle_point_law(pose: NDArray[np.float64], target: NDArray[np.float64], k_rho: float,
@@ -50,7 +46,7 @@ def unicycle_point_law(pose: NDArray[np.float64], target: NDArray[np.float64], k
     rho = math.hypot(dx, dy)
     if rho == 0.0:
         return 0.0, 0.0, 0.0, 0.0
-    alpha = wrap(math.atan2(dy, dx) - float(pose[2]))
+    alpha = wrap_angle(math.atan2(dy, dx) - float(pose[2]))
     c, s = math.cos(alpha), math.sin(alpha)
     return k_rho * rho * c, k_alpha * alpha + k_rho * s * c, rho, alpha
 
@@ -102,6 +98,6 @@ class UnicycleGoto(Task[UnicycleGotoParams, UnicycleLimits]):
         pose = np.asarray(obs.state["pose"], dtype=np.float64)
         v, w, rho, alpha = unicycle_point_law(pose, self.target, self.k_rho, self.k_alpha)
         v, w = saturate(v, w, self.v_max, self.w_max)
-        heading = wrap(self.target_yaw - float(pose[2])) if self.target_yaw is not None else alpha
+        heading = wrap_angle(self.target_yaw - float(pose[2])) if self.target_yaw is not None else alpha
         return StepResult(command={"v": np.array([v]), "w": np.array([w])},
                           metrics={"pos_error": rho, "heading_error": heading, "speed": abs(float(obs.state["v"]))})

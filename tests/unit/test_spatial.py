@@ -225,3 +225,11 @@ def test_optical_frame_axes_on_an_flu_body():
     np.testing.assert_allclose(view, [math.cos(0.3), 0.0, -math.sin(0.3)], atol=1e-15)
     np.testing.assert_allclose(sp.R_body_optical(yaw=math.pi)[:, 2], [-1.0, 0.0, 0.0], atol=1e-15)
     np.testing.assert_allclose(sp.rotation_y(0.3) @ sp.R_FLU_OPTICAL, sp.R_body_optical(pitch=0.3), atol=1e-16)
+
+
+def test_wrap_angle_keeps_the_angle_modulo_a_turn_within_pi():
+    for a in (0.0, 3.0, -3.0, 7.0, -7.0, 100.0, math.pi + 1e-9):
+        w = sp.wrap_angle(a)
+        assert -math.pi <= w <= math.pi and math.isclose(math.cos(w), math.cos(a), abs_tol=1e-12) \
+            and math.isclose(math.sin(w), math.sin(a), abs_tol=1e-9)
+    assert sp.wrap_angle(2.0 * math.pi + 0.5) == pytest.approx(0.5)
