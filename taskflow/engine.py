@@ -23,8 +23,14 @@ on the parent of a final leaf, but a ``foreach`` parent must decide between its 
 ``require`` rule, and the callback runs inside the transition that entered the final leaf (so a
 transition started from it would nest inside the first).  The executor therefore finishes a parent
 after the transition into its final leaf has completed; :class:`MissionState` still carries the
-library's ``final`` flag so that the machine describes the mission.  Parallel states are not used:
-missions have no parallel regions yet.
+library's ``final`` flag so that the machine describes the mission.
+
+Parallel regions are the library's parallel states (a state whose children are all entered with it;
+the model's ``state`` is then a list of leaf paths).  The library enters every region only when a
+transition targets the parallel state itself, so the compiler refuses a transition from outside a
+region into a state inside it, and :meth:`MissionMachine.go` is given the parallel state as the
+destination; a transition inside one region exits and enters below its domain, which lies inside that
+region, so the other regions stay as they are.
 """
 
 from __future__ import annotations
@@ -84,6 +90,11 @@ class ExternalTransition(NestedTransition):
         return tree, exits, enters
 
 
+def leaf_paths(state: Any) -> list[str]:
+    """The library's model state with parallel states active (nested lists of leaf paths), flattened."""
+    return [state] if isinstance(state, str) else [leaf for s in state for leaf in leaf_paths(s)]
+
+
 class Model:
     """The model object the library sets ``state`` on."""
 
@@ -106,7 +117,9 @@ class MissionMachine(HierarchicalMachine):
             for child in node.children.values():
                 d: dict[str, Any] = {"name": child.name, "node": child, "final": bool(child.final),
                                      "on_enter": [lambda n=child: on_enter(n)], "on_exit": [lambda n=child: on_exit(n)]}
-                if child.children:
+                if child.parallel:  # the library's parallel state: every region is entered with it
+                    d["parallel"] = dicts(child)
+                elif child.children:
                     d["children"] = dicts(child)
                     d["initial"] = child.initial
                 out.append(d)
@@ -119,8 +132,15 @@ class MissionMachine(HierarchicalMachine):
 
     @property
     def active(self) -> str:
-        """The active leaf's path (:data:`START` before the run starts)."""
-        return self.mission_model.state
+        """The active leaf's path (:data:`START` before the run starts); with parallel regions active, the
+        first region's leaf (see :meth:`active_leaves`)."""
+        state = self.mission_model.state
+        return state if isinstance(state, str) else leaf_paths(state)[0]
+
+    def active_leaves(self) -> list[str]:
+        """Every active leaf's path: one, or one per active parallel region (in the order declared)."""
+        state = self.mission_model.state
+        return [state] if isinstance(state, str) else leaf_paths(state)
 
     def go(self, leaf: str, keep: int) -> None:
         """Make ``leaf`` active, exiting and re-entering every state below the first ``keep`` names of its path."""
@@ -130,7 +150,7 @@ class MissionMachine(HierarchicalMachine):
             tr = self._go_cache[key] = ExternalTransition("*", leaf, keep)
         if self._go_event is None:
             self._go_event = Event("go", self)
-        source = self.mission_model.state
+        source = self.active
         event_data = NestedEventData(self.by_path.get(source) or self.get_state(source), self._go_event, self, self.mission_model, args=(), kwargs={})
         event_data.source_name = source
         event_data.source_path = source.split(MissionState.separator)

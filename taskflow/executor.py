@@ -16,7 +16,13 @@ Semantics in brief (docs/missions.md has the long form):
   stops on a failed/aborted iteration unless ``on_failure: continue``); otherwise the parent's
   matching ``done`` transition fires.  A final state directly under the root ends the run;
 * ``blend: T`` on a transition mixes the last outgoing command into the incoming one with
-  ``h(τ) = ½(1 − cos(π τ / T))`` for ``τ < T``.
+  ``h(τ) = ½(1 − cos(π τ / T))`` for ``τ < T``;
+* a state with ``regions`` runs them in parallel: one active leaf per region, each with its task; a
+  tick steps every task, takes from each region's command only the parts it ``owns`` (the robot's stop
+  command for the parts nobody drives) and checks every active leaf's table, each shared transition
+  once and at most one transition per region.  A region reaching a final state finishes; the parallel
+  state finishes by its ``outcome_map``, at once with the outcome of a region that did not succeed
+  (pre-empting the others), or ``succeeded`` when every region has.
 """
 
 from __future__ import annotations
@@ -26,7 +32,7 @@ from typing import Any, Callable, Collection
 
 from .api import Command, Observation, Robot, Task, TaskContext, World
 from .contracts import build_robot_params
-from .engine import START, MissionMachine, MissionState
+from .engine import START, MissionMachine, MissionState, leaf_paths
 from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode, TimeoutTransition,
                     Transition, has_refs, resolve_refs)
 from .records import (CAUSES, DONE, EVENT, GUARD, NEXT_ITEM, START_CAUSE, TIMEOUT, ItemCount, IterationRecord,
@@ -49,6 +55,7 @@ class _Blend:
     t0: float
     duration: float
     old: Command
+    parts: tuple[str, ...] | None = None  # the command parts blended (None: all)
 
 
 class Executor:
@@ -64,7 +71,9 @@ class Executor:
         self.on_transition = on_transition
         self.memory: dict[str, Any] = {}
         self.t = 0.0
-        self.task: Task | None = None
+        self.task: Task | None = None  # the task of the leaf entered last (the only one without parallel regions)
+        self.tasks: dict[str, Task] = {}  # active leaf → its task
+        self._region_outcomes: dict[str, dict[str, str]] = {}  # parallel state → region → outcome it finished with
         self.dwell_since: dict[int, float] = {}
         self.iterations: list[IterationRecord] = []
         self.loop_failures: list[str] = []  # loops that finished failed by their success rule, for the reason
@@ -81,7 +90,7 @@ class Executor:
         self._blend: _Blend | None = None
         self._running_actions: set[str] = set()
         self._resuming = False
-        self._leaf_since = 0.0
+        self._since: dict[str, float] = {}  # active leaf → sim time it was entered
         self.engine = MissionMachine(mission, self._enter, self._exit)
         self._states: dict[str, MissionState] = self.engine.by_path
         # per leaf: the transitions that apply while it is active (its own and its ancestors', outermost
@@ -99,6 +108,9 @@ class Executor:
         self._scoped: set[str] = {n.path for n in mission.states.values() if any(a.loop for a in n.ancestors())}
         self._below: dict[str, list[MissionState]] = {
             n.path: [self._states[d.path] for d in n.walk() if d is not n] for n in mission.states.values() if n.children}
+        # per leaf inside a parallel region: the command parts its task drives
+        self._parts: dict[str, tuple[str, ...]] = {
+            n.path: n.region.owns for n in mission.states.values() if n.is_leaf and n.region is not None}  # type: ignore[misc]
 
     def _clock_of(self, tr: Transition) -> MissionState | None:
         return self._states[tr.since.path] if isinstance(tr, TimeoutTransition) else None
@@ -106,14 +118,23 @@ class Executor:
     # -- state path --------------------------------------------------------------------------------
     @property
     def leaf(self) -> StateNode | None:
-        """The active leaf: the engine's state (None before the run starts)."""
-        st = self._states.get(self.engine.mission_model.state)
+        """The active leaf: the engine's state (None before the run starts; the first region's leaf while
+        parallel regions are active — :attr:`leaves` has them all)."""
+        st = self._states.get(self.engine.active)
         return st.node if st is not None else None
 
     @property
+    def leaves(self) -> list[StateNode]:
+        """Every active leaf: one, or one per active parallel region (in the order declared)."""
+        return [self._states[p].node for p in self.engine.active_leaves() if p in self._states]  # type: ignore[misc]
+
+    @property
     def state(self) -> str:
+        """The active leaf's path; with parallel regions active, every region's leaf joined by ``|``."""
         path = self.engine.mission_model.state
-        return "" if path == START else path
+        if type(path) is str:
+            return "" if path == START else path
+        return "|".join(leaf_paths(path))
 
     @property
     def history(self) -> dict[str, str]:
@@ -144,7 +165,7 @@ class Executor:
     def start(self, t: float) -> None:
         self.t = t
         first = self.mission.root.children[self.mission.root.initial]  # type: ignore[index]
-        self._go(first.initial_leaf(), START_CAUSE, resume=False, keep=0)
+        self._go(first.entry_point(), START_CAUSE, resume=False, keep=0)
 
     # -- entering and leaving (engine callbacks) ---------------------------------------------------
     def _enter(self, node: StateNode) -> None:
@@ -159,12 +180,14 @@ class Executor:
             self._forget_first_entries(node)
         if node.loop and not self._resuming:
             st.item, st.item_started, st.items_succeeded = 0, t, 0
+        if node.parallel:
+            self._region_outcomes.pop(node.path, None)
         if node.action is not None:
             name, params = node.action
             self.world.start_action(name, resolve_refs(params, self.params, self.items(node)))
             self._running_actions.add(name)
         if node.is_leaf:
-            self._leaf_since = t
+            self._since[node.path] = t
             self.path.append(node.path)
             self.task = None
             if node.task_cls is not None and not node.final:
@@ -177,19 +200,38 @@ class Executor:
                 ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self.memory, robot=self.robot,
                                   items=items, dt=self._dt, robot_params=self._robot_params[node.task_cls])
                 self.task = self.task_factory(node.task_cls, ctx)
+                if self.task is not None:
+                    self.tasks[node.path] = self.task
 
     def _exit(self, node: StateNode) -> None:
         # exits run before the engine's state changes: its state is still the leaf being left
         if node.is_leaf:
-            if self.task is not None:
-                self.task.on_exit(self.t)
-                self.task = None
-            self.time_in_state[node.path] = self.time_in_state.get(node.path, 0.0) + (self.t - self._leaf_since)
+            task = self.tasks.pop(node.path, None)
+            if task is not None:
+                task.on_exit(self.t)
+                if task is self.task:
+                    self.task = None
+            since = self._since.pop(node.path, self.t)
+            self.time_in_state[node.path] = self.time_in_state.get(node.path, 0.0) + (self.t - since)
         if node.action is not None and node.action[0] in self._running_actions:
             self.world.cancel_action(node.action[0])
             self._running_actions.discard(node.action[0])
         if node.history:
-            self._states[node.path].last_leaf = self.engine.mission_model.state
+            self._states[node.path].last_leaf = self._resume_point(node)
+
+    def _active_under(self, node: StateNode) -> str:
+        """The first active leaf inside ``node`` (the engine's state has not changed yet during exits)."""
+        prefix = node.path + "."
+        return next(p for p in self.engine.active_leaves() if p.startswith(prefix) or p == node.path)
+
+    def _resume_point(self, node: StateNode) -> str:
+        """Where history re-enters ``node``: the active leaf inside it, or the outermost parallel state on the
+        way there (its regions then start again at their initial states)."""
+        leaf = self.mission.states[self._active_under(node)]
+        for a in leaf.ancestors():
+            if a.parallel and a.depth > node.depth:
+                return a.path
+        return leaf.path
 
     def _forget_first_entries(self, node: StateNode) -> None:
         """A fresh entry of ``node`` (or its next foreach item) starts its sub-states' `first_entry` clocks anew."""
@@ -201,12 +243,14 @@ class Executor:
             last = self._states[target.path].last_leaf
             if last is not None:
                 return self.mission.states[last], True
-        return target.initial_leaf(), False
+        return target.entry_point(), False
 
-    def _go(self, leaf: StateNode, cause: str, resume: bool, keep: int, **why: Any) -> None:
-        """Make ``leaf`` active, exiting and re-entering every state below the first ``keep`` levels of its
-        path (UML external semantics: a transition into its own source or an ancestor re-enters it)."""
-        source = self.state or START
+    def _go(self, leaf: StateNode, cause: str, resume: bool, keep: int, source: str | None = None, **why: Any) -> None:
+        """Make ``leaf`` active (a leaf, or a parallel state: all its regions' initial leaves), exiting and
+        re-entering every state below the first ``keep`` levels of its path (UML external semantics: a
+        transition into its own source or an ancestor re-enters it).  ``source``: the leaf the record names
+        as left (default: the whole active configuration)."""
+        source = source or self.state or START
         self._resuming = resume
         try:
             self.engine.go(leaf.path, keep)
@@ -222,8 +266,9 @@ class Executor:
     def fire(self, tr: Transition, metrics: dict[str, float] | None = None) -> None:
         """Fire ``tr`` (declared on an active state); ``metrics`` are the tick's, for the record."""
         leaf, resumed = self._destination(tr.target, tr.resume)
+        region = tr.domain.region
         if tr.blend > 0.0:
-            self._blend = _Blend(self.t, tr.blend, self.last_command)
+            self._blend = _Blend(self.t, tr.blend, self.last_command, region.owns if region is not None else None)
         kind = type(tr)
         why: dict[str, Any] = {"state": tr.source.path, "label": tr.label, "index": tr.index}
         guard = tr.guard if kind is GuardTransition or kind is EventTransition else None  # type: ignore[attr-defined]
@@ -232,12 +277,16 @@ class Executor:
         if kind is EventTransition:
             why["event"] = tr.event  # type: ignore[attr-defined]
         cause = GUARD if kind is GuardTransition else EVENT if kind is EventTransition else TIMEOUT
-        self._go(leaf, cause, resume=resumed, keep=tr.domain_depth, **why)
+        source = self._active_under(tr.source) if region is not None else None
+        self._go(leaf, cause, resume=resumed, keep=tr.domain_depth, source=source, **why)
 
     def _finished(self, leaf: StateNode) -> None:
         """A final state was entered: finish its parent (foreach step, done transition or the run)."""
         parent = leaf.parent
         outcome = leaf.final or "succeeded"
+        if parent is not None and parent.owns is not None:
+            self._region_finished(parent, outcome)
+            return
         if parent is None or parent.parent is None:
             self.outcome = outcome
             desc = self.mission.description_of(leaf)
@@ -264,7 +313,7 @@ class Executor:
                     self._forget_first_entries(parent)
                     # a new item enters the sub-machine afresh (no history, nested loops restart); the
                     # loop state itself stays active
-                    self._go(parent.initial_leaf(), NEXT_ITEM, resume=False, keep=parent.depth, state=parent.path,
+                    self._go(parent.entry_point(), NEXT_ITEM, resume=False, keep=parent.depth, state=parent.path,
                              outcome=outcome, item=i + 1)
                     return
                 # the last item: the loop's own success rule decides
@@ -273,6 +322,23 @@ class Executor:
                     self.loop_failures.append(f"{parent.path!r} finished failed: {st.items_succeeded} of {len(lst)} "
                                               f"items succeeded, its rule requires {loop.required} ({loop.rule})")
         self._complete(parent, outcome)
+
+    def _region_finished(self, region: StateNode, outcome: str) -> None:
+        """A region reached a final state: its parallel state finishes by the first ``outcome_map`` rule whose
+        regions have all finished so, else at once with a region's outcome other than ``succeeded``, else
+        ``succeeded`` once every region has finished (SMACH's Concurrence, with the statechart rule)."""
+        parallel = region.parent
+        assert parallel is not None
+        finished = self._region_outcomes.setdefault(parallel.path, {})
+        finished[region.name] = outcome
+        result = next((out for out, need in parallel.outcome_map
+                       if all(finished.get(r) == o for r, o in need.items())), None)
+        if result is None and outcome != "succeeded":
+            result = outcome
+        if result is None and len(finished) == len(parallel.children):
+            result = "succeeded"
+        if result is not None:
+            self._complete(parallel, result)
 
     def _complete(self, node: StateNode, outcome: str) -> None:
         for tr in node.transitions:
@@ -289,6 +355,9 @@ class Executor:
     def tick(self, obs: Observation) -> tuple[Command, dict[str, float], Collection[str]]:
         """Step the active task, apply nothing, check guards; returns (command, metrics, events)."""
         t = self.t = obs.t
+        state = self.engine.mission_model.state
+        if type(state) is not str:
+            return self._tick_regions(obs)
         events: Collection[str] = obs.events
         task = self.task
         if task is not None:
@@ -306,6 +375,41 @@ class Executor:
         if self._blend is not None:
             command = self._blended(command, t)
         self.last_command = command
+        if self.outcome is None:
+            table = self._tables.get(state)
+            if table is not None:
+                self._check_table(t, table, metrics, events, None)
+        return command, metrics, events
+
+    def _tick_regions(self, obs: Observation) -> tuple[Command, dict[str, float], Collection[str]]:
+        """:meth:`tick` with parallel regions active: every region's task steps; each drives its parts."""
+        t = obs.t
+        command = dict(self._stop)
+        metrics = dict(obs.metrics)
+        events = list(obs.events)
+        timings: dict[str, float] = {}
+        sensors: set[str] = set()
+        named = False
+        for path in self.engine.active_leaves():
+            task = self.tasks.get(path)
+            if task is None:
+                continue
+            res = task.step(obs)
+            parts = self._parts.get(path)
+            for k in (parts if parts is not None else res.command):
+                if k in res.command:
+                    command[k] = res.command[k]
+            metrics.update(res.metrics)
+            events.extend(res.events)
+            timings.update(res.timings)
+            if res.sensors is not None:
+                named = True
+                sensors.update(res.sensors)
+        self.step_timings = timings
+        self.step_sensors = tuple(sorted(sensors)) if named else None
+        if self._blend is not None:
+            command = self._blended(command, t)
+        self.last_command = command
         self.check(t, metrics, events)
         return command, metrics, events
 
@@ -316,16 +420,43 @@ class Executor:
         if h >= 1.0:
             self._blend = None
             return command
-        return {k: h * v + (1.0 - h) * b.old[k] if k in b.old else v for k, v in command.items()}
+        return {k: h * v + (1.0 - h) * b.old[k] if k in b.old and (b.parts is None or k in b.parts) else v
+                for k, v in command.items()}
 
     def check(self, t: float, metrics: dict[str, float], events: Collection[str]) -> Transition | None:
         """Evaluate the active leaf's table; fire the first transition that holds."""
         if self.outcome is not None:
             return None
-        table = self._tables.get(self.engine.mission_model.state)
+        state = self.engine.mission_model.state
+        if type(state) is not str:
+            return self._check_regions(t, metrics, events)
+        table = self._tables.get(state)
         if table is None:
             return None
+        return self._check_table(t, table, metrics, events, None)
+
+    def _check_regions(self, t: float, metrics: dict[str, float], events: Collection[str]) -> Transition | None:
+        """Every active leaf's table, each transition once (those of the states the regions share are in
+        every table), at most one firing per leaf; a leaf a firing has left is not checked."""
+        seen: set[int] = set()
+        fired = None
+        for path in self.engine.active_leaves():
+            if self.outcome is not None:
+                break
+            if path not in self.engine.active_leaves():
+                continue
+            table = self._tables.get(path)
+            if table is not None:
+                fired = self._check_table(t, table, metrics, events, seen) or fired
+        return fired
+
+    def _check_table(self, t: float, table: list[tuple[Transition, MissionState | None]], metrics: dict[str, float],
+                     events: Collection[str], seen: set[int] | None) -> Transition | None:
         for i, (tr, clock) in enumerate(table):
+            if seen is not None:
+                if tr.index in seen:
+                    continue
+                seen.add(tr.index)
             kind = type(tr)
             if kind is GuardTransition:
                 if tr.predicate(metrics):  # type: ignore[attr-defined]
@@ -360,10 +491,9 @@ class Executor:
     def close(self, t: float) -> None:
         """Account the time of the leaf still active at the end."""
         self.t = t
-        leaf = self.leaf
-        if leaf is not None:
-            self.time_in_state[leaf.path] = self.time_in_state.get(leaf.path, 0.0) + (t - self._leaf_since)
-            self._leaf_since = t
+        for path, since in self._since.items():
+            self.time_in_state[path] = self.time_in_state.get(path, 0.0) + (t - since)
+            self._since[path] = t
         for name in list(self._running_actions):
             self.world.cancel_action(name)
         self._running_actions.clear()

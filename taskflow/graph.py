@@ -1,4 +1,7 @@
-"""The nested machine as a Mermaid ``stateDiagram-v2`` or a Graphviz ``dot`` digraph."""
+"""The nested machine as a Mermaid ``stateDiagram-v2`` or a Graphviz ``dot`` digraph.
+
+A parallel state's regions are drawn side by side inside it (Mermaid's ``--`` concurrency separator;
+dashed clusters in dot), each labelled with the command parts it owns."""
 
 from __future__ import annotations
 
@@ -13,10 +16,16 @@ def to_mermaid(m: CompiledMission) -> str:
     lines = ["stateDiagram-v2", f"    %% {m.name}"]
 
     def block(node: StateNode, indent: str) -> None:
-        if node.children:
+        if node.children and not node.parallel:
             lines.append(f"{indent}[*] --> {_mid(node.children[node.initial])}")  # type: ignore[index]
-        for child in node.children.values():
+        for i, child in enumerate(node.children.values()):
+            if node.parallel and i:
+                lines.append(f"{indent}--")
             label = child.name
+            if child.owns is not None:
+                label += f" [region: {', '.join(child.owns) or 'commands nothing'}]"
+            if child.parallel:
+                label += " [parallel]"
             if child.task_cls is not None and child.is_leaf and not child.final:
                 label += f" ({child.task_cls.name})"
             if child.loop:
@@ -53,6 +62,11 @@ def to_dot(m: CompiledMission) -> str:
                     extra.append(f"foreach {child.loop.item} in {child.loop.items}")
                 if child.history:
                     extra.append("history")
+                if child.parallel:
+                    extra.append("parallel")
+                if child.owns is not None:
+                    extra.append(f"region: {', '.join(child.owns) or 'commands nothing'}")
+                    lines.append(f"{indent}    style=dashed;")
                 lines.append(f'{indent}    label="{child.name}{" (" + ", ".join(extra) + ")" if extra else ""}";')
                 lines.append(f'{indent}    "{_mid(child)}" [shape=point];')
                 block(child, indent + "    ")

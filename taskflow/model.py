@@ -126,6 +126,9 @@ class StateNode:
     action: tuple[str, dict[str, Any]] | None = None
     final: str | None = None  # outcome
     depth: int = 0
+    parallel: bool = False  # its children are regions, all active together
+    outcome_map: tuple[tuple[str, dict[str, str]], ...] = ()  # parallel: (outcome, {region: outcome}) in order
+    owns: tuple[str, ...] | None = None  # a region: the command parts it drives (None: not a region)
 
     @property
     def is_leaf(self) -> bool:
@@ -146,9 +149,34 @@ class StateNode:
             yield from c.walk()
 
     def initial_leaf(self) -> "StateNode":
+        """The leaf entering this state leads to (for a parallel state: the first region's)."""
         n = self
         while n.children:
+            n = n.children[n.initial] if n.initial is not None else next(iter(n.children.values()))
+        return n
+
+    def entry_point(self) -> "StateNode":
+        """What entering this state makes active: its initial leaf, or the first parallel state on the
+        way there (entering that enters every region's initial chain)."""
+        n = self
+        while n.children and not n.parallel:
             n = n.children[n.initial]  # type: ignore[index]
+        return n
+
+    def entry_leaves(self) -> list["StateNode"]:
+        """Every leaf that entering this state makes active (one per region below a parallel state)."""
+        if not self.children:
+            return [self]
+        if self.parallel:
+            return [leaf for r in self.children.values() for leaf in r.entry_leaves()]
+        return self.children[self.initial].entry_leaves()  # type: ignore[index]
+
+    @property
+    def region(self) -> "StateNode | None":
+        """The innermost parallel region this state is in (None: outside any)."""
+        n: StateNode | None = self
+        while n is not None and n.owns is None:
+            n = n.parent
         return n
 
     def scope_items(self) -> list[tuple[str, str]]:

@@ -157,6 +157,27 @@ class State(_Model):
     foreach: Foreach | None = None
     action: Action | None = None
     final: StrictBool | Outcome | None = Field(None, description="final state with this outcome (true = succeeded)")
+    regions: dict[str, "Region"] = Field(
+        default_factory=dict, description="parallel (orthogonal) regions, all active while the state is")
+    outcome_map: dict[Outcome, dict[str, Outcome]] = Field(
+        default_factory=dict, description="outcome → {region: outcome, ...}: the parallel state finishes with the "
+                                          "first outcome whose regions have all finished so (checked in order)")
+
+
+class Region(_Model):
+    """One parallel region of a state: a sub-machine that runs alongside the others and drives only the
+    parts of the robot's command it ``owns``."""
+
+    description: str = ""
+    owns: list[str] = Field(default_factory=list, description="command parts this region drives (e.g. base_twist); "
+                                                                "none: it commands nothing (a monitor)")
+    task: str | TaskRef | None = Field(None, description="task name, or {name, params}; its states inherit it")
+    bind: dict[str, str | dict[str, Any]] = Field(default_factory=dict, description="profile slot → profile name")
+    initial: str
+    states: dict[str, State]
+
+
+State.model_rebuild()
 
 
 class Machine(_Model):

@@ -101,7 +101,7 @@ class ScriptedWorld(World):
         metrics: dict[str, float] = {}
         ex = self.executor
         if ex is not None and ex.leaf is not None:
-            st = ScriptState(t, ex.state, t - ex._leaf_since, ex.items(ex.leaf), ex.memory)
+            st = ScriptState(t, ex.state, t - ex.entered_at(ex.leaf), ex.items(ex.leaf), ex.memory)
             metrics = {k: float(v) for k, v in self.script.metrics(st).items()}
         return Observation(t=t, events=tuple(events), metrics=metrics)
 

@@ -139,8 +139,23 @@ class ToyGoto(Task[GotoParams, ToyLimits]):
                           {"pos_error": abs(e), "feature_error": 100 * abs(e), "yaw_error": 0.0})
 
 
+class WatchParams(StrictModel):
+    pass
+
+
+class ToyWatch(Task[WatchParams, None]):
+    """A monitor: publishes ``x_abs`` (|x|, m) and commands full reverse, which a region that owns no
+    command part must never let reach the robot."""
+
+    Params = WatchParams
+    metrics = {"x_abs": "m"}
+
+    def step(self, obs: Observation) -> StepResult:
+        return StepResult({"v": np.array([-9.0])}, {"x_abs": abs(float(obs.state["x"]))})
+
+
 def register() -> None:
     for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (ROBOTS, "toy_wheel", ToyWheel), (WORLDS, "toy_line", ToyLine),
-                           (TASKS, "toy_goto", ToyGoto)):
+                           (TASKS, "toy_goto", ToyGoto), (TASKS, "toy_watch", ToyWatch)):
         if name not in reg._items:
             reg.add(name, cls)

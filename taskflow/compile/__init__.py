@@ -22,7 +22,7 @@ from .components import resolve_components
 from .context import Compilation
 from .structure import check_structure, finishing_outcomes
 from .transitions import compile_transitions
-from .tree import build_tree, catalogue
+from .tree import build_tree, catalogue, check_region_metrics
 
 __all__ = ["compile_document", "finishing_outcomes", "profile_kind"]
 
@@ -33,6 +33,7 @@ def compile_document(data: dict[str, Any], spec: Mission, smap: SourceMap) -> Co
     c.fail_if_problems()
     assert c.robot_cls is not None and c.world_cls is not None and c.robot_params is not None
     root = build_tree(c)
+    check_region_metrics(c, root)
     c.fail_if_problems()
     metric_units, events = catalogue(c, root)
     bind_profiles(c, root)

@@ -11,7 +11,7 @@ from ..api import Robot, World
 from ..diagnostics import dedupe, pydantic_problems
 from ..errors import MissionError, Problem
 from ..model import StateNode, Transition, YPath, with_model_defaults
-from ..schema import Machine, Mission, State
+from ..schema import Machine, Mission, Region, State
 from ..yamlsrc import SourceMap
 
 
@@ -47,11 +47,11 @@ class Compilation:
             self.err(path, str(exc))
         return None
 
-    def spec_of(self, node: StateNode) -> State | Machine:
-        """The schema model the state ``node`` was compiled from."""
-        spec: State | Machine = self.spec.machine
+    def spec_of(self, node: StateNode) -> State | Machine | Region:
+        """The schema model the state (or parallel region) ``node`` was compiled from."""
+        spec: State | Machine | Region = self.spec.machine
         for a in node.ancestors()[1:]:
-            spec = spec.states[a.name]
+            spec = spec.regions[a.name] if isinstance(spec, State) and spec.regions else spec.states[a.name]
         return spec
 
     @property

@@ -22,6 +22,8 @@ def check_structure(c: Compilation, root: StateNode) -> None:
 
 def finishing_outcomes(n: StateNode) -> dict[str, str]:
     """The outcomes composite ``n`` can finish with, each with why (for messages)."""
+    if n.parallel:
+        return _parallel_outcomes(n)
     finals = [ch for ch in n.children.values() if ch.final]
     out: dict[str, str] = {}
     for f in finals:
@@ -35,9 +37,28 @@ def finishing_outcomes(n: StateNode) -> dict[str, str]:
     return out
 
 
+def _parallel_outcomes(n: StateNode) -> dict[str, str]:
+    """A parallel state finishes with an ``outcome_map`` rule's outcome, with the outcome of a region that
+    finishes other than ``succeeded`` (it pre-empts the rest), or ``succeeded`` when every region succeeds."""
+    out: dict[str, str] = {}
+    for outcome, need in n.outcome_map:
+        out.setdefault(outcome, f"its outcome_map gives {outcome} when " +
+                       " and ".join(f"{r!r} finishes {o}" for r, o in need.items()))
+    every: list[dict[str, str]] = [finishing_outcomes(r) for r in n.children.values()]
+    for region, outcomes in zip(n.children.values(), every):
+        for outcome, why in outcomes.items():
+            if outcome != "succeeded":
+                out.setdefault(outcome, f"its region {region.name!r} can finish {outcome} ({why})")
+    if every and all("succeeded" in o for o in every):
+        out.setdefault("succeeded", "every region can finish succeeded")
+    return out
+
+
 def _check_done_coverage(c: Compilation, root: StateNode) -> None:
     for n in root.walk():
-        finals = [ch for ch in n.children.values() if ch.final]
+        if n.owns is not None:  # a region finishes into its parallel state, which has the `done` transitions
+            continue
+        finals = [ch for ch in n.children.values() if ch.final] or ([n] if n.parallel and finishing_outcomes(n) else [])
         dones = [t for t in n.transitions if isinstance(t, DoneTransition)]
         if n.parent is not None and n.children and (finals or n.loop) and not dones:
             c.err(n.ypath, f"state {n.path!r} can finish (it has final sub-states) but has no `done` transition",
@@ -75,8 +96,8 @@ def _check_reachable(c: Compilation, root: StateNode) -> None:
 
 
 def _initial_chain(n: StateNode) -> list[StateNode]:
-    chain = []
-    while n.children:
-        n = n.children[n.initial]  # type: ignore[index]
-        chain.append(n)
+    """The states entering ``n`` enters below it (every region's chain under a parallel state)."""
+    chain: list[StateNode] = []
+    for child in (n.children.values() if n.parallel else [n.children[n.initial]] if n.children else []):  # type: ignore[index]
+        chain += [child, *_initial_chain(child)]
     return chain

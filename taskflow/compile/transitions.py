@@ -20,6 +20,8 @@ def compile_transitions(c: Compilation, root: StateNode, events: set[str]) -> No
         if n.parent is None:
             continue
         spec = c.spec_of(n)
+        if n.owns is not None:  # a region: no transitions of its own (the schema has none)
+            continue
         assert isinstance(spec, State)
         for i, tr in enumerate(spec.transitions):
             where = n.ypath + ("transitions", i)
@@ -27,6 +29,15 @@ def compile_transitions(c: Compilation, root: StateNode, events: set[str]) -> No
             if target is None:
                 valid = sorted({s for a in [n.parent, *n.parent.ancestors()] for s in a.children} | set(c.states))
                 c.err(where + ("to",), f"unknown target state {tr.to!r}", describe_choices(tr.to, valid))
+                continue
+            region = _region_entered_from_outside(n, target)
+            if region is not None:
+                parallel = region.parent
+                assert parallel is not None
+                c.err(where + ("to",), (f"{target.path!r} is a parallel region" if region is target else
+                                        f"{target.path!r} is inside region {region.path!r}, which this transition does "
+                                        "not start from") + ": a region is entered only with its parallel state",
+                      f"target {parallel.path!r} (every region starts at its initial state), or a state outside it")
                 continue
             compiled = _compile_one(c, n, target, tr, where, events, quantities, not_quantities)
             if compiled is not None:
@@ -76,6 +87,16 @@ def _compile_one(c: Compilation, n: StateNode, target: StateNode, tr: Transition
         return None
     outcome = None if tr.done is True else str(tr.done)
     return DoneTransition(**common, label="done" if outcome is None else f"done {outcome}", outcome=outcome)
+
+
+def _region_entered_from_outside(source: StateNode, target: StateNode) -> StateNode | None:
+    """The region ``target`` lies in that ``source`` is not inside (None: the transition enters no region from
+    outside).  A region starts only with its parallel state, so the others are entered with it."""
+    inside = set(map(id, source.ancestors()))
+    for a in target.ancestors()[1:]:
+        if a.owns is not None and (id(a) not in inside or a is target):
+            return a
+    return None
 
 
 def _resolve_target(c: Compilation, source: StateNode, name: str) -> StateNode | None:

@@ -7,7 +7,7 @@ from __future__ import annotations
 from ..contracts import task_problem
 from ..model import Loop, StateNode, YPath
 from ..registry import TASKS, RegistryError, UnknownName, describe_choices
-from ..schema import Machine, State
+from ..schema import Machine, Region, State
 from .context import Compilation
 
 
@@ -17,7 +17,7 @@ def build_tree(c: Compilation) -> StateNode:
     return root
 
 
-def _build(c: Compilation, node: StateNode, spec: State | Machine, ypath: YPath) -> None:
+def _build(c: Compilation, node: StateNode, spec: State | Machine | Region, ypath: YPath) -> None:
     parent = node.parent
     if spec.task is not None:  # the task: inherited unless given
         tname, tparams = (spec.task, {}) if isinstance(spec.task, str) else (spec.task.name, spec.task.params)
@@ -40,7 +40,9 @@ def _build(c: Compilation, node: StateNode, spec: State | Machine, ypath: YPath)
         node.bind[slot] = ("", ref, ypath + ("bind", slot))
     if isinstance(spec, State):
         _state_keys(c, node, spec, ypath)
-    if spec.states:
+    if isinstance(spec, State) and spec.regions:
+        _build_regions(c, node, spec, ypath)
+    elif spec.states:
         if spec.initial is None:
             c.err(ypath, "a state with sub-states needs `initial`", f"one of: {', '.join(spec.states)}")
         elif spec.initial not in spec.states:
@@ -62,6 +64,51 @@ def _build(c: Compilation, node: StateNode, spec: State | Machine, ypath: YPath)
         c.err(ypath + ("states",), "the machine has no states", "declare at least one state and a final one")
 
 
+def _build_regions(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> None:
+    """A parallel state: one region node per ``regions`` entry (each a composite that owns command parts)."""
+    node.parallel = True
+    for key in ("states", "initial", "foreach", "history"):
+        if getattr(spec, key):
+            c.err(ypath + (key,), f"a state with `regions` runs them in parallel; it cannot also have `{key}`",
+                  "put the sub-states inside a region")
+    if len(spec.regions) < 2:
+        c.err(ypath + ("regions",), "a parallel state needs at least two regions",
+              "one region is an ordinary composite: use `states` and `initial`")
+    parts = c.robot.command_keys  # type: ignore[union-attr]
+    enclosing = node.region
+    owner: dict[str, str] = {}
+    for name, rspec in spec.regions.items():
+        rpath = ypath + ("regions", name)
+        if "." in name or not name.replace("_", "a").replace("-", "a").isalnum():
+            c.err(rpath, f"region name {name!r} must be letters, digits, '_' or '-'")
+            continue
+        for i, part in enumerate(rspec.owns):
+            if part not in parts:
+                c.err(rpath + ("owns", i), f"the robot's command has no part {part!r}",
+                      describe_choices(part, list(parts)))
+            elif part in owner:
+                c.err(rpath + ("owns", i), f"regions {owner[part]!r} and {name!r} both drive {part!r}",
+                      "each command part is driven by one region; let the other own different parts, or none")
+            elif enclosing is not None and part not in (enclosing.owns or ()):
+                c.err(rpath + ("owns", i), f"region {name!r} is inside region {enclosing.path!r}, which does not own "
+                      f"{part!r}", f"parts it owns: {', '.join(enclosing.owns or ()) or '(none)'}")
+            else:
+                owner[part] = name
+        child = StateNode(name, f"{node.path}.{name}" if node.path else name, node, rpath, depth=node.depth + 1)
+        child.owns = tuple(rspec.owns)
+        node.children[name] = child
+        c.states[child.path] = child
+        _build(c, child, rspec, rpath)
+    rules = []
+    for outcome, need in spec.outcome_map.items():
+        for region in need:
+            if region not in spec.regions:
+                c.err(ypath + ("outcome_map", outcome, region), f"{region!r} is not a region of this state",
+                      describe_choices(region, list(spec.regions)))
+        rules.append((outcome, dict(need)))
+    node.outcome_map = tuple(rules)
+
+
 def _state_keys(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> None:
     node.history = spec.history
     node.final = "succeeded" if spec.final is True else (spec.final or None)
@@ -75,8 +122,10 @@ def _state_keys(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> N
     if spec.final and (spec.states or spec.task or spec.transitions or spec.action):
         c.err(ypath + ("final",), "a final state ends its machine: it has no task, action, sub-states or transitions",
               "remove them or drop `final`")
-    if spec.history and not spec.states:
+    if spec.history and not spec.states and not spec.regions:
         c.err(ypath + ("history",), "history only applies to a state with sub-states")
+    if spec.outcome_map and not spec.regions:
+        c.err(ypath + ("outcome_map",), "`outcome_map` only applies to a state with `regions`")
     if spec.foreach is not None and not spec.states:
         c.err(ypath + ("foreach",), "foreach repeats a sub-machine: give the state `states` and `initial`")
 
@@ -93,6 +142,24 @@ def catalogue(c: Compilation, root: StateNode) -> tuple[dict[str, str], set[str]
             units.update(n.task_cls.metrics)
             events.update(n.task_cls.events)
     return units, events
+
+
+def check_region_metrics(c: Compilation, root: StateNode) -> None:
+    """Two regions' tasks must not publish a metric of the same name: a guard, the trace and the summary
+    could not tell which region's value they read."""
+    for p in root.walk():
+        if not p.parallel:
+            continue
+        publisher: dict[str, str] = {}
+        for region in p.children.values():
+            mine = {m for n in region.walk() if n.is_leaf and n.task_cls is not None for m in n.task_cls.metrics}
+            for m in sorted(mine):
+                if m in publisher:
+                    c.err(region.ypath, f"regions {publisher[m]!r} and {region.name!r} both run tasks that publish the "
+                          f"metric {m!r}", "give each region tasks with their own metrics (a task inherited from above "
+                          "the parallel state runs in every region: give the regions their own `task`)")
+                else:
+                    publisher[m] = region.name
 
 
 def metrics_under(c: Compilation, node: StateNode) -> dict[str, str]:
