@@ -169,6 +169,23 @@ def test_a_name_of_two_kinds_asks_for_kind() -> None:
     assert clash.find("viki_hyco", "world").summary == "a world of that name"
 
 
+@pytest.mark.parametrize("old, new, expected", [
+    ("name: viki_rotate", "name: viki_rotat", "unknown task 'viki_rotat' — did you mean 'viki_rotate'?"),
+    ("on: no_target}", "on: no_targt}", "unknown event 'no_targt'"),
+    ("when: \"feature_error < 2 px", "when: \"feature_eror < 2 px", "metric 'feature_eror' is not published"),
+])
+def test_load_errors_point_to_list_and_describe(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                old: str, new: str, expected: str) -> None:
+    text = (ROOT / "missions" / "viki_hyco.yaml").read_text(encoding="utf-8")
+    assert old in text
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace(old, new), encoding="utf-8")
+    code, _, err = _run(capsys, "validate", str(bad))
+    assert code == 1
+    line = next(x for x in err.splitlines() if expected in x)
+    assert "`taskflow list tasks`" in line or "`taskflow describe " in line, line
+
+
 # -- JSON ---------------------------------------------------------------------------------------------
 
 
