@@ -180,7 +180,8 @@ _SUFFIX_UNIT = {"_px": "px", "_s": "s", "_hz": "Hz", "_m": "m", "_rad": "rad", "
 
 
 def param_unit(name: str, info: FieldInfo, model_doc: str = "") -> str:
-    """The unit a field declares (module docstring: explicit, description, model docstring, suffix)."""
+    """The unit field ``name`` declares: explicitly, in its description, in its model's docstring
+    ``model_doc`` or by its name's suffix (in that order; '' when none does)."""
     extra = info.json_schema_extra
     if isinstance(extra, dict) and isinstance(extra.get("unit"), str):
         return str(extra["unit"])
@@ -357,20 +358,23 @@ def _readers(key: str, spec: ObsSpec, tasks: dict[str, type]) -> tuple[str, ...]
     return tuple(f"task {n}" for n, t in tasks.items() if key in t.requires and spec.satisfies(t.requires[key]))
 
 
+def _drives(task: type[Task], robot: type[Robot]) -> bool:
+    """Whether ``task`` can command ``robot`` (its interface and the robot parameters it reads), on some world."""
+    interface_fits = not task.command_interface or task.command_interface == robot.command_interface
+    return interface_fits and robot_params_problem(task, robot) is None
+
+
 def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type]) -> Entry:
     doc = _class_doc(task)
     slots = tuple(Slot(name=s, profile_kind=getattr(m, "kind", None) or s, model=m.__name__,
                        required=_slot_required(m), summary=summary_of(_own_doc(m)), fields=params_of(m))
                   for s, m in task.slots.items())
-    drivable = [r for r in robots.values()
-                if (not task.command_interface or task.command_interface == r.command_interface)
-                and robot_params_problem(task, r) is None]
-    works = tuple(f"{r.name} on {w.name}" for r in drivable for w in worlds.values()
+    works = tuple(f"{r.name} on {w.name}" for r in robots.values() if _drives(task, r) for w in worlds.values()
                   if hosts(w, r) and task_problem(task, r, w) is None)
     return Entry(
         kind="task", name=task.name, summary=summary_of(doc), doc=doc, source=_source(task),
-        params_doc=_own_doc(task.Params), params=params_of(task.Params), slots=slots, metrics=tuple(Metric(k, u) for k, u in task.metrics.items()),
-        events=tuple(task.events),
+        params_doc=_own_doc(task.Params), params=params_of(task.Params), slots=slots,
+        metrics=tuple(Metric(k, u) for k, u in task.metrics.items()), events=tuple(task.events),
         requires=tuple(Stream(k, str(s), _providers(k, s, robots, worlds)) for k, s in task.requires.items()),
         command_interface=task.command_interface, robot_params=params_of(task.robot_params),
         works_with=works, types=_nested_models([task.Params, *task.slots.values(), task.robot_params]))
@@ -378,13 +382,12 @@ def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type
 
 def robot_entry(robot: type[Robot], tasks: dict[str, type], worlds: dict[str, type]) -> Entry:
     doc = _class_doc(robot)
-    drivers = [f"task {n}" for n, t in tasks.items()
-               if (not t.command_interface or t.command_interface == robot.command_interface)
-               and robot_params_problem(t, robot) is None]
+    drivers = [f"task {n}" for n, t in tasks.items() if _drives(t, robot)]
     hosting = [f"world {n}" for n, w in worlds.items() if hosts(w, robot)]
     return Entry(
         kind="robot", name=robot.name, summary=summary_of(doc), doc=doc, source=_source(robot),
-        params_doc=_own_doc(robot.Params), params=params_of(robot.Params), command_interface=robot.command_interface,
+        params_doc=_own_doc(robot.Params), params=params_of(robot.Params),
+        command_interface=robot.command_interface,
         command_keys=tuple(Param(k, f"array[{n}]", True) for k, n in robot.command_keys.items()),
         provides=tuple(Stream(k, str(s), _readers(k, s, tasks)) for k, s in robot.observations.items()),
         sensors=tuple(Param(m, k, True) for m, k in robot.sensors.items()),
@@ -397,8 +400,8 @@ def world_entry(world: type[World], tasks: dict[str, type], robots: dict[str, ty
     needs = world.needs
     return Entry(
         kind="world", name=world.name, summary=summary_of(doc), doc=doc, source=_source(world),
-        params_doc=_own_doc(world.Params), params=params_of(world.Params), metrics=tuple(Metric(k, u) for k, u in world.metrics.items()),
-        events=tuple(world.events),
+        params_doc=_own_doc(world.Params), params=params_of(world.Params),
+        metrics=tuple(Metric(k, u) for k, u in world.metrics.items()), events=tuple(world.events),
         actions=tuple(Action(a, tuple(ends), params_of(world.action_params.get(a)))
                       for a, ends in world.actions.items()),
         provides=tuple(Stream(k, str(s), _readers(k, s, tasks)) for k, s in world.observations.items()),

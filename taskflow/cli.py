@@ -218,7 +218,8 @@ def cmd_describe(args: argparse.Namespace) -> int:
         return 2
     cat = build()
     try:
-        entries = [cat.find(args.name, args.kind)] if args.name else [e for e in cat.entries if e.kind == args.kind or not args.kind]
+        entries = [cat.find(args.name, args.kind)] if args.name else [e for e in cat.entries
+                                                                       if e.kind == args.kind or not args.kind]
     except UnknownEntry as exc:
         print(f"taskflow describe: {exc}", file=sys.stderr)
         return 2
@@ -226,7 +227,8 @@ def cmd_describe(args: argparse.Namespace) -> int:
         data = [entry_to_json(e) for e in entries]
         print(json.dumps(data if args.all else data[0], indent=2, ensure_ascii=False))
     elif args.markdown:
-        sys.stdout.write(reference_markdown(cat) if args.all and not args.kind else "\n".join(map(describe_markdown, entries)))
+        whole = args.all and not args.kind
+        sys.stdout.write(reference_markdown(cat) if whole else "\n".join(map(describe_markdown, entries)))
     else:
         sys.stdout.write("\n".join(map(describe_text, entries)))
     return 0

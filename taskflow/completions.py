@@ -72,7 +72,8 @@ def _inside(node: Any, alternatives: list[Schema]) -> Any:
     return node
 
 
-def _params_defs(prefix: str, models: Iterable[type[BaseModel]], alternatives: list[Schema]) -> tuple[dict[type, Schema], Schema]:
+def _params_defs(prefix: str, models: Iterable[type[BaseModel]],
+                 alternatives: list[Schema]) -> tuple[dict[type, Schema], Schema]:
     """Each model's schema (a ``$ref``) and the ``$defs`` they use, keyed ``PREFIX.NAME``."""
     unique = list(dict.fromkeys(models))
     if not unique:

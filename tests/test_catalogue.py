@@ -21,7 +21,7 @@ import pytest
 from pydantic import Field
 
 from taskflow.api import StrictModel
-from taskflow.catalogue import build, entry_from_json, entry_to_json, param_unit, params_of
+from taskflow.catalogue import Catalogue, Entry, build, entry_from_json, entry_to_json, param_unit, params_of
 from taskflow.cli import main
 from taskflow.completions import completed_json_schema
 from taskflow.registry import ROBOTS, TASKS, WORLDS
@@ -142,7 +142,8 @@ def test_describe_sensor_by_short_name(capsys: pytest.CaptureFixture[str]) -> No
 def test_describe_markdown_of_one_name(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = _run(capsys, "describe", "car_goto", "--markdown")
     assert code == 0
-    assert "### task `car_goto`" in out and "- pos_error: m" in out and "- k1: [float, float], default [2.0, 1.0]" in out
+    for line in ("### task `car_goto`", "- pos_error: m", "- k1: [float, float], default [2.0, 1.0]"):
+        assert line in out.splitlines(), line
 
 
 @pytest.mark.parametrize("argv, expected", [
@@ -162,8 +163,7 @@ def test_bad_names_are_usage_errors(capsys: pytest.CaptureFixture[str], argv: li
 
 def test_a_name_of_two_kinds_asks_for_kind() -> None:
     cat = build()
-    task = cat.find("viki_hyco")
-    clash = type(cat)(cat.entries + (type(task)(kind="world", name="viki_hyco", summary="a world of that name"),))
+    clash = Catalogue(cat.entries + (Entry(kind="world", name="viki_hyco", summary="a world of that name"),))
     with pytest.raises(LookupError, match="'viki_hyco' is a task, world: choose one with --kind"):
         clash.find("viki_hyco")
     assert clash.find("viki_hyco", "world").summary == "a world of that name"
@@ -275,19 +275,22 @@ def test_every_shipped_mission_validates_against_the_schema(path: Path) -> None:
     assert _errors(_schema(), doc) == []
 
 
-def _viki() -> dict[str, Any]:
-    return load_yaml_file(ROOT / "missions" / "viki_hyco.yaml")[0]  # type: ignore[no-any-return]
+def _forward(doc: dict[str, Any]) -> dict[str, Any]:
+    """The state ``forward`` of missions/viki_hyco.yaml."""
+    return doc["machine"]["states"]["forward"]  # type: ignore[no-any-return]
 
 
 def test_schema_refuses_misspelt_names_and_bad_parameters() -> None:
     schema = _schema()
-    doc = _viki()
-    assert doc["machine"]["states"]["forward"]["task"]["name"] == "viki_hyco"
+    doc = load_yaml_file(ROOT / "missions" / "viki_hyco.yaml")[0]
+    forward = _forward
+    assert forward(doc)["task"]["name"] == "viki_hyco"
+    task_at = "machine/states/forward/task"
     for edit, where in (
-        (lambda d: d["machine"]["states"]["forward"]["task"].update(name="viki_hyc"), "machine/states/forward/task"),
-        (lambda d: d["machine"]["states"]["forward"].update(task="viki_hyc"), "machine/states/forward/task"),
-        (lambda d: d["machine"]["states"]["forward"]["task"]["params"].update(camera="side"), "machine/states/forward/task"),
-        (lambda d: d["machine"]["states"]["forward"]["task"]["params"].update(desird=[1, 0]), "machine/states/forward/task"),
+        (lambda d: forward(d)["task"].update(name="viki_hyc"), task_at),
+        (lambda d: forward(d).update(task="viki_hyc"), task_at),
+        (lambda d: forward(d)["task"]["params"].update(camera="side"), task_at),
+        (lambda d: forward(d)["task"]["params"].update(desird=[1, 0]), task_at),
         (lambda d: d.update(world="viki_grund"), "world"),
         (lambda d: d["world"]["params"].update(dropout="often"), "world"),
         (lambda d: d.update(robot={"name": "racecar", "params": {"wheelbase": "long"}}), "robot"),
@@ -297,7 +300,7 @@ def test_schema_refuses_misspelt_names_and_bad_parameters() -> None:
         errors = _errors(schema, bad)
         assert errors and all(e.startswith(where) for e in errors), errors
     # what the loader accepts beyond the Params models: $references in task params, distributions in world params
-    assert doc["machine"]["states"]["forward"]["task"]["params"]["desired"] == "$front_goal"
+    assert forward(doc)["task"]["params"]["desired"] == "$front_goal"
     assert "uniform" in doc["world"]["params"]["object_distance"]
 
 
