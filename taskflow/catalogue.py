@@ -116,7 +116,20 @@ class Stream:
 
 @dataclass(frozen=True)
 class Entry:
-    """What one registered name offers a mission (sections that do not apply to its kind are empty)."""
+    """What one registered name offers a mission (fields that do not apply to its kind are empty).
+
+    ``summary`` is the first sentence of ``doc`` (the class docstring, with its module's when it refers
+    there; for a sensor: its type, providers and readers), ``source`` the ``module:Class``.  ``params`` are
+    the ``params:`` keys (``params_doc`` the Params model's docstring), ``slots`` the profile slots (tasks),
+    ``metrics`` / ``events`` what guards and ``on:`` can name, ``actions`` a world's.  ``requires`` are the
+    observation entries a task reads, each with its providers; ``provides`` those a robot or world adds,
+    each with its readers; for a sensor, one :class:`Stream` per provider (``provides``) and per reader
+    (``requires``).  ``command_interface``: a task's or robot's interface, the ones a world actuates
+    (``a | b``; empty: any); ``command_keys`` a robot's commands (type ``array[N]``); ``robot_params`` the
+    robot parameters a task reads; ``sensors`` the mounts a robot carries or a world needs (type = the
+    sensor kind); ``needs_body``: the world needs a simulator body for its robot.  ``works_with``: the
+    ``"ROBOT on WORLD"`` pairs a task runs on, the worlds hosting and tasks driving a robot, the robots a
+    world hosts.  ``types`` are the models (or the message class) the fields above name, recursively."""
 
     kind: Kind
     name: str

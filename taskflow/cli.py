@@ -259,7 +259,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--format", choices=["mermaid", "dot"], default="mermaid")
     g.set_defaults(fn=cmd_graph)
 
-    s = sub.add_parser("schema", help="print the JSON Schema of mission files, with the registered names and their parameters")
+    s = sub.add_parser("schema", help="print the JSON Schema of mission files (registered names and their "
+                                      "parameters included, for editors)")
     s.set_defaults(fn=cmd_schema)
 
     b = sub.add_parser("batch", help="N seeded runs in parallel processes; writes batch.json")
