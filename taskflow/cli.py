@@ -1,4 +1,4 @@
-"""``taskflow`` command line: run, validate, graph, schema, batch, teach, plot.
+"""``taskflow`` command line: run, validate, graph, schema, batch, teach, plot, check, list, describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
 130 interrupted.
@@ -119,9 +119,9 @@ def cmd_graph(args: argparse.Namespace) -> int:
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from .schema import mission_json_schema
+    from .completions import completed_json_schema
 
-    print(json.dumps(mission_json_schema(), indent=2))
+    print(json.dumps(completed_json_schema(), indent=2))
     return 0
 
 
@@ -195,6 +195,45 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 1 if bad or not results else 0
 
 
+def cmd_list(args: argparse.Namespace) -> int:
+    from .catalogue import PLURAL, build
+    from .catalogue_render import list_text
+
+    cat = build()
+    kind = PLURAL.get(args.kind, args.kind)
+    if args.json:
+        entries = cat.of_kind(kind) if kind else cat.entries
+        print(json.dumps([{"kind": e.kind, "name": e.name, "summary": e.summary} for e in entries], indent=2))
+    else:
+        sys.stdout.write(list_text(cat, kind))
+    return 0
+
+
+def cmd_describe(args: argparse.Namespace) -> int:
+    from .catalogue import UnknownEntry, build, entry_to_json
+    from .catalogue_render import describe_markdown, describe_text, reference_markdown
+
+    if args.all == (args.name is not None):
+        print("taskflow describe: give a NAME or --all (taskflow list shows the names)", file=sys.stderr)
+        return 2
+    cat = build()
+    try:
+        entries = [cat.find(args.name, args.kind)] if args.name else [e for e in cat.entries
+                                                                       if e.kind == args.kind or not args.kind]
+    except UnknownEntry as exc:
+        print(f"taskflow describe: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        data = [entry_to_json(e) for e in entries]
+        print(json.dumps(data if args.all else data[0], indent=2, ensure_ascii=False))
+    elif args.markdown:
+        whole = args.all and not args.kind
+        sys.stdout.write(reference_markdown(cat) if whole else "\n".join(map(describe_markdown, entries)))
+    else:
+        sys.stdout.write("\n".join(map(describe_text, entries)))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="taskflow", description="Run robot missions written as YAML state machines.")
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -220,7 +259,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--format", choices=["mermaid", "dot"], default="mermaid")
     g.set_defaults(fn=cmd_graph)
 
-    s = sub.add_parser("schema", help="print the JSON Schema of mission files")
+    s = sub.add_parser("schema", help="print the JSON Schema of mission files (registered names and their "
+                                      "parameters included, for editors)")
     s.set_defaults(fn=cmd_schema)
 
     b = sub.add_parser("batch", help="N seeded runs in parallel processes; writes batch.json")
@@ -252,6 +292,22 @@ def build_parser() -> argparse.ArgumentParser:
                    help="world parameter override, e.g. quad_room.perception=geometric")
     c.add_argument("--steps", type=int, default=5, help="ticks per seeded rollout")
     c.set_defaults(fn=cmd_check)
+
+    kinds = ["task", "robot", "world", "sensor"]
+    ls = sub.add_parser("list", help="the registered tasks, robots, worlds and sensor streams, one line each")
+    ls.add_argument("kind", nargs="?", choices=["tasks", "robots", "worlds", "sensors"], help="only this kind")
+    ls.add_argument("--json", action="store_true", help="as JSON: [{kind, name, summary}]")
+    ls.set_defaults(fn=cmd_list)
+
+    d = sub.add_parser("describe", help="parameters (types, defaults, units), profile slots, metrics, events, "
+                                        "actions, observations of a task, robot, world or sensor stream")
+    d.add_argument("name", nargs="?", help="a registered name (taskflow list shows them)")
+    d.add_argument("--kind", choices=kinds, help="which kind NAME is, when several have it")
+    d.add_argument("--all", action="store_true", help="every registered name (of --kind)")
+    fmt = d.add_mutually_exclusive_group()
+    fmt.add_argument("--json", action="store_true", help="as JSON (taskflow.catalogue.Entry)")
+    fmt.add_argument("--markdown", action="store_true", help="as markdown; with --all the page docs/reference.md")
+    d.set_defaults(fn=cmd_describe)
     return ap
 
 

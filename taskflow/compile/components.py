@@ -48,7 +48,8 @@ def _component(c: Compilation, key: str, registry: Any) -> tuple[Any, dict[str, 
     try:
         return registry.get(name), params, ppath
     except UnknownName as exc:
-        c.err(npath, f"unknown {exc.kind} {name!r}", describe_choices(name, exc.valid))
+        c.err(npath, f"unknown {exc.kind} {name!r}",
+              f"{describe_choices(name, exc.valid)}; `taskflow list {exc.kind}s` says what each is")
     except RegistryError as exc:
         c.err(npath, str(exc))
     return None, params, ppath

@@ -56,7 +56,7 @@ def _compile_one(c: Compilation, n: StateNode, target: StateNode, tr: Transition
     if tr.on is not None:
         if tr.on not in events:
             c.err(where + ("on",), f"unknown event {tr.on!r}: no world, sensor, action or task of this mission emits it",
-                  describe_choices(tr.on, sorted(events)))
+                  f"{describe_choices(tr.on, sorted(events))}; `taskflow describe NAME` lists a world's or task's events")
             return None
         label = f"on {tr.on}" + (f" when {tr.when}" if tr.when else "")
         return EventTransition(**common, label=label, event=tr.on, guard=guard[0] if guard else None,
@@ -143,7 +143,8 @@ def _compile_guard(c: Compilation, n: StateNode, text: str, where: YPath, quanti
     available = metrics_under(c, n)
     unknown = [m for m in sorted(guard.metrics) if m not in available]
     for m in unknown:
-        c.err(where, f"metric {m!r} is not published in state {n.path!r}", describe_choices(m, list(available)))
+        c.err(where, f"metric {m!r} is not published in state {n.path!r}",
+              f"{describe_choices(m, list(available))}; `taskflow describe TASK` lists a task's metrics")
     if unknown:
         return None
     for cmp in guard.comparisons():

@@ -30,7 +30,7 @@ def _build(c: Compilation, node: StateNode, spec: State | Machine | Region, ypat
             node.task_cls, node.task_params = cls, dict(tparams)
             node.task_ypath = ypath + ("task",)
         except UnknownName as exc:
-            c.err(tpath, f"unknown task {tname!r}", describe_choices(tname, exc.valid))
+            c.err(tpath, f"unknown task {tname!r}", f"{describe_choices(tname, exc.valid)}; `taskflow list tasks` says what each does")
         except RegistryError as exc:
             c.err(tpath, str(exc))
     elif parent is not None:
