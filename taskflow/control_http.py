@@ -36,8 +36,17 @@ def parse_address(text: str) -> tuple[str, int]:
     return host.strip("[]"), int(port)
 
 
-def _app(channel: OperatorChannel) -> Any:
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+def _app(channel: OperatorChannel, host: str) -> Any:
+    """The routes.  On a loopback address only requests naming a loopback host are served (no DNS
+    rebinding), and a POST must say ``Content-Type: application/json`` (a page of another origin cannot
+    send that without a CORS preflight, which is never granted): no web page can drive the robot by
+    accident."""
     from starlette.applications import Starlette
+    from starlette.middleware import Middleware
+    from starlette.middleware.trustedhost import TrustedHostMiddleware
     from starlette.requests import Request
     from starlette.responses import JSONResponse
     from starlette.routing import Route
@@ -52,6 +61,8 @@ def _app(channel: OperatorChannel) -> Any:
         name = request.path_params["action"]
         if name not in ACTIONS:
             return JSONResponse({"error": f"no action {name!r}; valid: {', '.join(ACTIONS)}"}, status_code=404)
+        if request.headers.get("content-type", "").split(";")[0].strip() != "application/json":
+            return JSONResponse({"error": "send the body as Content-Type: application/json"}, status_code=415)
         raw = await request.body()
         try:
             body = json.loads(raw) if raw.strip() else {}
@@ -70,8 +81,10 @@ def _app(channel: OperatorChannel) -> Any:
             return JSONResponse({"error": f"{name}: {msgs}"}, status_code=400)
         return JSONResponse({"queued": name, "who": action.who})
 
+    hosts = ["127.0.0.1", "localhost", "[::1]"] if host in LOOPBACK else ["*"]
     return Starlette(routes=[Route("/state", state), Route("/mission", mission),
-                             Route("/{action}", act, methods=["POST"])])
+                             Route("/{action}", act, methods=["POST"])],
+                     middleware=[Middleware(TrustedHostMiddleware, allowed_hosts=hosts)])
 
 
 class ControlServer:
@@ -93,6 +106,7 @@ class ControlServer:
             raise ControlError(f"cannot listen on {address}: {exc.strerror or exc}") from None
         bound = self.socket.getsockname()
         self.url = f"http://{host if family == socket.AF_INET else f'[{host}]'}:{bound[1]}"
+        self.host = host
         self.announce = announce
         self._server: Any = None
         self._thread: threading.Thread | None = None
@@ -101,7 +115,8 @@ class ControlServer:
     def start(self, channel: OperatorChannel, run_dir: Path | None) -> None:
         import uvicorn
 
-        config = uvicorn.Config(_app(channel), log_level="warning", lifespan="off", access_log=False)
+        config = uvicorn.Config(_app(channel, self.host), log_level="warning", lifespan="off", access_log=False,
+                                timeout_graceful_shutdown=1)
         self._server = uvicorn.Server(config)
         self._thread = threading.Thread(target=self._server.run, kwargs={"sockets": [self.socket]},
                                         name="taskflow-control", daemon=True)

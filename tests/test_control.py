@@ -222,13 +222,15 @@ def test_an_injected_event_fires_its_transition_at_that_tick(live, tmp_path):
 # -- bad requests ------------------------------------------------------------------------------------------
 
 
-def _post(url: str, body: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-    req = urllib.request.Request(url, data=json.dumps(body).encode(), method="POST")
+def _post(url: str, body: dict[str, Any], headers: dict[str, str] | None = None) -> tuple[int, dict[str, Any]]:
+    req = urllib.request.Request(url, data=json.dumps(body).encode(), method="POST",
+                                 headers={"Content-Type": "application/json"} if headers is None else headers)
     try:
         with urllib.request.urlopen(req, timeout=10) as resp:
             return resp.status, json.loads(resp.read())
     except urllib.error.HTTPError as exc:
-        return exc.code, json.loads(exc.read())
+        raw = exc.read()
+        return exc.code, json.loads(raw) if exc.headers.get_content_type() == "application/json" else {"text": raw.decode()}
 
 
 def test_unknown_state_or_undeclared_event_is_a_400_and_ctl_exits_non_zero(live, tmp_path, capsys):
@@ -242,6 +244,11 @@ def test_unknown_state_or_undeclared_event_is_a_400_and_ctl_exits_non_zero(live,
     assert "valid: arrived, target_found, target_lost, tool_done, tool_failed" in body["error"]
     code, body = _post(url + "/pause", {"to": "search"})
     assert code == 400 and "unknown argument 'to'" in body["error"]
+    # what a page of another origin could send without a CORS preflight, or through DNS rebinding
+    code, body = _post(url + "/preempt", {}, {"Content-Type": "text/plain"})
+    assert code == 415 and "application/json" in body["error"]
+    code, body = _post(url + "/preempt", {}, {"Content-Type": "application/json", "Host": "evil.example:80"})
+    assert code == 400 and body == {"text": "Invalid host header"}
 
     assert main(["ctl", str(tmp_path / "run"), "inject", "bogus"]) == 1
     assert "inject: event 'bogus' is not declared" in capsys.readouterr().err
