@@ -1,4 +1,4 @@
-"""``taskflow`` command line: run, validate, graph, schema, batch, teach, plot, check, list, describe.
+"""``taskflow`` command line: run, ctl, validate, graph, schema, batch, teach, plot, check, list, describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
 130 interrupted.
@@ -70,10 +70,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     max_time = _max_time(args.max_time)
     mission = _load(path, args.set)
     progress = Progress(print_progress) if sys.stderr.isatty() and not args.quiet else None
+    control, operator = _operator_options(args, mission)
     print(f"running {mission.name} ({path}) seed={args.seed if args.seed is not None else mission.spec.seed}",
           file=sys.stderr)
     result = run_mission(mission, seed=args.seed, out_dir=args.out, gui=args.gui, max_time=max_time,
-                         progress=progress)
+                         progress=progress, control=control, operator=operator)
     if progress is not None:
         sys.stderr.write("\n")
     s, timing = result.summary, result.timing
@@ -95,6 +96,62 @@ def cmd_run(args: argparse.Namespace) -> int:
     if s["outcome"] == "aborted" and "interrupted" in s.get("reason", ""):
         return 130
     return 0 if result.succeeded else 1
+
+
+def _operator_options(args: argparse.Namespace, mission):  # type: ignore[no-untyped-def]
+    """The control endpoint (bound now, so a port in use is a usage error) and the operator script of ``run``."""
+    from .control import ControlError, check_script, load_operator_script
+    from .control_http import ControlServer
+
+    operator = load_operator_script(args.operator_script, mission) if args.operator_script else None
+    try:
+        check_script(operator or [], live=not args.no_control)
+    except ControlError as exc:
+        raise UsageError(f"--operator-script {args.operator_script}: {exc}") from None
+    if args.no_control:
+        return None, operator
+
+    def announce(url: str, run_dir: Path | None) -> None:
+        print(f"control: {url}  (taskflow ctl {run_dir} state|pause|hold|resume|preempt|inject)", file=sys.stderr)
+
+    try:
+        return ControlServer(args.control, announce), operator
+    except ControlError as exc:
+        raise UsageError(f"--control: {exc}") from None
+
+
+def cmd_ctl(args: argparse.Namespace) -> int:
+    from .control import ControlError
+    from .control_http import ControlClient
+
+    words = list(args.words)
+    try:
+        if args.url is None:
+            if len(words) < 2:
+                raise UsageError("give the run directory and an action: taskflow ctl RUN_DIR pause (or --url URL pause)")
+            client = ControlClient.for_run(words.pop(0))
+        else:
+            client = ControlClient(args.url)
+        action, rest = words[0] if words else "", words[1:]
+        extra: dict[str, str] = {}
+        if action == "inject":
+            if len(rest) != 1:
+                raise UsageError("inject takes one event name: taskflow ctl RUN_DIR inject EVENT")
+            extra["event"] = rest.pop()
+        elif action == "preempt" and args.to is not None:
+            extra["to"] = args.to
+        if rest or (args.to is not None and action != "preempt"):
+            raise UsageError(f"{action}: unexpected {' '.join(rest) or '--to'}")
+        if action in ("state", "mission"):
+            print(json.dumps(client.state() if action == "state" else client.mission(), indent=2))
+            return 0
+        if action not in ("pause", "hold", "resume", "preempt", "inject"):
+            raise UsageError(f"unknown action {action!r}; valid: state, mission, pause, hold, resume, preempt, inject")
+        reply = client.send(action, who=args.who, **extra)
+    except ControlError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"{reply['queued']} queued by {reply['who']}: applied at the next tick boundary")
+    return 0
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -232,6 +289,13 @@ def cmd_describe(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write("\n".join(map(describe_text, entries)))
     return 0
+def _user() -> str:
+    import getpass
+
+    try:
+        return getpass.getuser()
+    except Exception:  # noqa: BLE001 - no user name in this environment
+        return "operator"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -247,7 +311,20 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a mission key")
     r.add_argument("--plot", action="store_true", help="write the figures into the run directory")
     r.add_argument("--quiet", action="store_true", help="no progress line")
+    r.add_argument("--control", default="127.0.0.1:0", metavar="HOST:PORT",
+                   help="operator endpoint for taskflow ctl (default 127.0.0.1, any free port; written to RUN_DIR/control.json)")
+    r.add_argument("--no-control", action="store_true", help="no operator endpoint")
+    r.add_argument("--operator-script", default=None, metavar="FILE.yaml",
+                   help="operator actions to apply at given sim times: a list of {t, action, args, who}")
     r.set_defaults(fn=cmd_run)
+
+    o = sub.add_parser("ctl", help="operate a running mission: state, mission, pause, hold, resume, preempt, inject")
+    o.add_argument("words", nargs="+", metavar="[RUN_DIR] ACTION [EVENT]",
+                   help="the run directory (unless --url), then the action; inject takes the event name")
+    o.add_argument("--url", default=None, help="the endpoint's address instead of RUN_DIR/control.json")
+    o.add_argument("--to", default=None, metavar="STATE_PATH", help="preempt: the state to go to (default: abort the run)")
+    o.add_argument("--who", default=_user(), help="who asks (recorded in transitions.jsonl; default: your user name)")
+    o.set_defaults(fn=cmd_ctl)
 
     v = sub.add_parser("validate", help="check mission files; exit 1 if any is invalid")
     v.add_argument("files", nargs="+")

@@ -37,6 +37,7 @@ from .model import (CompiledMission, DoneTransition, EventTransition, GuardTrans
                     Transition, has_refs, resolve_refs)
 from .records import (CAUSES, DONE, EVENT, GUARD, NEXT_ITEM, START_CAUSE, TIMEOUT, ItemCount, IterationRecord,
                       TransitionRecord)
+from .records import OPERATOR
 from .shaping import activation
 
 __all__ = ["CAUSES", "START", "Executor", "ItemCount", "IterationRecord", "TaskFactory", "TransitionRecord",
@@ -497,3 +498,16 @@ class Executor:
         for name in list(self._running_actions):
             self.world.cancel_action(name)
         self._running_actions.clear()
+
+    # -- operator (taskflow/control.py) -----------------------------------------------------------------
+    def preempt(self, target: str | None, who: str, t: float) -> None:
+        """Operator pre-emption at sim time ``t``: leave every active state (their exits cancel running world
+        actions) for the state path ``target`` — its initial leaf, or its history — recorded with cause
+        ``operator``; or, with ``target=None``, end the run ``aborted`` (the runtime then stops the robot)."""
+        self.t = t
+        if target is None:
+            self.outcome, self.reason = "aborted", f"pre-empted by {who} (operator)"
+            return
+        leaf, resumed = self._destination(self.mission.states[target], True)
+        self._blend = None
+        self._go(leaf, OPERATOR, resume=resumed, keep=0, label=f"preempt --to {target}", who=who)

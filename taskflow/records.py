@@ -7,7 +7,9 @@
                           (start, guard, timeout, event, done, next_item), ``state`` and ``label`` (the
                           declaring state and the transition as written), and as they apply ``index``,
                           ``metrics`` (the guard's metric values when it fired), ``event``, ``outcome``,
-                          ``item``, ``resumed`` — :class:`TransitionRecord`
+                          ``item``, ``resumed``, ``who`` — :class:`TransitionRecord`; and one object per
+                          operator action (``taskflow ctl``, an operator script): ``cause: operator``,
+                          ``action``, ``who``, ``args``, ``t``, ``tick``, ``state`` — :class:`OperatorRecord`
   ``trace.csv``           one row per control tick: ``t``, ``state``, ``events``, metric columns
                           ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
                           (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it; ``nan``
@@ -39,7 +41,8 @@ import yaml
 
 
 START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM = "start", "guard", "timeout", "event", "done", "next_item"
-CAUSES = (START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM)
+OPERATOR = "operator"
+CAUSES = (START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM, OPERATOR)
 
 
 @dataclass
@@ -49,7 +52,8 @@ class TransitionRecord:
     ``cause`` is one of :data:`CAUSES`: ``start``; ``guard`` (a ``when`` held: ``metrics`` has the values
     of its metrics that tick), ``timeout`` (an ``after`` ran out), ``event`` (``event``; with a condition,
     ``metrics`` too), ``done`` (the sub-machine of ``state`` finished with ``outcome``) or ``next_item``
-    (the loop ``state`` moved to item ``item`` after an item that ended ``outcome``).  ``state`` and
+    (the loop ``state`` moved to item ``item`` after an item that ended ``outcome``) or ``operator`` (``who``
+    pre-empted the run to ``target``: ``taskflow ctl preempt --to``, :mod:`taskflow.control`).  ``state`` and
     ``label`` name the declaring state and the transition as written; ``index`` is the transition's index
     in the mission; ``resumed`` says a history state was resumed where it was left."""
 
@@ -65,18 +69,39 @@ class TransitionRecord:
     outcome: str | None = None
     item: int | None = None
     resumed: bool = False
+    who: str | None = None  # the operator who pre-empted (cause ``operator``)
 
     def as_dict(self) -> dict[str, Any]:
         """The JSON object of ``transitions.jsonl``: the fields that apply to this cause."""
         out: dict[str, Any] = {"t": round(self.t, 9), "from": self.source, "to": self.target, "cause": self.cause,
                                "state": self.state, "label": self.label}
-        for key in ("index", "metrics", "event", "outcome", "item"):
+        for key in ("index", "metrics", "event", "outcome", "item", "who"):
             value = getattr(self, key)
             if value is not None:
                 out[key] = value
         if self.resumed:
             out["resumed"] = True
         return out
+
+
+@dataclass
+class OperatorRecord:
+    """One operator action as it took effect (``transitions.jsonl``, ``cause: operator``, no ``from``/``to``):
+    ``action`` (pause, hold, resume, preempt, inject) with its ``args`` (``to`` of a pre-emption, ``event``
+    of an injection), ``who`` asked for it, and the sim time ``t`` and index ``tick`` of the control tick at
+    whose start it was applied, with the ``state`` active then.  A list of these is an operator script
+    (:func:`taskflow.control.script_from_records`): replayed, it gives the same run."""
+
+    t: float
+    tick: int
+    action: str
+    who: str
+    state: str
+    args: dict[str, str]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"t": round(self.t, 9), "tick": self.tick, "cause": OPERATOR, "action": self.action, "who": self.who,
+                "state": self.state, "args": dict(self.args)}
 
 
 @dataclass

@@ -27,7 +27,7 @@ import time
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from .api import World
 from .executor import Executor, TaskFactory
@@ -36,6 +36,10 @@ from .model import CompiledMission
 from .provenance import versions
 from .records import RunRecorder, TimingRecord, clean_floats
 from .units import parse_max_time
+
+if TYPE_CHECKING:
+    from .control import OperatorAction, OperatorChannel
+    from .control_http import ControlServer
 
 OUTCOMES = ("succeeded", "failed", "aborted", "timeout")
 
@@ -111,7 +115,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                 gui: bool = False, max_time: float | None = None, progress: Progress | None = None,
                 world: World | None = None, task_factory: TaskFactory | None = None,
                 record: bool = True, on_start: Callable[[Executor], None] | None = None,
-                safe_stop_s: float = 1.0) -> RunResult:
+                safe_stop_s: float = 1.0, control: "str | ControlServer | None" = None,
+                operator: "Sequence[OperatorAction | dict[str, Any]] | None" = None) -> RunResult:
     """Run ``mission`` to its end and return the outcome and summary.
 
     Whatever the outcome, the world is then told to stop the robot every tick for ``safe_stop_s``
@@ -122,9 +127,15 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     ``out_dir=None`` with ``record=True`` writes under ``runs/``; ``record=False`` writes nothing
     (tests and batches that only need the summary).  ``world`` replaces the registered world (the
     scripted backend of :mod:`taskflow.testing` uses it).
+
+    ``control`` opens the operator endpoint (:mod:`taskflow.control_http`: ``"HOST:PORT"`` or a
+    :class:`~taskflow.control_http.ControlServer`); ``operator`` is an operator script (a list of
+    :class:`~taskflow.control.OperatorAction` or their mappings) applied at its sim times.  A bad script, an
+    unknown state or event in it, raises :class:`~taskflow.control.ControlError` before the run starts.
     """
     seed = mission.spec.seed if seed is None else int(seed)
     max_time = float(mission.spec.max_time) if max_time is None else parse_max_time(max_time)
+    channel, server = _operator(mission, control, operator)
     robot = mission.build_robot()
     dt = 1.0 / mission.spec.rate_hz
     recorder: RunRecorder | None = None
@@ -151,6 +162,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             (recorder.dir / "error.txt").write_text(traceback.format_exc())
             recorder.summary(summary)
             recorder.close()
+        if server is not None:
+            server.stop()
         return RunResult("aborted", summary, recorder.dir if recorder else None, None, {})
     if recorder is not None:
         recorder.write_mission(resolved, seed)
@@ -160,6 +173,10 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             recorder.transition(rec.as_dict())
 
     executor = Executor(mission, world, robot, task_factory=task_factory, on_transition=on_transition)
+    if channel is not None:
+        channel.on_record = recorder.transition if recorder is not None else None
+        if server is not None:
+            server.start(channel, recorder.dir if recorder is not None else None)
     if on_start is not None:
         on_start(executor)
     if recorder is not None:
@@ -189,6 +206,19 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             if t >= max_time - 1e-9:
                 executor.outcome, executor.reason = "timeout", f"max_time {max_time:g} s reached"
                 break
+            if channel is not None:  # operator actions, at this tick boundary only (taskflow/control.py)
+                obs = channel.begin_tick(k, obs, executor, lambda: stop.reason is not None)
+                if stop.reason is not None or executor.outcome is not None:
+                    break
+                if channel.held:
+                    world.safe_stop()
+                    if recorder is not None:
+                        recorder.tick(t, executor.state, ("hold", *obs.events), {}, robot.stop_command(),
+                                      world.ground_truth())
+                    k += 1
+                    world.advance(dt)
+                    obs = world.observe()
+                    continue
             leaf = executor.state
             command, metrics, events = executor.tick(obs)
             sensors = executor.step_sensors
@@ -226,6 +256,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             signal.signal(sig, handler)
     executor.outcome, executor.reason = outcome, reason
     t_end = t
+    if channel is not None:
+        channel.finish(executor, t_end)
     wall_run = time.perf_counter() - wall0
     timing_summary: dict[str, Any] = {}
     try:
@@ -246,7 +278,22 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
         if recorder is not None:
             recorder.close()
         world.close()
+        if server is not None:
+            server.stop()
     return RunResult(outcome, summary, recorder.dir if recorder else None, executor, timing_summary)
+
+
+def _operator(mission: CompiledMission, control: "str | ControlServer | None",
+              operator: "Sequence[OperatorAction | dict[str, Any]] | None") -> "tuple[OperatorChannel | None, ControlServer | None]":
+    """The operator channel and endpoint a run asked for (none by default: nothing is checked per tick)."""
+    if control is None and not operator:
+        return None, None
+    from .control import OperatorChannel
+    from .control_http import ControlServer
+
+    channel = OperatorChannel(mission, operator or (), live=control is not None)
+    server = ControlServer(control) if isinstance(control, str) else control
+    return channel, server
 
 
 def _safe_stop(world: World, executor: Executor, recorder: RunRecorder | None, t: float, dt: float,

@@ -138,11 +138,13 @@ class _IdleTask(Task):
 
 def drive(mission: CompiledMission, script: Script, *, max_time: float | None = None,
           out_dir: str | Path | None = None,
-          on_world: Callable[[ScriptedWorld], None] | None = None) -> RunResult:
+          on_world: Callable[[ScriptedWorld], None] | None = None, control: Any = None,
+          operator: Sequence[Any] | None = None) -> RunResult:
     """Run the mission's machine against ``script`` (tasks replaced; nothing rendered or simulated).
 
     ``on_world`` receives the :class:`ScriptedWorld` (its ``started``, ``cancelled`` and
-    ``applied`` lists record what the machine asked of the hardware)."""
+    ``applied`` lists record what the machine asked of the hardware); ``control`` and ``operator``
+    are :func:`~taskflow.runtime.run_mission`'s (operator endpoint and script, :mod:`taskflow.control`)."""
     robot = mission.build_robot()
     world = ScriptedWorld(robot, script, mission)
     if on_world is not None:
@@ -155,7 +157,7 @@ def drive(mission: CompiledMission, script: Script, *, max_time: float | None = 
         world.executor = executor
 
     return run_mission(mission, world=world, task_factory=factory, max_time=max_time, on_start=attach,
-                       out_dir=out_dir, record=out_dir is not None)
+                       out_dir=out_dir, record=out_dir is not None, control=control, operator=operator)
 
 
 def run_on_world(mission: CompiledMission, *, seed: int | None = None, max_time: float | None = None,

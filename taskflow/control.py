@@ -1,0 +1,247 @@
+"""Operator control of a running mission: the actions, the channel the run loop drains, operator scripts.
+
+An operator (``taskflow ctl``, a web page through :mod:`taskflow.control_http`, or a script replayed in a
+test) can ask a running mission to
+
+* ``pause`` — freeze the simulation (no world step, no task step, the sim clock stops; the loop waits on
+  this channel in wall time);
+* ``hold`` — bring the robot to a safe stop (the world's ``safe_stop()`` every tick) while the world goes
+  on; no task steps and no transition fires while held;
+* ``resume`` — from pause or hold;
+* ``preempt`` — leave every active state for ``args.to`` (a state path of the mission), or with no ``to``
+  end the run ``aborted`` (then the robot is stopped as after a failure);
+* ``inject`` — emit the declared event ``args.event``: the tick's guards see it as a world or task event.
+
+Actions take effect at tick boundaries only: the run loop calls :meth:`OperatorChannel.begin_tick` at the
+top of every tick, which applies the due actions of the operator script (sim time ``t`` reached), then
+those queued by the endpoint, in order, and writes each as an :class:`~taskflow.records.OperatorRecord`
+(``transitions.jsonl``, with the tick's sim time and index).  A list of those records is itself an
+operator script (:func:`script_from_records`): replayed, it gives the same run record.
+
+A ``preempt`` leaves pause and hold (the run goes on from the new state); the other actions change only
+what they name.  Events the world emits while the run is held are recorded in the trace but not acted on.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+from pathlib import Path
+from typing import Any, Callable, Literal, Sequence
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
+
+from .api import Observation
+from .errors import MissionError, Problem
+from .executor import Executor
+from .model import CompiledMission
+from .records import OPERATOR, OperatorRecord
+from .registry import describe_choices
+
+ACTIONS = ("pause", "hold", "resume", "preempt", "inject")
+_ARGS: dict[str, tuple[str, ...]] = {"pause": (), "hold": (), "resume": (), "preempt": ("to",), "inject": ("event",)}
+RUNNING, PAUSED, HELD = "running", "paused", "held"
+WAIT_S = 0.25  # while paused, how often the loop looks up from the channel (for Ctrl-C and a finished run)
+
+
+class ControlError(ValueError):
+    """An operator action that cannot be applied: the message says why and what would be valid."""
+
+
+class OperatorAction(BaseModel):
+    """One operator action: what (``action`` with its ``args``), who asked, and — in an operator script —
+    the sim time ``t`` (s) from which it applies (the first tick at or after ``t``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    t: float = Field(default=0.0, ge=0.0)
+    action: Literal["pause", "hold", "resume", "preempt", "inject"]
+    args: dict[str, str] = Field(default_factory=dict)
+    who: str = Field(default="operator", min_length=1)
+
+    @model_validator(mode="after")
+    def _args_fit(self) -> "OperatorAction":
+        allowed = _ARGS[self.action]
+        for key in self.args:
+            if key not in allowed:
+                valid = f"it takes {', '.join(allowed)}" if allowed else "it takes none"
+                raise ValueError(f"unknown argument {key!r} ({valid})")
+        if self.action == "inject" and "event" not in self.args:
+            raise ValueError("missing argument 'event': the declared event to emit")
+        return self
+
+
+_SCRIPT = TypeAdapter(list[OperatorAction])
+
+
+def check_action(action: OperatorAction, mission: CompiledMission) -> None:
+    """Refuse a pre-emption to a state the mission does not have, or an event it does not declare."""
+    to = action.args.get("to")
+    if action.action == "preempt" and to is not None and to not in mission.states:
+        raise ControlError(f"preempt: no state {to!r} in mission {mission.name!r} — "
+                           + describe_choices(to, sorted(mission.states)))
+    event = action.args.get("event")
+    if action.action == "inject" and event is not None and event not in mission.events:
+        raise ControlError(f"inject: event {event!r} is not declared by mission {mission.name!r} (its world, actions "
+                           "and tasks) — " + describe_choices(event, sorted(mission.events)))
+
+
+def check_script(script: Sequence[OperatorAction], live: bool) -> None:
+    """Without a live endpoint (``live=False``) a scripted pause must be ended by the script itself."""
+    if live:
+        return
+    for i, a in enumerate(script):
+        if a.action == "pause" and not any(b.action in ("resume", "hold", "preempt") for b in script[i + 1:]):
+            raise ControlError(f"operator script item {i}: pause at t={a.t:g} s is never resumed, held or pre-empted "
+                               "and no control endpoint is open — the run would wait for ever")
+
+
+def load_operator_script(path: str | Path, mission: CompiledMission) -> list[OperatorAction]:
+    """Read an operator script file (YAML, a list of ``{t, action, args, who}``) and check it against
+    ``mission``; every problem is a :class:`~taskflow.errors.MissionError` with ``FILE:LINE:COL``."""
+    from .diagnostics import pydantic_problems
+    from .yamlsrc import load_yaml_file
+
+    data, smap, _ = load_yaml_file(path)
+    if not isinstance(data, list):
+        raise MissionError([smap.problem((), f"an operator script is a list of actions, got {type(data).__name__}",
+                                         "write - {t: 2.0, action: pause, who: me}")])
+    try:
+        script = _SCRIPT.validate_python(data)
+    except ValidationError as exc:
+        raise MissionError(pydantic_problems(exc, smap, (), OperatorAction)) from None
+    problems: list[Problem] = []
+    for i, a in enumerate(script):
+        try:
+            check_action(a, mission)
+        except ControlError as exc:
+            problems.append(smap.problem((i, "args"), str(exc)))
+    if problems:
+        raise MissionError(problems)
+    return script
+
+
+def as_script(items: Sequence[OperatorAction | dict[str, Any]]) -> list[OperatorAction]:
+    """Operator actions from ``items`` (actions or their mappings); a bad one is a :class:`ControlError`."""
+    try:
+        return [a if isinstance(a, OperatorAction) else OperatorAction.model_validate(a) for a in items]
+    except ValidationError as exc:
+        raise ControlError(f"operator script: {exc}") from None
+
+
+def script_from_records(records: Sequence[dict[str, Any]]) -> list[OperatorAction]:
+    """The operator script that replays a run's operator actions: its ``transitions.jsonl`` objects with
+    ``cause: operator`` and an ``action`` (pre-emption transition records are left out: the action makes them)."""
+    return [OperatorAction(t=r["t"], action=r["action"], args=r.get("args", {}), who=r["who"])
+            for r in records if r.get("cause") == OPERATOR and "action" in r]
+
+
+class OperatorChannel:
+    """The one place operator actions meet the run loop.
+
+    The endpoint's thread calls :meth:`submit` and :meth:`snapshot`; the run loop calls
+    :meth:`begin_tick` at the top of each tick (the only place an action takes effect) and :meth:`finish`.
+    ``mode`` is ``running``, ``paused`` or ``held``; ``records`` the actions applied so far."""
+
+    def __init__(self, mission: CompiledMission, script: Sequence[OperatorAction | dict[str, Any]] = (), *,
+                 live: bool = False, on_record: Callable[[dict[str, Any]], None] | None = None) -> None:
+        self.mission = mission
+        script = as_script(script)
+        for a in script:
+            check_action(a, mission)
+        check_script(script, live)
+        self._script = sorted(script, key=lambda a: a.t)  # stable: equal times keep their order
+        self._next = 0
+        self._queue: queue.SimpleQueue[OperatorAction] = queue.SimpleQueue()
+        self.on_record = on_record  # where each OperatorRecord's object goes (transitions.jsonl)
+        self.mode = RUNNING
+        self.records: list[OperatorRecord] = []
+        self._lock = threading.Lock()
+        self._state: dict[str, Any] = {"mission": mission.name, "state": "", "t": 0.0, "tick": 0, "paused": False,
+                                       "held": False, "outcome": None, "reason": "", "running": True}
+
+    # -- the endpoint's side ------------------------------------------------------------------------
+    def submit(self, action: OperatorAction) -> None:
+        """Queue ``action`` for the next tick boundary; raises :class:`ControlError` if the mission cannot
+        take it or the run has ended."""
+        check_action(action, self.mission)
+        if not self.snapshot()["running"]:
+            raise ControlError(f"{action.action}: the run has ended ({self.snapshot()['outcome']})")
+        self._queue.put(action)
+
+    def snapshot(self) -> dict[str, Any]:
+        """``GET /state``: active state, sim time and tick, the paused/held flags, outcome once decided."""
+        with self._lock:
+            return dict(self._state)
+
+    def describe(self) -> dict[str, Any]:
+        """``GET /mission``: what may be asked of this run (the state paths to pre-empt to, events to inject)."""
+        return {"mission": self.mission.name, "actions": list(ACTIONS), "states": sorted(self.mission.states),
+                "events": sorted(self.mission.events)}
+
+    # -- the run loop's side ------------------------------------------------------------------------
+    @property
+    def held(self) -> bool:
+        return self.mode == HELD
+
+    def begin_tick(self, k: int, obs: Observation, executor: Executor, stopping: Callable[[], bool]) -> Observation:
+        """Apply the actions due at the start of tick ``k`` (sim time ``obs.t``); while paused, wait on the
+        channel (in wall time) until resumed, pre-empted or ``stopping()``.  Returns ``obs`` with the events
+        injected this tick added."""
+        injected: list[str] = []
+        while True:
+            self._apply_due(k, obs.t, executor, injected)
+            self._publish(k, obs.t, executor)
+            if self.mode != PAUSED or executor.outcome is not None or stopping():
+                break
+            try:
+                action = self._queue.get(timeout=WAIT_S)
+            except queue.Empty:
+                continue
+            self._apply(action, k, obs.t, executor, injected)
+        if injected:
+            obs = Observation(t=obs.t, state=obs.state, sensors=obs.sensors, events=(*obs.events, *injected),
+                              metrics=obs.metrics, timings=obs.timings)
+        return obs
+
+    def finish(self, executor: Executor, t: float) -> None:
+        """The run has ended: the snapshot shows its outcome; later submissions are refused."""
+        with self._lock:
+            self._state.update(state=executor.state, t=round(t, 9), paused=False, held=False,
+                               outcome=executor.outcome, reason=executor.reason, running=False)
+
+    def _apply_due(self, k: int, t: float, executor: Executor, injected: list[str]) -> None:
+        script = self._script
+        while self._next < len(script) and script[self._next].t <= t + 1e-9 and executor.outcome is None:
+            self._apply(script[self._next], k, t, executor, injected)
+            self._next += 1
+        while executor.outcome is None:
+            try:
+                action = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            self._apply(action, k, t, executor, injected)
+
+    def _apply(self, a: OperatorAction, k: int, t: float, executor: Executor, injected: list[str]) -> None:
+        if executor.outcome is not None:
+            return
+        rec = OperatorRecord(t, k, a.action, a.who, executor.state, dict(a.args))
+        self.records.append(rec)
+        if self.on_record is not None:
+            self.on_record(rec.as_dict())
+        if a.action == "pause":
+            self.mode = PAUSED
+        elif a.action == "hold":
+            self.mode = HELD
+        elif a.action == "resume":
+            self.mode = RUNNING
+        elif a.action == "inject":
+            injected.append(a.args["event"])
+        else:  # preempt
+            self.mode = RUNNING
+            executor.preempt(a.args.get("to"), a.who, t)
+
+    def _publish(self, k: int, t: float, executor: Executor) -> None:
+        with self._lock:
+            self._state.update(state=executor.state, t=round(t, 9), tick=k, paused=self.mode == PAUSED,
+                               held=self.mode == HELD)
