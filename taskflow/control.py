@@ -77,9 +77,11 @@ _SCRIPT = TypeAdapter(list[OperatorAction])
 def check_action(action: OperatorAction, mission: CompiledMission) -> None:
     """Refuse a pre-emption to a state the mission does not have, or an event it does not declare."""
     to = action.args.get("to")
-    if action.action == "preempt" and to is not None and to not in mission.states:
-        raise ControlError(f"preempt: no state {to!r} in mission {mission.name!r} — "
-                           + describe_choices(to, sorted(mission.states)))
+    if action.action == "preempt" and to is not None and to not in mission.outside_regions:
+        inside = to in mission.states
+        raise ControlError((f"preempt: {to!r} is inside a parallel region, which is entered only with its parallel "
+                            "state" if inside else f"preempt: no state {to!r} in mission {mission.name!r}") + " — "
+                           + describe_choices(to, sorted(mission.outside_regions)))
     event = action.args.get("event")
     if action.action == "inject" and event is not None and event not in mission.events:
         raise ControlError(f"inject: event {event!r} is not declared by mission {mission.name!r} (its world, actions "
@@ -176,7 +178,7 @@ class OperatorChannel:
 
     def describe(self) -> dict[str, Any]:
         """``GET /mission``: what may be asked of this run (the state paths to pre-empt to, events to inject)."""
-        return {"mission": self.mission.name, "actions": list(ACTIONS), "states": sorted(self.mission.states),
+        return {"mission": self.mission.name, "actions": list(ACTIONS), "states": sorted(self.mission.outside_regions),
                 "events": sorted(self.mission.events)}
 
     # -- the run loop's side ------------------------------------------------------------------------

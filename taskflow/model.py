@@ -213,6 +213,13 @@ class CompiledMission:
     def build_robot(self) -> Robot:
         return self.robot_cls(self.robot_params)
 
+    @property
+    def outside_regions(self) -> list[str]:
+        """The paths of the states a transition from anywhere may enter: every state but those inside a
+        parallel region (a region is entered only with its parallel state) — the operator's pre-emption
+        targets."""
+        return [p for p, n in self.states.items() if n.region is None]
+
     def description_of(self, node: StateNode) -> str:
         """The ``description`` written on a state (empty when none)."""
         spec: Any = self.spec.machine

@@ -257,3 +257,17 @@ def test_graphs_draw_regions_side_by_side():
     assert 'state "a [region: commands nothing]" as both__a {' in mer
     dot = to_dot(m)
     assert 'label="a (region: commands nothing)";' in dot and "style=dashed;" in dot
+
+
+def test_an_operator_preempts_into_a_parallel_state_but_not_into_one_region():
+    from taskflow.control import ControlError, OperatorAction
+
+    text = TIMED.replace("A_AFTER", "5 s").replace("B_AFTER", "5 s").replace("A_OUTCOME", "succeeded") \
+        .replace("B_OUTCOME", "succeeded").replace("OUTCOME_MAP", "") + "    again:\n      transitions: [{to: both, after: 1 s}]\n"
+    mission_ = mission(text.replace("- {to: bad, done: failed}", "- {to: bad, done: failed}\n        - {to: again, after: 9 s}"))
+    r = drive(mission_, Script(), max_time=2.0, operator=[OperatorAction(t=1.0, action="preempt", args={"to": "again"}),
+                                                            OperatorAction(t=1.5, action="preempt", args={"to": "both"})])
+    assert [(round(rec.t, 3), rec.target) for rec in r.executor.transitions_fired][-2:] == [(1.0, "again"), (1.5, "both")]
+    assert r.executor.state == "both.a.a1|both.b.b1"  # every region entered again
+    with pytest.raises(ControlError, match="inside a parallel region"):
+        drive(mission_, Script(), max_time=2.0, operator=[OperatorAction(t=1.0, action="preempt", args={"to": "both.a.a1"})])
