@@ -199,9 +199,9 @@ def path_figure(run: RecordedRun) -> Figure | None:
     labelled: set[str] = set()
     for mk in run.scene.markers:
         _draw_marker(ax, mk, labelled)
-    for rec in run.transitions:  # where each transition happened, on the measured point
-        i = int(np.searchsorted(run.trace["t"], rec.t))
-        if rec.cause != "start" and i < cx.size:
+    for rec in run.transitions:  # where each transition fired: the last tick of the state it left
+        i = int(np.searchsorted(run.trace["t"], rec.t)) - 1
+        if rec.cause != "start" and 0 <= i < cx.size:
             ax.plot(cx[i], cy[i], "|", color="black", ms=9, mew=1.5, zorder=4,
                     label="transition" if "transition" not in labelled else None)
             labelled.add("transition")

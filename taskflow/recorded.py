@@ -132,7 +132,7 @@ def _command_labels(mission: CompiledMission) -> dict[str, tuple[str, str]]:
     return out
 
 
-def _load_mission(run_dir: Path, summary: dict[str, Any]) -> CompiledMission:
+def _load_mission(run_dir: Path) -> CompiledMission:
     from .loader import load_mission
 
     try:
@@ -157,7 +157,7 @@ def load_run(run_dir: str | Path) -> RecordedRun:
         transitions = [transition_from_dict(json.loads(line)) for line in lines if line.strip()]
     except (OSError, ValueError, KeyError) as exc:
         raise RunDirError(f"{d}: unreadable run record ({type(exc).__name__}: {exc})") from None
-    mission = _load_mission(d, summary)
+    mission = _load_mission(d)
     world_params = mission.world_params(int(summary.get("seed", mission.spec.seed)))
     scene = mission_scene(mission, world_params)
     return RecordedRun(d, read_trace(d), transitions, summary, mission, world_params, scene,

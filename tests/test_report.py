@@ -46,7 +46,7 @@ def test_a_failure_shows_the_chain_of_transitions_and_their_causes(failed: Recor
     assert len(chain) == len(failed.transitions)
     guard = next(r for r in failed.transitions if r.cause == "guard")
     value = guard.metrics["pos_error"]  # type: ignore[index]
-    assert any(f"guard 'pos_error < $tol for 0.2 s'" in line and f"pos_error = {value:.6g} m" in line for line in chain)
+    assert any("guard 'pos_error < $tol for 0.2 s'" in line and f"pos_error = {value:.6g} m" in line for line in chain)
     assert any("event 'tool_failed'" in line and "settle → operate.visit.broken" in line for line in chain)
     assert chain[-1].rstrip().endswith("operate.visit.broken → error: sub-machine operate.visit finished 'failed'")
 
