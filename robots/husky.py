@@ -52,6 +52,7 @@ class Husky(Robot):
     Params: ClassVar[type[HuskyParams]] = HuskyParams
     command_interface: ClassVar[str] = "unicycle"
     command_keys: ClassVar[dict[str, int]] = {"v": 1, "w": 1}
+    command_units: ClassVar[dict[str, tuple[tuple[str, str], ...]]] = {"v": (("v", "m/s"),), "w": (("w", "rad/s"),)}
     observations: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar(), "state.w": scalar()}
     sensors: ClassVar[dict[str, str]] = {"front_camera": "rgbd_camera", "rear_camera": "rgbd_camera", "lidar": "lidar"}
 

@@ -210,6 +210,9 @@ class MobileIiwa(Robot):
     Params: ClassVar[type[MobileIiwaParams]] = MobileIiwaParams
     command_interface: ClassVar[str] = "base_arm"
     command_keys: ClassVar[dict[str, int]] = {"base_twist": 3, "arm_dq": 7}
+    command_units: ClassVar[dict[str, tuple[tuple[str, str], ...]]] = {
+        "base_twist": (("v_x", "m/s"), ("v_y", "m/s"), ("w_z", "rad/s")),
+        "arm_dq": tuple((f"dq_{j}", "rad") for j in range(1, 8))}
     observations: ClassVar[dict[str, ObsSpec]] = {"state.q": array(7), "state.qd": array(7), "state.q_ref": array(7),
                                                   "state.base_twist": array(3), "state.odom": array(3)}
     sensors: ClassVar[dict[str, str]] = {"camera": "rgb_camera"}

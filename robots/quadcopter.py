@@ -91,6 +91,8 @@ class Quadcopter(Robot):
     Params: ClassVar[type[QuadcopterParams]] = QuadcopterParams
     command_interface: ClassVar[str] = "body_velocity"
     command_keys: ClassVar[dict[str, int]] = {"nu": 4}
+    command_units: ClassVar[dict[str, tuple[tuple[str, str], ...]]] = {
+        "nu": (("v_x", "m/s"), ("v_y", "m/s"), ("v_z", "m/s"), ("w_z", "rad/s"))}
     observations: ClassVar[dict[str, ObsSpec]] = {"state.nu": array(4)}
     sensors: ClassVar[dict[str, str]] = {"camera": "rgb_camera"}
 

@@ -121,6 +121,7 @@ class Racecar(Robot):
     Params: ClassVar[type[RacecarParams]] = RacecarParams
     command_interface: ClassVar[str] = "ackermann"
     command_keys: ClassVar[dict[str, int]] = {"v": 1, "steer": 1}
+    command_units: ClassVar[dict[str, tuple[tuple[str, str], ...]]] = {"v": (("v", "m/s"),), "steer": (("steer", "rad"),)}
     observations: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar(), "state.steer": scalar()}
     sensors: ClassVar[dict[str, str]] = {"front_camera": "rgbd_camera", "rear_camera": "rgbd_camera", "lidar": "lidar"}
 

@@ -14,16 +14,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 import pybullet as p
-from pydantic import Field
+from pydantic import BaseModel, Field
 
 from taskflow_sim.bodies import BodyOptions, GroundBody, make_body
 from taskflow_sim.car_scene import add_floor, connect
 from taskflow_sim.stepped import SteppedWorld, check_command
-from taskflow.api import Command, Observation, Robot, RobotNeeds, StrictModel
+from taskflow.api import Command, Marker, Observation, Robot, RobotNeeds, StrictModel
 from taskflow.registry import register_world
 
 
@@ -66,7 +66,14 @@ class FlatGround(SteppedWorld[GroundScene]):
 
     Params: ClassVar[type[FlatGroundParams]] = FlatGroundParams
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "yaw", "v")
+    poses: ClassVar[dict[str, tuple[str, str, str | None]]] = {"robot": ("x", "y", "yaw")}
     needs: ClassVar[RobotNeeds] = RobotNeeds(body=True)
+
+    @classmethod
+    def scene(cls, params: BaseModel) -> list[Marker]:
+        """The start pose of the robot frame."""
+        x, y, yaw = cast(FlatGroundParams, params).start
+        return [Marker.point("start", "start", x, y, yaw=yaw)]
 
     params: FlatGroundParams
 

@@ -35,7 +35,7 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, cast
 
 import cv2
 import numpy as np
@@ -47,7 +47,8 @@ from taskflow_sim.faults import FaultIntervals, IntervalFault
 from taskflow_sim.quad_scene import Column, QuadScene, Room
 from taskflow_sim.room_landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
 from taskflow_sim.stepped import SensorSchedule, SteppedWorld, check_command
-from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message, scalar, sequence
+from taskflow.api import (Command, Marker, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message,
+                          scalar, sequence)
 from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow.registry import register_world
 
@@ -171,6 +172,7 @@ class QuadRoom(SteppedWorld[QuadScene]):
     events: ClassVar[tuple[str, ...]] = ("collision",)
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "z", "yaw", "vx", "vy", "vz", "wz",
                                                     "obstacle_clearance", "wall_clearance")
+    poses: ClassVar[dict[str, tuple[str, str, str | None]]] = {"robot": ("x", "y", "yaw")}
     needs: ClassVar[RobotNeeds] = RobotNeeds(interfaces=("body_velocity",), sensors={"camera": "rgb_camera"})
     observations: ClassVar[dict[str, ObsSpec]] = {  # geometric mode: points, obstacle; rendered: image, keyframes
         "sensors.frame_id": scalar(), "sensors.frame_t": scalar(), "sensors.points": message(FeatureView),
@@ -178,6 +180,20 @@ class QuadRoom(SteppedWorld[QuadScene]):
         "sensors.image": message(Image), "sensors.keyframes": sequence(optional=True, of=Image)}
 
     params: QuadRoomParams
+
+    @classmethod
+    def scene(cls, params: BaseModel) -> list[Marker]:
+        """The room's walls, the columns, the start pose and every taught keyframe pose."""
+        wp = cast(QuadRoomParams, params)
+        r = wp.room
+        out = [Marker("boundary", "room walls", ((r.x0, r.y0), (r.x1, r.y0), (r.x1, r.y1), (r.x0, r.y1)), closed=True)]
+        for i, o in enumerate(wp.obstacles):
+            label = f"obstacle {i + 1}"
+            out.append(Marker.box("obstacle", label, o.x, o.y, o.width, o.depth, o.yaw) if o.depth > 0.0
+                       else Marker.point("obstacle", label, o.x, o.y, radius=o.width / 2))
+        out.append(Marker.point("start", "start", wp.start[0], wp.start[1], yaw=wp.start[3]))
+        out += [Marker.point("keyframe", f"keyframe {k.id}", k.pose[0], k.pose[1], yaw=k.pose[3]) for k in wp.keyframes]
+        return out
     robot: Quadcopter
 
     def __init__(self, robot: Robot, params: QuadRoomParams, seed: int, gui: bool = False) -> None:

@@ -70,7 +70,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal, Mapping
+from typing import Any, ClassVar, Literal, Mapping, cast
 
 import numpy as np
 import pybullet as p
@@ -86,7 +86,7 @@ from taskflow_sim.screw_perception import MarkerDetection, PoseNoise, RenderedDe
 from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow_sim.screwdriver import BitErrors, Screwdriver
 from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
-from taskflow.api import Command, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message
+from taskflow.api import Command, Marker, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message
 from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import register_world
 from taskflow.spatial import rotation_angle
@@ -206,6 +206,8 @@ class ScrewConveyor(SteppedWorld):
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("base_x", "base_y", "base_yaw", "base_speed", "base_yaw_rate",
                                                     "arm_speed", "part_x", "part_y", "part_yaw",
                                                     "tool_err_t", "tool_err_r", "contact_force")
+    poses: ClassVar[dict[str, tuple[str, str, str | None]]] = {"robot": ("base_x", "base_y", "base_yaw"),
+                                                               "part": ("part_x", "part_y", "part_yaw")}
     actions: ClassVar[dict[str, tuple[str, ...]]] = {"screwdriver": ("tool_activated", "tool_failed", "screw_done")}
     action_params: ClassVar[dict[str, type[BaseModel]]] = {"screwdriver": ScrewdriverParams}
     needs: ClassVar[RobotNeeds] = RobotNeeds(interfaces=("base_arm",), sensors={"camera": "rgb_camera"})
@@ -213,6 +215,12 @@ class ScrewConveyor(SteppedWorld):
                                                   "sensors.wrench": message(Wrench, optional=False)}
 
     params: ScrewWorldParams
+
+    @classmethod
+    def scene(cls, params: BaseModel) -> list[Marker]:
+        """Where the part starts (its path is the ``part`` pose of the trace)."""
+        x, y, yaw = cast(ScrewWorldParams, params).part_start
+        return [Marker.point("object", "part at start", x, y, yaw=yaw)]
     robot: MobileIiwa
 
     def __init__(self, robot: Robot, params: ScrewWorldParams, seed: int, gui: bool = False) -> None:

@@ -39,10 +39,10 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, cast
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from taskflow_robots.racecar import CameraMount
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
@@ -52,7 +52,7 @@ from taskflow_sim.perception_geometric import GeometricPerception
 from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
 from taskflow_sim.stepped import SensorSchedule
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
-from taskflow.api import ObsSpec, Observation, Robot, RobotNeeds, message, text
+from taskflow.api import Marker, ObsSpec, Observation, Robot, RobotNeeds, message, text
 from taskflow.messages import Detection
 from taskflow.registry import register_world
 
@@ -90,6 +90,16 @@ class VikiGroundParams(FlatGroundParams):
         if self.image_size is not None and min(self.image_size) < 8:
             raise ValueError(f"image_size must be at least 8x8 pixels, got {self.image_size}")
         return self
+
+
+def object_position(wp: VikiGroundParams) -> tuple[float, float]:
+    """Where the object is placed: ``object_xy``, or ``object_distance`` / ``object_bearing`` from the start
+    pose (heading-relative)."""
+    if wp.object_xy is not None:
+        return float(wp.object_xy[0]), float(wp.object_xy[1])
+    sx, sy, syaw = wp.start
+    a = syaw + wp.object_bearing
+    return sx + wp.object_distance * math.cos(a), sy + wp.object_distance * math.sin(a)
 
 
 @register_world("viki_ground")
@@ -137,15 +147,18 @@ class VikiGround(FlatGround):
         self._last_xy: tuple[float, float] | None = None
 
     # --- scene ---------------------------------------------------------------------------------
+    @classmethod
+    def scene(cls, params: BaseModel) -> list[Marker]:
+        """The start pose and the object (with its footprint radius) as placed."""
+        wp = cast(VikiGroundParams, params)
+        x, y = object_position(wp)
+        return [*super().scene(wp), Marker.point("object", f"object ({wp.object_kind})", x, y,
+                                                 radius=SHAPES[wp.object_kind].footprint_radius())]
+
     def _populate(self) -> None:
         self._init_state()
         wp, rp = self.params, self.robot.params
-        sx, sy, syaw = wp.start
-        if wp.object_xy is not None:
-            ox, oy = wp.object_xy
-        else:
-            a = syaw + wp.object_bearing
-            ox, oy = sx + wp.object_distance * math.cos(a), sy + wp.object_distance * math.sin(a)
+        ox, oy = object_position(wp)
         self.object = PlacedObject(SHAPES[wp.object_kind], float(ox), float(oy), float(wp.object_yaw))
         scene = self._require_scene()
         self.object_body = create_body(scene.client, self.object)

@@ -25,10 +25,11 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict
 
+from .markers import ControlPoint, Marker, TaskScene
 from .specs import ObsSpec, RobotNeeds, array, mapping, message, scalar, sequence, text
 
-__all__ = ["Command", "MemoryKey", "NoParams", "ObsSpec", "Observation", "Robot", "RobotNeeds", "StepResult",
-           "StrictModel", "Task", "TaskContext", "World", "array", "mapping", "message", "scalar", "sequence", "text"]
+__all__ = ["Command", "ControlPoint", "Marker", "MemoryKey", "NoParams", "ObsSpec", "Observation", "Robot", "RobotNeeds", "StepResult",
+           "StrictModel", "Task", "TaskContext", "TaskScene", "World", "array", "mapping", "message", "scalar", "sequence", "text"]
 
 Command = dict[str, NDArray[np.float64]]
 """Robot command: named arrays (e.g. ``{"v": [0.3], "steer": [0.1]}``); keys are the robot's."""
@@ -196,6 +197,13 @@ class Task(Generic[ParamsT, RobotParamsT]):
     def on_exit(self, t: float) -> None:
         """Called once when the state is left (default: nothing)."""
 
+    @classmethod
+    def scene(cls, params: BaseModel, profiles: Mapping[str, BaseModel], robot_params: BaseModel | None) -> TaskScene:
+        """What this task with these parameters draws in figures and viewers: the goal it drives to, the
+        point of the robot its metrics measure (:class:`~taskflow.markers.ControlPoint`).  ``params``,
+        ``profiles`` and ``robot_params`` are those its context would get.  Default: nothing."""
+        return TaskScene()
+
 
 class Robot:
     """A robot description: parameters, limits, command layout.  No simulator code here.
@@ -212,6 +220,9 @@ class Robot:
     Params: ClassVar[type[BaseModel]] = NoParams
     command_interface: ClassVar[str] = ""
     command_keys: ClassVar[dict[str, int]] = {}
+    command_units: ClassVar[dict[str, tuple[tuple[str, str], ...]]] = {}
+    """Per command key, each component's (name, unit): ``{"base_twist": (("v_x", "m/s"), ("v_y", "m/s"),
+    ("w_z", "rad/s"))}`` — what figures and exports label the trace's ``cmd.KEY.i`` columns with."""
     observations: ClassVar[dict[str, ObsSpec]] = {}
     sensors: ClassVar[dict[str, str]] = {}
 
@@ -247,6 +258,9 @@ class World:
     action_params: ClassVar[dict[str, type[BaseModel]]] = {}
     needs: ClassVar[RobotNeeds] = RobotNeeds()
     observations: ClassVar[dict[str, ObsSpec]] = {}
+    poses: ClassVar[dict[str, tuple[str, str, str | None]]] = {}
+    """Planar ground-truth poses for figures and exports: body name → the :attr:`ground_truth_keys` of its
+    x and y (m) and yaw (rad; None when the body has no heading).  The first is the robot's."""
 
     physics_hz: float = 240.0
 
@@ -281,6 +295,12 @@ class World:
     def summary_metrics(self) -> dict[str, Any]:
         """Extra end-of-run metrics for ``summary.json`` (ground-truth errors ...)."""
         return {}
+
+    @classmethod
+    def scene(cls, params: BaseModel) -> list[Marker]:
+        """What the world's (drawn) parameters put in the scene, for figures and viewers: obstacles, the
+        object, keyframes, walls, the start pose (:class:`~taskflow.markers.Marker`).  Default: nothing."""
+        return []
 
     # --- asynchronous actions ---------------------------------------------------------------
     def start_action(self, name: str, params: Mapping[str, Any]) -> None:

@@ -1,4 +1,4 @@
-"""``taskflow`` command line: run, ctl, validate, graph, schema, batch, teach, plot, check, list, describe.
+"""``taskflow`` command line: run, ctl, validate, graph, schema, batch, teach, plot, export, check, list, describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
 130 interrupted.
@@ -77,22 +77,17 @@ def cmd_run(args: argparse.Namespace) -> int:
                          progress=progress, control=control, operator=operator)
     if progress is not None:
         sys.stderr.write("\n")
-    s, timing = result.summary, result.timing
-    print(f"outcome: {s['outcome']} ({s.get('reason', '')})")
-    print(f"final state: {s['final_state']}   sim time: {s['sim_time_s']:.2f} s   wall: {timing.get('wall_time_s', 0):.2f} s"
-          f"   RTF: {timing.get('real_time_factor') or 0:.1f}x   ticks: {s['ticks']}")
-    for loop, c in s.get("items", {}).items():
-        print(f"  items of {loop}: {c['succeeded']}/{c['attempted']} succeeded (rule: {c['rule']}, "
-              f"{c['required']} required)")
-    shown = {k: v for k, v in s["metrics"].items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
-    for k in sorted(shown)[:20]:
-        print(f"  {k:32s} {shown[k]:.6g}")
-    print(f"run record: {result.run_dir}")
+    s = result.summary
+    _print_run(result)
     if args.plot and result.run_dir is not None:
         from .plots import plot_run
 
         for f in plot_run(result.run_dir):
             print(f"figure: {f}")
+    if args.record and result.run_dir is not None:
+        from .telemetry import export_run
+
+        print(f"telemetry: {export_run(result.run_dir, args.record)}")
     if s["outcome"] == "aborted" and "interrupted" in s.get("reason", ""):
         return 130
     return 0 if result.succeeded else 1
@@ -152,6 +147,20 @@ def cmd_ctl(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     print(f"{reply['queued']} queued by {reply['who']}: applied at the next tick boundary")
     return 0
+def _print_run(result) -> None:  # type: ignore[no-untyped-def]
+    """The terminal summary (:mod:`taskflow.report`) from the run's record, which is read back for it."""
+    from .recorded import RunDirError, load_run
+    from .report import format_report
+
+    s = result.summary
+    if result.run_dir is None or not (Path(result.run_dir) / "trace.csv").is_file():
+        print(f"outcome: {s['outcome']} ({s.get('reason', '')})")
+    else:
+        try:
+            print(format_report(load_run(result.run_dir), result.timing))
+        except RunDirError as exc:
+            print(f"outcome: {s['outcome']} ({s.get('reason', '')})\n(no metric summary: {exc})")
+    print(f"run record: {result.run_dir}")
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -216,15 +225,26 @@ def cmd_teach(args: argparse.Namespace) -> int:
 
 def cmd_plot(args: argparse.Namespace) -> int:
     from .plots import plot_run
+    from .recorded import RunDirError
 
-    run_dir = Path(args.run_dir)
-    if not (run_dir / "trace.csv").is_file():
-        what = ("no such folder" if not run_dir.exists() else
-                "a batch folder: plot one of its trial-NNNNN folders (taskflow batch --keep-runs)"
-                if (run_dir / "batch.json").is_file() else "not a run folder (it has no trace.csv)")
-        raise UsageError(f"{run_dir}: {what}")
-    for f in plot_run(run_dir):
-        print(f)
+    try:
+        for f in plot_run(args.run_dir):
+            print(f)
+    except RunDirError as exc:
+        raise UsageError(str(exc)) from None
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from .recorded import RunDirError
+    from .telemetry import export_run
+
+    try:
+        print(export_run(args.run_dir, args.format, args.output))
+    except RunDirError as exc:
+        raise UsageError(str(exc)) from None
+    except OSError as exc:
+        raise UsageError(f"cannot write {args.output or 'the export'}: {exc.strerror or exc}") from None
     return 0
 
 
@@ -316,6 +336,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-control", action="store_true", help="no operator endpoint")
     r.add_argument("--operator-script", default=None, metavar="FILE.yaml",
                    help="operator actions to apply at given sim times: a list of {t, action, args, who}")
+    r.add_argument("--record", choices=["mcap"], default=None,
+                   help="also write the run's telemetry in this format (RUN_DIR/telemetry.mcap) when it ends")
     r.set_defaults(fn=cmd_run)
 
     o = sub.add_parser("ctl", help="operate a running mission: state, mission, pause, hold, resume, preempt, inject")
@@ -361,6 +383,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plot", help="write the figures of a run directory as PNG")
     p.add_argument("run_dir")
     p.set_defaults(fn=cmd_plot)
+
+    e = sub.add_parser("export", help="convert a run directory's record to telemetry viewers open (MCAP: Foxglove, ROS 2)")
+    e.add_argument("run_dir")
+    e.add_argument("--format", choices=["mcap"], default="mcap")
+    e.add_argument("-o", "--output", default=None, help="output file (default RUN_DIR/telemetry.FORMAT)")
+    e.set_defaults(fn=cmd_export)
 
     c = sub.add_parser("check", help="conformance check of every registered world x robot it hosts; exit 1 on a failure")
     c.add_argument("--world", action="append", default=[], help="only this world (repeatable)")

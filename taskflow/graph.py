@@ -1,15 +1,58 @@
 """The nested machine as a Mermaid ``stateDiagram-v2`` or a Graphviz ``dot`` digraph.
 
 A parallel state's regions are drawn side by side inside it (Mermaid's ``--`` concurrency separator;
-dashed clusters in dot), each labelled with the command parts it owns."""
+dashed clusters in dot), each labelled with the command parts it owns.
+
+Dot output is laid out top to bottom with every composite a cluster.  Each non-parallel composite (and
+the machine itself) holds a small filled start node with an edge to its initial state; a transition to or
+from a composite is drawn from/to that start node, clipped at the cluster's border (``lhead`` /
+``ltail``, ``compound=true``), so no stray node sits on a border.  A parallel state has no single initial
+state: its anchor is an invisible node (each region shows its own start).  Long labels are wrapped to
+:data:`WRAP` characters a line so a wide machine stays readable.
+
+Mermaid labels are written with Mermaid's own entity codes (``#lt;``, ``#gt;``, ``#58;`` …), which
+it renders as the characters written — never HTML escapes such as ``&lt;``.
+"""
 
 from __future__ import annotations
 
+import textwrap
+
 from .model import CompiledMission, StateNode
+
+WRAP = 28
+"""Longest line of a dot label before it wraps (characters)."""
+
+_MERMAID_ENTITIES = {"#": "#35;", "<": "#lt;", ">": "#gt;", ":": "#58;", ";": "#59;", '"': "#quot;",
+                     "{": "#123;", "}": "#125;"}
 
 
 def _mid(node: StateNode) -> str:
     return node.path.replace(".", "__").replace("-", "_")
+
+
+def mermaid_text(text: str, quoted: bool = False) -> str:
+    """``text`` with each character Mermaid would read as syntax written as its entity code; inside a
+    quoted state description (``quoted``) only ``"``, ``#``, ``<`` and ``>`` need it."""
+    keep = set(":;{}") if quoted else set()
+    return "".join(c if c in keep else _MERMAID_ENTITIES.get(c, c) for c in text)
+
+
+def _state_label(node: StateNode) -> str:
+    label = node.name
+    if node.owns is not None:
+        label += f" [region: {', '.join(node.owns) or 'commands nothing'}]"
+    if node.parallel:
+        label += " [parallel]"
+    if node.task_cls is not None and node.is_leaf and not node.final:
+        label += f" ({node.task_cls.name})"
+    if node.loop:
+        label += f" [foreach {node.loop.item} in {node.loop.items}]"
+    if node.history:
+        label += " [H]"
+    if node.final:
+        label += f" = {node.final}"
+    return label
 
 
 def to_mermaid(m: CompiledMission) -> str:
@@ -21,19 +64,7 @@ def to_mermaid(m: CompiledMission) -> str:
         for i, child in enumerate(node.children.values()):
             if node.parallel and i:
                 lines.append(f"{indent}--")
-            label = child.name
-            if child.owns is not None:
-                label += f" [region: {', '.join(child.owns) or 'commands nothing'}]"
-            if child.parallel:
-                label += " [parallel]"
-            if child.task_cls is not None and child.is_leaf and not child.final:
-                label += f" ({child.task_cls.name})"
-            if child.loop:
-                label += f" [foreach {child.loop.item} in {child.loop.items}]"
-            if child.history:
-                label += " [H]"
-            if child.final:
-                label += f" = {child.final}"
+            label = mermaid_text(_state_label(child), quoted=True)
             if child.children:
                 lines.append(f'{indent}state "{label}" as {_mid(child)} {{')
                 block(child, indent + "    ")
@@ -45,15 +76,39 @@ def to_mermaid(m: CompiledMission) -> str:
 
     block(m.root, "    ")
     for t in m.transitions:
-        label = t.label.replace(":", "∶").replace("<", "&lt;").replace(">", "&gt;")
-        lines.append(f"    {_mid(t.source)} --> {_mid(t.target)} : {label}")
+        lines.append(f"    {_mid(t.source)} --> {_mid(t.target)} : {mermaid_text(t.label)}")
     return "\n".join(lines)
 
 
+def _dot_text(text: str) -> str:
+    """A dot label: quotes escaped, wrapped at :data:`WRAP` characters (``\\n`` line breaks)."""
+    lines = textwrap.wrap(text, WRAP, break_long_words=False, break_on_hyphens=False) or [""]
+    return "\\n".join(line.replace("\\", "\\\\").replace('"', '\\"') for line in lines)
+
+
+def start_id(node: StateNode) -> str:
+    """The dot id of a composite's start node (the machine's: ``__start``)."""
+    return f"__start__{_mid(node)}" if node.path else "__start"
+
+
 def to_dot(m: CompiledMission) -> str:
-    lines = [f'digraph "{m.name}" {{', "    compound=true; rankdir=LR; node [shape=box, style=rounded];"]
+    lines = [f'digraph "{m.name}" {{',
+             "    compound=true; rankdir=TB; newrank=true; nodesep=0.3; ranksep=0.35;",
+             '    node [shape=box, style=rounded, fontsize=11]; edge [fontsize=9];']
+
+    def start_node(node: StateNode, indent: str) -> None:
+        if node.parallel:
+            lines.append(f'{indent}"{start_id(node)}" [shape=point, style=invis, width=0, height=0, label=""];')
+        else:
+            lines.append(f'{indent}"{start_id(node)}" [shape=circle, style=filled, fillcolor=black, width=0.15, '
+                         'height=0.15, fixedsize=true, label=""];')
 
     def block(node: StateNode, indent: str) -> None:
+        start_node(node, indent)
+        if not node.parallel and node.initial is not None:
+            first = node.children[node.initial]
+            lhead = f', lhead="cluster_{_mid(first)}"' if first.children else ""
+            lines.append(f'{indent}"{start_id(node)}" -> "{_anchor(first)}" [weight=10{lhead}];')
         for child in node.children.values():
             if child.children:
                 lines.append(f'{indent}subgraph "cluster_{_mid(child)}" {{')
@@ -67,19 +122,34 @@ def to_dot(m: CompiledMission) -> str:
                 if child.owns is not None:
                     extra.append(f"region: {', '.join(child.owns) or 'commands nothing'}")
                     lines.append(f"{indent}    style=dashed;")
-                lines.append(f'{indent}    label="{child.name}{" (" + ", ".join(extra) + ")" if extra else ""}";')
-                lines.append(f'{indent}    "{_mid(child)}" [shape=point];')
+                title = f"{child.name}{' (' + ', '.join(extra) + ')' if extra else ''}"
+                lines.append(f'{indent}    label="{_dot_text(title)}"; labeljust=l;')
                 block(child, indent + "    ")
                 lines.append(f"{indent}}}")
             else:
-                shape = ', shape=doublecircle' if child.final else ""
-                task = f"\\n({child.task_cls.name})" if child.task_cls is not None and not child.final else ""
-                fin = f"\\n= {child.final}" if child.final else ""
-                lines.append(f'{indent}"{_mid(child)}" [label="{child.name}{task}{fin}"{shape}];')
+                shape = ", peripheries=2" if child.final else ""
+                task = f" ({child.task_cls.name})" if child.task_cls is not None and not child.final else ""
+                fin = f" = {child.final}" if child.final else ""
+                second = _dot_text((task + fin).strip())
+                label = _dot_text(child.name) + (f"\\n{second}" if second else "")
+                lines.append(f'{indent}"{_mid(child)}" [label="{label}"{shape}];')
 
     block(m.root, "    ")
     for t in m.transitions:
-        label = t.label.replace('"', "'")
-        lines.append(f'    "{_mid(t.source)}" -> "{_mid(t.target)}" [label="{label}"];')
+        attrs = [f'label="{_dot_text(t.label)}"']
+        if t.source.children and not _contains(t.source, t.target):
+            attrs.append(f'ltail="cluster_{_mid(t.source)}"')
+        if t.target.children and not _contains(t.target, t.source):
+            attrs.append(f'lhead="cluster_{_mid(t.target)}"')
+        lines.append(f'    "{_anchor(t.source)}" -> "{_anchor(t.target)}" [{", ".join(attrs)}];')
     lines.append("}")
     return "\n".join(lines)
+
+
+def _anchor(node: StateNode) -> str:
+    """The node an edge to or from ``node`` attaches to: the leaf itself, a composite's start node."""
+    return start_id(node) if node.children else _mid(node)
+
+
+def _contains(outer: StateNode, node: StateNode) -> bool:
+    return any(a is outer for a in node.ancestors())

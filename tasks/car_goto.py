@@ -18,12 +18,13 @@ Metrics (from the observation's odometry, never ground truth):
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import ClassVar, Mapping, cast
 
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
 
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, scalar
+from taskflow.api import (ControlPoint, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext,
+                          TaskScene, array, scalar)
 from taskflow.registry import register_task
 from taskflow_tasks.targets import PlanarTarget
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
@@ -50,6 +51,13 @@ class CarGeometry(StrictModel):
     wheelbase: float
     v_max: float
     psi_max: float
+
+
+def car_control_point(gains: BaseModel | None, geometry: CarGeometry) -> ControlPoint:
+    """The point ``d`` ahead of the rear-axle midpoint that the car laws servo (``d`` from the gains, or
+    the wheelbase)."""
+    d = gains.d if isinstance(gains, CarGains) and gains.d is not None else geometry.wheelbase
+    return ControlPoint((float(d), 0.0), f"control point d = {d:g} m ahead of the rear axle")
 
 
 class CarGotoParams(PlanarTarget):
@@ -79,6 +87,12 @@ class CarGoto(Task[CarGotoParams, CarGeometry]):
         self.target_xy = np.asarray(params.target[:2], dtype=np.float64)
         self.target_yaw = float(params.target[2]) if len(params.target) == 3 else None
         self.direction = 0.0  # sign of the last non-zero speed command (see car_command)
+
+    @classmethod
+    def scene(cls, params: BaseModel, profiles: Mapping[str, BaseModel], robot_params: BaseModel | None) -> TaskScene:
+        """The target, and the control point ``d`` ahead of the rear axle where ``pos_error`` is measured."""
+        return TaskScene((cast(CarGotoParams, params).marker(),),
+                         car_control_point(profiles.get("gains"), cast(CarGeometry, robot_params)))
 
     def step(self, obs: Observation) -> StepResult:
         pose = np.asarray(obs.state["pose"], dtype=np.float64)

@@ -6,7 +6,7 @@ import math
 
 from pydantic import field_validator
 
-from taskflow.api import StrictModel
+from taskflow.api import Marker, StrictModel
 
 
 class PlanarTarget(StrictModel):
@@ -20,3 +20,8 @@ class PlanarTarget(StrictModel):
         if len(target) not in (2, 3) or not all(math.isfinite(v) for v in target):
             raise ValueError(f"target must be [x, y] or [x, y, yaw] with finite values, got {target}")
         return target
+
+    def marker(self) -> Marker:
+        """The target as a goal marker (with its yaw when it has one)."""
+        t = self.target
+        return Marker.point("goal", "target", t[0], t[1], yaw=t[2] if len(t) == 3 else None)

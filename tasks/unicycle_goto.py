@@ -26,13 +26,13 @@ curvature ``w / v`` is kept).  Metrics (from odometry, never ground truth): ``po
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import ClassVar, Mapping, cast
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, scalar
+from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, TaskScene, array, scalar
 from taskflow.registry import register_task
 from taskflow.spatial import wrap_angle
 from taskflow_tasks.targets import PlanarTarget
@@ -93,6 +93,11 @@ class UnicycleGoto(Task[UnicycleGotoParams, UnicycleLimits]):
         self.k_rho, self.k_alpha = gains.k_rho, gains.k_alpha
         self.target = np.asarray(params.target[:2], dtype=np.float64)
         self.target_yaw = float(params.target[2]) if len(params.target) == 3 else None
+
+    @classmethod
+    def scene(cls, params: BaseModel, profiles: Mapping[str, BaseModel], robot_params: BaseModel | None) -> TaskScene:
+        """The target; ``pos_error`` is measured at the robot's reported pose itself."""
+        return TaskScene((cast(UnicycleGotoParams, params).marker(),))
 
     def step(self, obs: Observation) -> StepResult:
         pose = np.asarray(obs.state["pose"], dtype=np.float64)

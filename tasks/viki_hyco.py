@@ -50,14 +50,15 @@ memory), ``v_cmd`` (m/s, signed command) and ``speed`` (m/s, measured).
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, Mapping, cast
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.racecar import CameraMount
-from taskflow.api import MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
+from taskflow.api import (ControlPoint, MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext,
+                          TaskScene, array, message)
 from taskflow.messages import Detection
 from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry
@@ -181,6 +182,13 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         self.theta_f: float | None = None
         self._sensors = (f"{self.camera}_camera",)
         self.last: Any = None  # last ServoOutput, for inspection
+
+    @classmethod
+    def scene(cls, params: BaseModel, profiles: Mapping[str, BaseModel], robot_params: BaseModel | None) -> TaskScene:
+        """The point of the robot frame where the object should end up (``desired``): the state has
+        reached its goal when this point lies on the object (the guards read the image error it implies)."""
+        x, y = cast(ViKiHyCoParams, params).desired
+        return TaskScene(control_point=ControlPoint((x, y), f"goal point of the object in the robot frame ({x:g}, {y:g}) m"))
 
     # -- the kinematic target --------------------------------------------------------------------
     def _set_target(self, pose: np.ndarray) -> None:

@@ -32,15 +32,16 @@ paper's ``-0.01 < h < 0.01`` m test; ``leg`` (0, 1); ``heading_error`` (rad) to 
 from __future__ import annotations
 
 import math
-from typing import ClassVar, Literal
+from typing import ClassVar, Literal, Mapping, cast
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 
-from taskflow.api import MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array
+from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, TaskScene,
+                          array)
 from taskflow.registry import register_task
-from taskflow_tasks.car_goto import CarGains, CarGeometry
+from taskflow_tasks.car_goto import CarGains, CarGeometry, car_control_point
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 from taskflow_tasks.viki_hyco import MEM_OBJECT
 from taskflow_tasks.viki_laws import reverse_control
@@ -132,6 +133,12 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
         self.final: FloatArray | None = None
         self.final_heading = 0.0
         self._sensors: tuple[str, ...] = () if params.camera == "none" else (f"{params.camera}_camera",)
+
+    @classmethod
+    def scene(cls, params: BaseModel, profiles: Mapping[str, BaseModel], robot_params: BaseModel | None) -> TaskScene:
+        """The control point ``d`` ahead of the rear axle, where ``pos_error`` (to the K-turn's end) is
+        measured; the K-turn's legs are known only at run time (from the first detection)."""
+        return TaskScene(control_point=car_control_point(profiles.get("gains"), cast(CarGeometry, robot_params)))
 
     def _plan(self, pose: FloatArray) -> None:
         O = np.asarray(MEM_OBJECT(self.memory), dtype=float)

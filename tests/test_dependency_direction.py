@@ -20,6 +20,7 @@ _PLUGINS = ("taskflow_sim", "taskflow_tasks", "taskflow_robots", "sim", "tasks",
 PUBLIC_API = (
     "taskflow.api",  # the contracts: Task, Robot, World, Observation, StrictModel, ...
     "taskflow.specs",  # observation specs (also re-exported by taskflow.api)
+    "taskflow.markers",  # scene markers and control points for figures (re-exported by taskflow.api)
     "taskflow.registry",  # register_task / register_robot / register_world
     "taskflow.messages",  # typed sensor messages: worlds produce them, tasks read them
     "taskflow.spatial",  # rigid-body maths named by direction

@@ -1,0 +1,164 @@
+"""A finished run directory read back: its trace, transitions, summary, and the mission it ran.
+
+Figures (:mod:`taskflow.plots`), the terminal summary (:mod:`taskflow.report`) and telemetry exports
+(:mod:`taskflow.telemetry`) all start from :func:`load_run`.  The mission is recompiled from the run's own
+``mission.yaml`` (world parameters as drawn for its seed), so units, guards, command components and the
+scene come from the declarations of the code that reads the record, checked as at load time.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel
+
+from .errors import MissionError
+from .guards import Comparison
+from .model import CompiledMission, EventTransition, GuardTransition
+from .records import TransitionRecord, read_trace
+from .scene import Scene, mission_scene
+
+
+class RunDirError(ValueError):
+    """A folder that is not a readable run record (the message says what it is instead)."""
+
+
+def transition_from_dict(d: dict[str, Any]) -> TransitionRecord:
+    """One line of ``transitions.jsonl`` as the :class:`~taskflow.records.TransitionRecord` that wrote it."""
+    return TransitionRecord(t=float(d["t"]), source=d["from"], target=d["to"], cause=d["cause"],
+                            state=d.get("state", ""), label=d.get("label", ""), index=d.get("index"),
+                            metrics=d.get("metrics"), event=d.get("event"), outcome=d.get("outcome"),
+                            item=d.get("item"), resumed=bool(d.get("resumed", False)))
+
+
+@dataclass(frozen=True)
+class Threshold:
+    """One comparison of a guard: ``metric op value`` (value in the metric's base unit), declared by the
+    transition ``source → target`` (state paths) written ``label``."""
+
+    metric: str
+    op: str
+    value: float
+    absolute: bool
+    source: str
+    target: str
+    label: str
+
+
+@dataclass
+class RecordedRun:
+    """Everything one run directory holds, plus what its mission declares.
+
+    ``trace`` maps column → array (:func:`~taskflow.records.read_trace`); ``transitions`` are the records of
+    ``transitions.jsonl`` in order; ``summary`` is ``summary.json``; ``mission`` the recompiled mission,
+    ``scene`` its markers and control points; ``metric_units`` metric → base unit; ``command_labels``
+    trace column ``cmd.KEY[.i]`` → (component name, unit)."""
+
+    dir: Path
+    trace: dict[str, np.ndarray]
+    transitions: list[TransitionRecord]
+    summary: dict[str, Any]
+    mission: CompiledMission
+    world_params: BaseModel
+    scene: Scene
+    metric_units: dict[str, str] = field(default_factory=dict)
+    command_labels: dict[str, tuple[str, str]] = field(default_factory=dict)
+
+    @property
+    def seed(self) -> int:
+        return int(self.summary.get("seed", self.mission.spec.seed))
+
+    def thresholds(self) -> list[Threshold]:
+        """Every metric comparison of every ``when`` guard or event condition, with its bound value."""
+        out: list[Threshold] = []
+        for tr in self.mission.transitions:
+            guard = tr.guard if isinstance(tr, (GuardTransition, EventTransition)) else None
+            if guard is None:
+                continue
+            for c in guard.comparisons():
+                if _bound(c):
+                    out.append(Threshold(c.metric, c.op, float(c.value), c.absolute,  # type: ignore[arg-type]
+                                         tr.source.path, tr.target.path, tr.label))
+        return out
+
+    def metric_columns(self) -> list[str]:
+        """The metric names with at least one value in the trace, in trace order."""
+        return [c[2:] for c in self.trace if c.startswith("m.") and np.isfinite(self.trace[c]).any()]
+
+    def pose_track(self, body: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
+        """Ground-truth x, y (and yaw, None when the world gives none) of ``body`` over the trace."""
+        keys = self.scene.poses.get(body)
+        if keys is None or f"gt.{keys[0]}" not in self.trace or f"gt.{keys[1]}" not in self.trace:
+            return None
+        yaw = self.trace.get(f"gt.{keys[2]}") if keys[2] is not None else None
+        return self.trace[f"gt.{keys[0]}"], self.trace[f"gt.{keys[1]}"], yaw
+
+    def control_track(self) -> tuple[np.ndarray, np.ndarray]:
+        """x, y of the point each tick's state measures: its control point (:meth:`Scene.control_point`)
+        where the state declares one, the robot's reported pose elsewhere; NaN where the trace has no pose."""
+        track = self.pose_track(next(iter(self.scene.poses), ""))
+        n = self.trace["t"].size
+        if track is None:
+            return np.full(n, np.nan), np.full(n, np.nan)
+        x, y, yaw = track
+        cx, cy = x.copy(), y.copy()
+        if yaw is not None:
+            states = self.trace["state"]
+            for state, cp in self.scene.control_points.items():
+                m = states == state
+                if m.any():
+                    cx[m], cy[m] = cp.of(x[m], y[m], yaw[m])  # type: ignore[arg-type]
+        return cx, cy
+
+
+def _bound(c: Comparison) -> bool:
+    return c.value is not None and math.isfinite(float(c.value))
+
+
+def _command_labels(mission: CompiledMission) -> dict[str, tuple[str, str]]:
+    robot = mission.robot_cls
+    out: dict[str, tuple[str, str]] = {}
+    for key, n in robot.command_keys.items():
+        declared = robot.command_units.get(key, ())
+        for i in range(n):
+            col = f"cmd.{key}" if n == 1 else f"cmd.{key}.{i}"
+            name, unit = declared[i] if i < len(declared) else (str(i), "?")
+            out[col] = (key if n == 1 else f"{key}.{name}", unit)
+    return out
+
+
+def _load_mission(run_dir: Path) -> CompiledMission:
+    from .loader import load_mission
+
+    try:
+        return load_mission(run_dir / "mission.yaml")
+    except MissionError as exc:
+        first = str(exc.problems[0]) if exc.problems else str(exc)
+        raise RunDirError(f"{run_dir}: its mission.yaml no longer loads ({first}) — the record was written by "
+                          "a mission this code cannot compile") from None
+
+
+def load_run(run_dir: str | Path) -> RecordedRun:
+    """Read ``run_dir``; :class:`RunDirError` (one line) when it is not a run record."""
+    d = Path(run_dir)
+    if not (d / "trace.csv").is_file():
+        what = ("no such folder" if not d.exists() else
+                "a batch folder: use one of its trial-NNNNN folders (taskflow batch --keep-runs)"
+                if (d / "batch.json").is_file() else "not a run folder (it has no trace.csv)")
+        raise RunDirError(f"{d}: {what}")
+    try:
+        summary = json.loads((d / "summary.json").read_text())
+        lines = (d / "transitions.jsonl").read_text().splitlines()
+        transitions = [transition_from_dict(json.loads(line)) for line in lines if line.strip()]
+    except (OSError, ValueError, KeyError) as exc:
+        raise RunDirError(f"{d}: unreadable run record ({type(exc).__name__}: {exc})") from None
+    mission = _load_mission(d)
+    world_params = mission.world_params(int(summary.get("seed", mission.spec.seed)))
+    scene = mission_scene(mission, world_params)
+    return RecordedRun(d, read_trace(d), transitions, summary, mission, world_params, scene,
+                       dict(mission.metric_units), _command_labels(mission))

@@ -1,0 +1,151 @@
+"""Graph output: initial states marked, no stray nodes on cluster borders, top-to-bottom layout with
+wrapped labels, Mermaid labels that render as written."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from taskflow.graph import WRAP, mermaid_text, start_id, to_dot, to_mermaid
+from taskflow.loader import load_mission, load_mission_text
+
+ROOT = Path(__file__).resolve().parents[1]
+MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
+PARALLEL = """
+mission: par
+robot: toy_point
+world: {name: toy_line, params: {start: 0.0}}
+rate_hz: 20
+max_time: 30 s
+machine:
+  initial: both
+  states:
+    both:
+      regions:
+        a:
+          initial: a1
+          states:
+            a1: {transitions: [{to: a_end, when: "visible > 0.5"}]}
+            a_end: {final: succeeded}
+        b:
+          initial: b1
+          states:
+            b1: {transitions: [{to: b_end, after: 1 s}]}
+            b_end: {final: succeeded}
+      transitions:
+        - {to: ok, done: succeeded}
+    ok: {final: succeeded}
+"""
+
+
+def _nodes(dot: str) -> dict[str, str]:
+    """node id → its attribute text."""
+    return dict(re.findall(r'^\s*"([^"]+)" \[(.*)\];$', dot, re.M))
+
+
+def _edges(dot: str) -> list[tuple[str, str, str]]:
+    return re.findall(r'^\s*"([^"]+)" -> "([^"]+)" \[(.*)\];$', dot, re.M)
+
+
+def _cluster_members(dot: str) -> dict[str, set[str]]:
+    """cluster name → every node id declared inside it (nested clusters included)."""
+    members: dict[str, set[str]] = {}
+    stack: list[str] = []
+    for line in dot.splitlines():
+        m = re.match(r'\s*subgraph "(cluster_[^"]+)" \{', line)
+        if m:
+            stack.append(m.group(1))
+            members[m.group(1)] = set()
+        elif line.strip() == "}" and stack:
+            stack.pop()
+        else:
+            n = re.match(r'^\s*"([^"]+)" \[', line)
+            if n:
+                for c in stack:
+                    members[c].add(n.group(1))
+    return members
+
+
+@pytest.mark.parametrize("path", MISSIONS, ids=lambda p: p.stem)
+def test_dot_marks_every_initial_state_and_has_no_stray_nodes(path: Path) -> None:
+    m = load_mission(path)
+    dot = to_dot(m)
+    assert "rankdir=TB" in dot and "compound=true" in dot
+    nodes, edges = _nodes(dot), _edges(dot)
+    # the only point-shaped nodes are invisible anchors of parallel states; start nodes are filled dots
+    for nid, attrs in nodes.items():
+        if "shape=point" in attrs:
+            assert "style=invis" in attrs and any(start_id(n) == nid for n in m.states.values() if n.parallel)
+    composites = [m.root, *(n for n in m.states.values() if n.children and not n.parallel)]
+    for node in composites:
+        sid = start_id(node)
+        assert "style=filled" in nodes[sid] and "fillcolor=black" in nodes[sid]
+        first = node.children[node.initial]  # type: ignore[index]
+        out = [e for e in edges if e[0] == sid and "weight=10" in e[2]]
+        assert len(out) == 1, f"{node.path or 'root'}: one start edge"
+        _, head, attrs = out[0]
+        if first.children:
+            assert head == start_id(first) and f'lhead="cluster_{first.path.replace(".", "__")}"' in attrs
+        else:
+            assert head == first.path.replace(".", "__")
+    # every lhead/ltail names a cluster that holds the edge's end, so dot clips the edge at its border
+    members = _cluster_members(dot)
+    for tail, head, attrs in edges:
+        for key, end in (("lhead", head), ("ltail", tail)):
+            mm = re.search(rf'{key}="([^"]+)"', attrs)
+            if mm:
+                assert end in members[mm.group(1)]
+    assert len([e for e in edges if "weight=10" not in e[2]]) == len(m.transitions)
+
+
+def test_dot_labels_are_wrapped_so_wide_machines_stay_narrow() -> None:
+    dot = to_dot(load_mission(ROOT / "missions" / "screw_fastening.yaml"))
+    labels = re.findall(r'label="([^"]*)"', dot)
+    longest_word = max(len(w) for lab in labels for w in lab.replace("\\n", " ").split())
+    assert max(len(line) for lab in labels for line in lab.split("\\n")) <= max(WRAP, longest_word)
+    assert "ee_error.t < $eps_t and\\nee_error.r <= $eps_r" in dot
+
+
+@pytest.mark.skipif(shutil.which("dot") is None, reason="graphviz (dot) is not installed: layout not measured")
+def test_the_screw_graph_is_at_most_1600_px_wide() -> None:
+    svg = subprocess.run(["dot", "-Tsvg"], input=to_dot(load_mission(ROOT / "missions" / "screw_fastening.yaml")),
+                         capture_output=True, text=True, check=True).stdout
+    width = float(re.search(r'<svg width="([\d.]+)pt"', svg).group(1))  # type: ignore[union-attr]
+    assert width * 4 / 3 <= 1600
+
+
+def test_parallel_states_get_an_invisible_anchor_and_each_region_its_start() -> None:
+    m = load_mission_text(PARALLEL, "par.yaml")
+    dot = to_dot(m)
+    nodes = _nodes(dot)
+    assert "style=invis" in nodes["__start__both"]
+    for region in ("both__a", "both__b"):
+        assert "fillcolor=black" in nodes[f"__start__{region}"]
+    assert 'label="a (region: commands nothing)";' in dot.replace(" labeljust=l;", "")
+    mer = to_mermaid(m)
+    assert "state both__a {" not in mer and "\n        --\n" in mer
+
+
+def _decode(text: str) -> str:
+    names = {"lt": "<", "gt": ">", "quot": '"'}
+    return re.sub(r"#(\w+);", lambda mm: names.get(mm.group(1)) or chr(int(mm.group(1))), text)
+
+
+@pytest.mark.parametrize("path", MISSIONS, ids=lambda p: p.stem)
+def test_mermaid_labels_render_as_written(path: Path) -> None:
+    m = load_mission(path)
+    mer = to_mermaid(m)
+    assert "&lt;" not in mer and "&gt;" not in mer and "&amp;" not in mer
+    arrows = [line for line in mer.splitlines() if " --> " in line and " : " in line]
+    assert [_decode(a.split(" : ", 1)[1]) for a in arrows] == [t.label for t in m.transitions]
+    for a in arrows:
+        bare = re.sub(r"#\w+;", "", a.split(" : ", 1)[1])  # what is left once every entity code is taken out
+        assert not set("<>:;#\"{}") & set(bare)
+
+
+def test_mermaid_text_escapes_with_entity_codes() -> None:
+    assert mermaid_text('a < 2 px: "x" #1') == "a #lt; 2 px#58; #quot;x#quot; #35;1"
