@@ -88,6 +88,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     for k in sorted(shown)[:20]:
         print(f"  {k:32s} {shown[k]:.6g}")
     print(f"run record: {result.run_dir}")
+    if args.view and result.run_dir is not None:
+        print(f"replay it: taskflow view {result.run_dir}")
     if args.plot and result.run_dir is not None:
         from .plots import plot_run
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import socket
 import threading
+import time
 import urllib.error
 import urllib.request
 from pathlib import Path
@@ -28,6 +29,7 @@ if TYPE_CHECKING:
     from .view import RunView
 
 DEFAULT_ADDRESS = "127.0.0.1:0"
+VIEW_LINGER_S = 1.0  # wall seconds a live view's server stays up after the run (the page polls every 0.4 s)
 CONTROL_FILE = "control.json"
 
 
@@ -151,6 +153,8 @@ class ControlServer:
     def stop(self) -> None:
         if self._control_file is not None:
             self._control_file.unlink(missing_ok=True)
+        if self.view and self._server is not None:
+            time.sleep(VIEW_LINGER_S)  # a page following the run polls once more and gets the record's end
         if self._server is not None:
             self._server.should_exit = True
         if self._thread is not None:

@@ -8,8 +8,9 @@ loop — so serving it costs the loop nothing per tick: the routes read ``trace.
 
 ``GET /``                   the page;  ``GET /web/FILE`` its script and style (shipped in the package)
 ``GET /view/machine``       the compiled state tree with each state's transitions (:func:`machine_json`), the
-                            metric units, the trace columns of the robot's ground-truth position, and the
-                            points the mission's parameters name (waypoints, keyframes, the room)
+                            metric units, the trace columns of the robot's ground-truth position and of
+                            other bodies' (``gt.obj_x``/``gt.obj_y`` …), and the points the mission's
+                            parameters name (waypoints, keyframes, the room)
 ``GET /view/trace?since=N`` trace rows ``N …`` (at most :data:`MAX_ROWS`): ``{columns, rows, next, done}``,
                             a row as ``[t, state, events, numbers…]`` (``null`` for NaN)
 ``GET /view/transitions?since=N``  ``transitions.jsonl`` objects ``N …``: ``{records, next}``
@@ -127,12 +128,14 @@ def markers(resolved: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def machine_json(mission: CompiledMission, resolved: dict[str, Any], gt_names: list[str]) -> dict[str, Any]:
-    """``GET /view/machine``: the state tree, the metric units, the ground-truth position columns (or null)
-    and the markers of the top view."""
+    """``GET /view/machine``: the state tree, the metric units, the ground-truth position columns of the
+    robot (or null) and of other bodies (``[[gt.NAME_x, gt.NAME_y], …]``), and the markers of the top view."""
     xy = next((list(k) for k in XY_KEYS if all(f"gt.{a}" in gt_names for a in k)), None)
+    bodies = [[c, c[:-2] + "_y"] for c in gt_names if c.endswith("_x") and c[:-2] + "_y" in gt_names
+              and (xy is None or c != f"gt.{xy[0]}")]
     return {"mission": mission.name, "rate_hz": mission.spec.rate_hz, "root": state_json(mission, mission.root),
             "metric_units": dict(sorted(mission.metric_units.items())),
-            "xy": [f"gt.{a}" for a in xy] if xy else None, "markers": markers(resolved)}
+            "xy": [f"gt.{a}" for a in xy] if xy else None, "bodies": bodies, "markers": markers(resolved)}
 
 
 # -- the record, read as it is written ------------------------------------------------------------------

@@ -263,7 +263,10 @@ function renderTransitions(t) {
     if (past && current === null) current = li;
     ol.appendChild(li);
   }
-  if (current) current.classList.add("current");
+  if (current) {
+    current.classList.add("current");
+    ol.scrollTop = current.offsetTop - ol.offsetTop - 40;  // the list scrolls, not the page
+  }
 }
 
 // -- plots -------------------------------------------------------------------------------------------------
@@ -362,10 +365,13 @@ function renderPath(i) {
   }
   const jx = S.col[xy[0]], jy = S.col[xy[1]];
   $("path-note").textContent = `(ground truth ${xy[0].slice(3)}, ${xy[1].slice(3)} in m; ` +
-    (S.machine.markers.length ? "markers: " + S.machine.markers.map((m) => m.name).join(", ") : "no markers in the mission") + ")";
+    (S.machine.markers.length ? "markers: " + S.machine.markers.map((m) => m.name).join(", ") : "no markers in the mission") +
+    ((S.machine.bodies || []).length ? "; squares: " + S.machine.bodies.map((b) => b[0].slice(3, -2)).join(", ") : "") + ")";
   let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity;
   const grow = (x, y) => { if (x === null || y === null) return; x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y); };
   for (const r of S.rows) grow(r[jx], r[jy]);
+  const bodies = (S.machine.bodies || []).map(([a, b]) => [S.col[a], S.col[b], a.slice(3, -2)]).filter(([a, b]) => a !== undefined && b !== undefined);
+  for (const [a, b] of bodies) { grow(S.rows[0][a], S.rows[0][b]); grow(S.rows[i][a], S.rows[i][b]); }
   for (const m of S.machine.markers) {
     if (m.kind === "points") m.points.forEach((p) => grow(p[0], p[1]));
     else { grow(m.box[0], m.box[2]); grow(m.box[1], m.box[3]); }
@@ -413,6 +419,12 @@ function renderPath(i) {
   line(0, S.rows.length - 1, "#cfd8dc", 1);
   line(0, i, "#1565c0", 2);
   const r = S.rows[i];
+  ctx.fillStyle = "#6a1b9a";
+  for (const [a, b, name] of bodies) {
+    if (r[a] === null || r[b] === null) continue;
+    ctx.fillRect(X(r[a]) - 4, Y(r[b]) - 4, 8, 8);
+    ctx.fillText(name, X(r[a]) + 6, Y(r[b]) + 4);
+  }
   if (r[jx] !== null && r[jy] !== null) {
     ctx.fillStyle = "#c62828";
     ctx.beginPath(); ctx.arc(X(r[jx]), Y(r[jy]), 5, 0, 2 * Math.PI); ctx.fill();
@@ -463,11 +475,13 @@ async function livePoll() {
     if (!S.running) S.summary = await getJSON("/view/summary");
     render();
   } catch (e) {
-    $("live-state").textContent = `the run's server does not answer (${e.message}): the run has ended`;
+    $("live-state").textContent = S.running ? `the run's server does not answer (${e.message})`
+      : `the run has ended (${(S.summary && S.summary.outcome) || "?"}) and closed its server: replay it with taskflow view RUN_DIR`;
     return;
   }
-  if (S.running) setTimeout(livePoll, 400);
-  else $("operator").querySelectorAll("button").forEach((b) => { b.disabled = true; });
+  // after the run ends, poll on until its server closes: the record's last rows are written after the outcome
+  setTimeout(livePoll, 400);
+  if (!S.running) $("operator").querySelectorAll("button").forEach((b) => { b.disabled = true; });
 }
 
 async function operate(action) {
