@@ -220,3 +220,67 @@ def test_replay_steps_transition_by_transition_and_scrubs_to_the_record(browser,
         assert not browser.find_element("id", "operator").is_displayed()
     finally:
         server.stop()
+
+
+PARALLEL = """
+mission: par
+robot: toy_point
+world: {name: toy_line, params: {start: 0.0}}
+rate_hz: 20
+max_time: 30 s
+parameters: {tol: 1 cm}
+profiles:
+  gains: {slow: {kp: 1.0}}
+machine:
+  initial: work
+  states:
+    work:
+      regions:
+        drive:
+          owns: [v]
+          initial: go
+          states:
+            go:
+              task: {name: toy_goto, params: {target: 1.0}}
+              bind: {gains: slow}
+              transitions: [{to: there, when: "pos_error < $tol"}]
+            there: {final: succeeded}
+        watch:
+          initial: look
+          states:
+            look:
+              task: toy_watch
+              transitions: [{to: too_far, when: "x_abs > 5 m"}]
+            too_far: {final: failed}
+      transitions:
+        - {to: done, done: succeeded}
+        - {to: stopped, done: failed}
+    done: {final: succeeded}
+    stopped: {final: failed}
+"""
+
+
+def test_parallel_regions_are_drawn_side_by_side_with_a_lit_leaf_each(browser, tmp_path):
+    from taskflow.loader import load_mission_text
+    from taskflow.runtime import run_mission
+
+    out = tmp_path / "par"
+    run_mission(load_mission_text(PARALLEL, "par.yaml"), out_dir=out, max_time=3.0)
+    trace = read_trace(out)
+    server = serve_replay(out, "127.0.0.1:0")
+    try:
+        _open(browser, server.url)
+        for k in (0, len(trace["t"]) // 2, len(trace["t"]) - 1):
+            browser.execute_script("taskflowView.seek(arguments[0])", k)
+            lit = browser.execute_script(
+                "return [...document.querySelectorAll('#chart .st.active')].map(e => e.dataset.path).sort()")
+            assert lit == sorted(trace["state"][k].split("|")) and len(lit) == 2
+        boxes = browser.execute_script("""return ['work.drive', 'work.watch'].map(p => {
+            const r = document.querySelector(`#chart [data-path="${p}"]`).getBoundingClientRect();
+            return [r.left, r.top, r.right]; });""")
+        (l1, t1, r1), (l2, t2, _) = boxes
+        assert t1 == t2 and l2 >= r1  # the regions side by side, inside the parallel state's box
+        assert browser.execute_script(
+            "return document.querySelector('#chart [data-path=\"work\"]').classList.contains('parallel')")
+    finally:
+        server.stop()
