@@ -8,8 +8,8 @@ loop — so serving it costs the loop nothing per tick: the routes read ``trace.
 
 ``GET /``                   the page;  ``GET /web/FILE`` its script and style (shipped in the package)
 ``GET /view/machine``       the compiled state tree with each state's transitions (:func:`machine_json`), the
-                            metric units, the trace columns of the robot's ground-truth position and of
-                            other bodies' (``gt.obj_x``/``gt.obj_y`` …), and the points the mission's
+                            metric units, the trace columns of the robot's ground-truth pose and of
+                            other bodies' positions (:data:`BODIES`), and the points the mission's
                             parameters name (waypoints, keyframes, the room)
 ``GET /view/trace?since=N`` trace rows ``N …`` (at most :data:`MAX_ROWS`): ``{columns, rows, next, done}``,
                             a row as ``[t, state, events, numbers…]`` (``null`` for NaN)
@@ -30,7 +30,10 @@ from .model import (CompiledMission, DoneTransition, EventTransition, GuardTrans
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 MAX_ROWS = 4000  # trace rows per answer: a long run arrives in a few requests
-XY_KEYS = (("x", "y"), ("base_x", "base_y"))  # ground-truth position columns, first match wins
+XY_KEYS = (("x", "y", "yaw"), ("base_x", "base_y", "base_yaw"))  # robot pose columns (gt.*), first match wins
+BODIES = (("obj", "robot"), ("part", "world"))
+"""Other bodies' ground-truth position columns (``gt.NAME_x``, ``gt.NAME_y``) and their frame, as the shipped
+worlds document them: ``viki_ground``'s object in the robot frame, ``screw_conveyor``'s part in the world."""
 
 
 class ViewError(ValueError):
@@ -128,14 +131,17 @@ def markers(resolved: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def machine_json(mission: CompiledMission, resolved: dict[str, Any], gt_names: list[str]) -> dict[str, Any]:
-    """``GET /view/machine``: the state tree, the metric units, the ground-truth position columns of the
-    robot (or null) and of other bodies (``[[gt.NAME_x, gt.NAME_y], …]``), and the markers of the top view."""
-    xy = next((list(k) for k in XY_KEYS if all(f"gt.{a}" in gt_names for a in k)), None)
-    bodies = [[c, c[:-2] + "_y"] for c in gt_names if c.endswith("_x") and c[:-2] + "_y" in gt_names
-              and (xy is None or c != f"gt.{xy[0]}")]
+    """``GET /view/machine``: the state tree, the metric units, the ground-truth pose columns of the robot
+    (``xy``: ``[x, y, yaw]``, yaw ``""`` when not recorded; null without a position), other bodies
+    (:data:`BODIES`: ``{name, x, y, frame}``) and the markers of the top view."""
+    pose = next(([f"gt.{a}" for a in k] for k in XY_KEYS if all(f"gt.{a}" in gt_names for a in k[:2])), None)
+    if pose is not None and pose[2] not in gt_names:
+        pose[2] = ""
+    bodies = [{"name": name, "x": f"gt.{name}_x", "y": f"gt.{name}_y", "frame": frame} for name, frame in BODIES
+              if f"gt.{name}_x" in gt_names and f"gt.{name}_y" in gt_names and (frame == "world" or pose and pose[2])]
     return {"mission": mission.name, "rate_hz": mission.spec.rate_hz, "root": state_json(mission, mission.root),
             "metric_units": dict(sorted(mission.metric_units.items())),
-            "xy": [f"gt.{a}" for a in xy] if xy else None, "bodies": bodies, "markers": markers(resolved)}
+            "xy": pose, "bodies": bodies, "markers": markers(resolved)}
 
 
 # -- the record, read as it is written ------------------------------------------------------------------
@@ -200,13 +206,8 @@ class RecordReader:
             return {}
 
     def gt_names(self) -> list[str]:
+        """The trace's ground-truth columns (``gt.NAME``); empty until its header is on disk."""
         self.refresh()
-        if not self.columns:
-            try:
-                with open(self.dir / "trace.csv") as f:
-                    return [c for c in f.readline().strip().split(",") if c.startswith("gt.")]
-            except OSError:
-                return []
         return [c for c in self.columns if c.startswith("gt.")]
 
 
@@ -220,7 +221,9 @@ class RunView:
         self._machine: dict[str, Any] | None = None
 
     def machine(self) -> dict[str, Any]:
-        if self._machine is None or not self._machine["xy"] and not self.reader.columns:
+        """:func:`machine_json`, computed once the trace's header is on disk (a live run writes it with its
+        first block of rows; until then the ground-truth columns are unknown: ``columns_known`` false)."""
+        if self._machine is None or not self._machine["columns_known"]:
             resolved = self.mission.raw
             try:
                 import yaml
@@ -228,7 +231,8 @@ class RunView:
                 resolved = yaml.safe_load((self.reader.dir / "mission.yaml").read_text()) or resolved
             except (OSError, ValueError):
                 pass
-            self._machine = machine_json(self.mission, resolved, self.reader.gt_names())
+            self._machine = {**machine_json(self.mission, resolved, self.reader.gt_names()),
+                             "columns_known": bool(self.reader.columns)}
         return {**self._machine, "live": self.live}
 
     def replay_state(self) -> dict[str, Any]:

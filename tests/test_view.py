@@ -108,3 +108,24 @@ def test_view_of_what_is_not_a_run_is_one_line_and_exit_1(tmp_path, capsys):
 def test_run_view_needs_the_control_endpoint(capsys):
     assert main(["run", str(TOY), "--view", "--no-control"]) == 1
     assert "--view needs the control endpoint" in capsys.readouterr().err
+
+
+def test_the_top_view_takes_the_robot_pose_and_known_bodies_with_their_frames():
+    mission = load_mission(TOY)
+    viki = machine_json(mission, {}, ["gt.x", "gt.y", "gt.yaw", "gt.obj_x", "gt.obj_y", "gt.err_x", "gt.err_y"])
+    assert viki["xy"] == ["gt.x", "gt.y", "gt.yaw"]
+    assert viki["bodies"] == [{"name": "obj", "x": "gt.obj_x", "y": "gt.obj_y", "frame": "robot"}]  # err is no body
+    screw = machine_json(mission, {}, ["gt.base_x", "gt.base_y", "gt.base_yaw", "gt.part_x", "gt.part_y"])
+    assert screw["xy"] == ["gt.base_x", "gt.base_y", "gt.base_yaw"] and screw["bodies"][0]["frame"] == "world"
+    no_yaw = machine_json(mission, {}, ["gt.x", "gt.y", "gt.obj_x", "gt.obj_y"])
+    assert no_yaw["xy"] == ["gt.x", "gt.y", ""] and no_yaw["bodies"] == []  # a robot-frame body needs the yaw
+
+
+def test_a_live_view_learns_the_columns_once_the_header_is_written(tmp_path):
+    from taskflow.view import RunView
+
+    view = RunView(load_mission(TOY), tmp_path, live=True)
+    (tmp_path / "trace.csv").write_text("")  # the recorder's header is still in its buffer
+    assert view.machine()["columns_known"] is False and view.machine()["live"] is True
+    (tmp_path / "trace.csv").write_text("t,state,events,gt.x,gt.y\n")
+    assert view.machine()["columns_known"] is True and view.machine()["xy"] == ["gt.x", "gt.y", ""]

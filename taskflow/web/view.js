@@ -33,7 +33,8 @@ function buildChart(node, into, initial) {
   const nm = document.createElement("div");
   nm.className = "nm";
   nm.textContent = node.name;
-  nm.title = node.description || node.path;
+  nm.title = [node.path || node.name, node.description, ...node.transitions.map((t) => `→ ${t.target}: ${t.label}`)]
+    .filter(Boolean).join("\n");
   if (tags.length) {
     const t = document.createElement("span");
     t.className = "tag";
@@ -257,6 +258,12 @@ function renderTransitions(t) {
     const li = document.createElement("li");
     li.textContent = recordText(r);
     li.dataset.t = String(r.t);
+    li.title = "show the first tick after it";
+    li.onclick = () => {
+      stopFollowing();
+      const k = S.rows.findIndex((row) => row[0] > r.t + 1e-9);
+      seek(k < 0 ? S.rows.length - 1 : k);
+    };
     const past = r.t < t || (r.t === t && r.cause === "operator");
     if (!past) li.classList.add("future");
     if (r.cause === "operator") li.classList.add("op");
@@ -366,25 +373,36 @@ function renderPath(i) {
   const jx = S.col[xy[0]], jy = S.col[xy[1]];
   $("path-note").textContent = `(ground truth ${xy[0].slice(3)}, ${xy[1].slice(3)} in m; ` +
     (S.machine.markers.length ? "markers: " + S.machine.markers.map((m) => m.name).join(", ") : "no markers in the mission") +
-    ((S.machine.bodies || []).length ? "; squares: " + S.machine.bodies.map((b) => b[0].slice(3, -2)).join(", ") : "") + ")";
+    ((S.machine.bodies || []).length ? "; squares: " + S.machine.bodies.map((b) => b.name).join(", ") : "") + ")";
   let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity;
   const grow = (x, y) => { if (x === null || y === null) return; x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y); };
   for (const r of S.rows) grow(r[jx], r[jy]);
-  const bodies = (S.machine.bodies || []).map(([a, b]) => [S.col[a], S.col[b], a.slice(3, -2)]).filter(([a, b]) => a !== undefined && b !== undefined);
-  for (const [a, b] of bodies) { grow(S.rows[0][a], S.rows[0][b]); grow(S.rows[i][a], S.rows[i][b]); }
+  const jyaw = xy[2] ? S.col[xy[2]] : undefined;
+  // a body's world position at row r: as recorded, or from the robot frame through the robot's pose
+  const bodyAt = (b, r) => {
+    const bx = r[S.col[b.x]], by = r[S.col[b.y]];
+    if (bx === null || by === null) return null;
+    if (b.frame === "world") return [bx, by];
+    const c = Math.cos(r[jyaw]), s = Math.sin(r[jyaw]);
+    return [r[jx] + c * bx - s * by, r[jy] + s * bx + c * by];
+  };
+  const bodies = (S.machine.bodies || []).filter((b) => S.col[b.x] !== undefined && S.col[b.y] !== undefined);
+  for (const b of bodies) for (const r of [S.rows[0], S.rows[i]]) { const p = bodyAt(b, r); if (p) grow(p[0], p[1]); }
   for (const m of S.machine.markers) {
     if (m.kind === "points") m.points.forEach((p) => grow(p[0], p[1]));
     else { grow(m.box[0], m.box[2]); grow(m.box[1], m.box[3]); }
   }
   if (!Number.isFinite(x0)) return;
   const pad = 20;
-  const span = Math.max(x1 - x0, y1 - y0, 0.5);
-  const s = Math.min((w - 2 * pad) / Math.max(x1 - x0, 1e-3), (h - 2 * pad) / Math.max(y1 - y0, 1e-3), (w - 2 * pad) / span * 4);
+  // one scale for x and y (a metre is a metre both ways), at least 0.5 m shown
+  const s = Math.min((w - 2 * pad) / Math.max(x1 - x0, 0.5), (h - 2 * pad) / Math.max(y1 - y0, 0.5));
   const cx = (x0 + x1) / 2, cy = (y0 + y1) / 2;
   const X = (x) => w / 2 + (x - cx) * s;
   const Y = (y) => h / 2 - (y - cy) * s;
   // scale bar
-  const unit = Math.pow(10, Math.floor(Math.log10((w / 4) / s)));
+  const most = (w / 4) / s;  // a 1, 2 or 5 × 10^k m bar of at most a quarter of the width
+  const decade = Math.pow(10, Math.floor(Math.log10(most)));
+  const unit = [5, 2, 1].map((f) => f * decade).find((u) => u <= most) || decade;
   ctx.strokeStyle = "#555"; ctx.fillStyle = "#555"; ctx.font = "10px sans-serif";
   ctx.beginPath(); ctx.moveTo(8, h - 8); ctx.lineTo(8 + unit * s, h - 8); ctx.stroke();
   ctx.fillText(`${unit} m`, 10, h - 11);
@@ -420,14 +438,19 @@ function renderPath(i) {
   line(0, i, "#1565c0", 2);
   const r = S.rows[i];
   ctx.fillStyle = "#6a1b9a";
-  for (const [a, b, name] of bodies) {
-    if (r[a] === null || r[b] === null) continue;
-    ctx.fillRect(X(r[a]) - 4, Y(r[b]) - 4, 8, 8);
-    ctx.fillText(name, X(r[a]) + 6, Y(r[b]) + 4);
+  for (const b of bodies) {
+    const p = bodyAt(b, r);
+    if (!p) continue;
+    ctx.fillRect(X(p[0]) - 4, Y(p[1]) - 4, 8, 8);
+    ctx.fillText(b.name, X(p[0]) + 6, Y(p[1]) + 4);
   }
   if (r[jx] !== null && r[jy] !== null) {
     ctx.fillStyle = "#c62828";
     ctx.beginPath(); ctx.arc(X(r[jx]), Y(r[jy]), 5, 0, 2 * Math.PI); ctx.fill();
+    if (jyaw !== undefined && r[jyaw] !== null) {  // heading
+      ctx.strokeStyle = "#c62828"; ctx.lineWidth = 2; ctx.beginPath(); ctx.moveTo(X(r[jx]), Y(r[jy]));
+      ctx.lineTo(X(r[jx]) + 16 * Math.cos(r[jyaw]), Y(r[jy]) - 16 * Math.sin(r[jyaw])); ctx.stroke(); ctx.lineWidth = 1;
+    }
   }
 }
 
@@ -438,6 +461,10 @@ async function pull() {
     if (tr.columns.length && !S.cols.length) {
       S.cols = tr.columns;
       tr.columns.forEach((c, k) => { S.col[c] = k; });
+      if (!S.machine.columns_known) {  // a live run: the ground-truth columns are known from now on
+        const m = await getJSON("/view/machine");
+        Object.assign(S.machine, { xy: m.xy, bodies: m.bodies, markers: m.markers, columns_known: m.columns_known });
+      }
       setupPlots();
     }
     for (const r of tr.rows) S.rows.push(r);
