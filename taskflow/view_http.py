@@ -61,8 +61,10 @@ def serve_replay(run_dir: str | Path, address: str,
 
 
 def wait_forever(server: Any) -> None:
-    """Block until Ctrl-C (``taskflow view``), then stop ``server``."""
+    """Block until Ctrl-C (``taskflow view``: the way to end it, not an error), then stop ``server``."""
     try:
         threading.Event().wait()
+    except KeyboardInterrupt:
+        pass
     finally:
         server.stop()

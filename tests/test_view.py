@@ -129,3 +129,12 @@ def test_a_live_view_learns_the_columns_once_the_header_is_written(tmp_path):
     assert view.machine()["columns_known"] is False and view.machine()["live"] is True
     (tmp_path / "trace.csv").write_text("t,state,events,gt.x,gt.y\n")
     assert view.machine()["columns_known"] is True and view.machine()["xy"] == ["gt.x", "gt.y", ""]
+
+
+def test_run_view_prints_the_page_address_and_how_to_replay(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["run", str(TOY), "--view", "--quiet", "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "view: http://127.0.0.1:" in captured.err
+    assert f"replay it: taskflow view {out}" in captured.out
+    assert not (out / "control.json").exists()  # removed when the run ended
