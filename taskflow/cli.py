@@ -1,4 +1,4 @@
-"""``taskflow`` command line: run, ctl, validate, graph, schema, batch, teach, plot, export, check, list, describe.
+"""``taskflow`` command line: run, view, ctl, validate, graph, schema, batch, teach, plot, export, check, list, describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
 130 interrupted.
@@ -79,6 +79,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         sys.stderr.write("\n")
     s = result.summary
     _print_run(result)
+    if args.view and result.run_dir is not None:
+        print(f"replay it: taskflow view {result.run_dir}")
     if args.plot and result.run_dir is not None:
         from .plots import plot_run
 
@@ -104,13 +106,17 @@ def _operator_options(args: argparse.Namespace, mission):  # type: ignore[no-unt
     except ControlError as exc:
         raise UsageError(f"--operator-script {args.operator_script}: {exc}") from None
     if args.no_control:
+        if args.view:
+            raise UsageError("--view needs the control endpoint: drop --no-control")
         return None, operator
 
     def announce(url: str, run_dir: Path | None) -> None:
         print(f"control: {url}  (taskflow ctl {run_dir} state|pause|hold|resume|preempt|inject)", file=sys.stderr)
+        if args.view:
+            print(f"view: {url}/  (open it in a browser)", file=sys.stderr)
 
     try:
-        return ControlServer(args.control, announce), operator
+        return ControlServer(args.control, announce, view=args.view), operator
     except ControlError as exc:
         raise UsageError(f"--control: {exc}") from None
 
@@ -161,6 +167,22 @@ def _print_run(result) -> None:  # type: ignore[no-untyped-def]
         except RunDirError as exc:
             print(f"outcome: {s['outcome']} ({s.get('reason', '')})\n(no metric summary: {exc})")
     print(f"run record: {result.run_dir}")
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    from .control import ControlError
+    from .view import ViewError
+    from .view_http import serve_replay, wait_forever
+
+    def announce(url: str, run_dir: Path | None) -> None:
+        print(f"view: {url}/  (replay of {args.run_dir}; Ctrl-C stops)", file=sys.stderr)
+
+    try:
+        server = serve_replay(args.run_dir, f"{args.host}:{args.port}", announce)
+    except (ViewError, ControlError) as exc:
+        raise UsageError(str(exc)) from None
+    wait_forever(server)
+    return 0
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -338,7 +360,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="operator actions to apply at given sim times: a list of {t, action, args, who}")
     r.add_argument("--record", choices=["mcap"], default=None,
                    help="also write the run's telemetry in this format (RUN_DIR/telemetry.mcap) when it ends")
+    r.add_argument("--view", action="store_true",
+                   help="serve the web view of the live run on the control endpoint (its address is printed)")
     r.set_defaults(fn=cmd_run)
+
+    w = sub.add_parser("view", help="replay a finished run in the browser (a local web page)")
+    w.add_argument("run_dir")
+    w.add_argument("--port", type=int, default=8765, help="port (default 8765; 0: any free port)")
+    w.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
+    w.set_defaults(fn=cmd_view)
 
     o = sub.add_parser("ctl", help="operate a running mission: state, mission, pause, hold, resume, preempt, inject")
     o.add_argument("words", nargs="+", metavar="[RUN_DIR] ACTION [EVENT]",

@@ -156,6 +156,7 @@ class OperatorChannel:
         self._next = 0
         self._queue: queue.SimpleQueue[OperatorAction] = queue.SimpleQueue()
         self.on_record = on_record  # where each OperatorRecord's object goes (transitions.jsonl)
+        self.on_wait: Callable[[], None] | None = None  # called as a pause begins (the recorder flushes)
         self.mode = RUNNING
         self.records: list[OperatorRecord] = []
         self._lock = threading.Lock()
@@ -191,11 +192,15 @@ class OperatorChannel:
         channel (in wall time) until resumed, pre-empted or ``stopping()``.  Returns ``obs`` with the events
         injected this tick added."""
         injected: list[str] = []
+        waited = False
         while True:
             self._apply_due(k, obs.t, executor, injected)
             self._publish(k, obs.t, executor)
             if self.mode != PAUSED or executor.outcome is not None or stopping():
                 break
+            if self.on_wait is not None and not waited:
+                self.on_wait()  # the record so far is on disk while the run waits (the web view reads it)
+            waited = True
             try:
                 action = self._queue.get(timeout=WAIT_S)
             except queue.Empty:

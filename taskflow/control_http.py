@@ -17,14 +17,19 @@ from __future__ import annotations
 import json
 import socket
 import threading
+import time
 import urllib.error
 import urllib.request
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from .control import ACTIONS, ControlError, OperatorAction, OperatorChannel
 
+if TYPE_CHECKING:
+    from .view import RunView
+
 DEFAULT_ADDRESS = "127.0.0.1:0"
+VIEW_LINGER_S = 1.0  # wall seconds a live view's server stays up after the run (the page polls every 0.4 s)
 CONTROL_FILE = "control.json"
 
 
@@ -39,9 +44,10 @@ def parse_address(text: str) -> tuple[str, int]:
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
-def _app(channel: OperatorChannel, host: str) -> Any:
-    """The routes.  On a loopback address only requests naming a loopback host are served (no DNS
-    rebinding), and a POST must say ``Content-Type: application/json`` (a page of another origin cannot
+def _app(channel: OperatorChannel | None, host: str, view: "RunView | None" = None) -> Any:
+    """The routes (with ``view``, the web view's too: :mod:`taskflow.view_http`; without ``channel``, a
+    replay: ``/state`` tells the run's end and the actions answer 409).  On a loopback address only
+    requests naming a loopback host are served (no DNS rebinding), and a POST must say ``Content-Type: application/json`` (a page of another origin cannot
     send that without a CORS preflight, which is never granted): no web page can drive the robot by
     accident."""
     from starlette.applications import Starlette
@@ -52,15 +58,19 @@ def _app(channel: OperatorChannel, host: str) -> Any:
     from starlette.routing import Route
 
     async def state(request: Request) -> JSONResponse:
-        return JSONResponse(channel.snapshot())
+        return JSONResponse(channel.snapshot() if channel is not None else view.replay_state())  # type: ignore[union-attr]
 
     async def mission(request: Request) -> JSONResponse:
+        if channel is None:
+            return JSONResponse({"mission": view.mission.name, "actions": [], "states": [], "events": []})  # type: ignore[union-attr]
         return JSONResponse(channel.describe())
 
     async def act(request: Request) -> JSONResponse:
         name = request.path_params["action"]
         if name not in ACTIONS:
             return JSONResponse({"error": f"no action {name!r}; valid: {', '.join(ACTIONS)}"}, status_code=404)
+        if channel is None:
+            return JSONResponse({"error": f"{name}: this is a replay of a finished run"}, status_code=409)
         if request.headers.get("content-type", "").split(";")[0].strip() != "application/json":
             return JSONResponse({"error": "send the body as Content-Type: application/json"}, status_code=415)
         raw = await request.body()
@@ -82,18 +92,23 @@ def _app(channel: OperatorChannel, host: str) -> Any:
         return JSONResponse({"queued": name, "who": action.who})
 
     hosts = ["127.0.0.1", "localhost", "[::1]"] if host in LOOPBACK else ["*"]
-    return Starlette(routes=[Route("/state", state), Route("/mission", mission),
-                             Route("/{action}", act, methods=["POST"])],
+    routes = [Route("/state", state), Route("/mission", mission), Route("/{action}", act, methods=["POST"])]
+    if view is not None:
+        from .view_http import view_routes
+
+        routes = view_routes(view) + routes
+    return Starlette(routes=routes,
                      middleware=[Middleware(TrustedHostMiddleware, allowed_hosts=hosts)])
 
 
 class ControlServer:
     """The endpoint of one run.  The socket is bound on construction (a port in use fails here, in the
     caller's thread); :meth:`start` serves ``channel`` from a daemon thread and calls ``announce(url,
-    run_dir)``, :meth:`stop` ends it."""
+    run_dir)``, :meth:`stop` ends it.  With ``view=True`` it also serves the web view of the run it
+    records (``taskflow run --view``, :mod:`taskflow.view`)."""
 
     def __init__(self, address: str = DEFAULT_ADDRESS,
-                 announce: Callable[[str, Path | None], None] | None = None) -> None:
+                 announce: Callable[[str, Path | None], None] | None = None, view: bool = False) -> None:
         host, port = parse_address(address)
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         self.socket = socket.socket(family, socket.SOCK_STREAM)
@@ -108,20 +123,26 @@ class ControlServer:
         self.url = f"http://{host if family == socket.AF_INET else f'[{host}]'}:{bound[1]}"
         self.host = host
         self.announce = announce
+        self.view = view
         self._server: Any = None
         self._thread: threading.Thread | None = None
         self._control_file: Path | None = None
 
-    def start(self, channel: OperatorChannel, run_dir: Path | None) -> None:
+    def start(self, channel: OperatorChannel | None, run_dir: Path | None, view: "RunView | None" = None) -> None:
+        """Serve ``channel`` (None: a replay) and, given ``view``, the web page of the run."""
         import uvicorn
 
-        config = uvicorn.Config(_app(channel, self.host), log_level="warning", lifespan="off", access_log=False,
+        if view is None and self.view and channel is not None and run_dir is not None:
+            from .view import RunView
+
+            view = RunView(channel.mission, run_dir, live=True)
+        config = uvicorn.Config(_app(channel, self.host, view), log_level="warning", lifespan="off", access_log=False,
                                 timeout_graceful_shutdown=1)
         self._server = uvicorn.Server(config)
         self._thread = threading.Thread(target=self._server.run, kwargs={"sockets": [self.socket]},
                                         name="taskflow-control", daemon=True)
         self._thread.start()
-        if run_dir is not None:
+        if run_dir is not None and channel is not None:
             self._control_file = run_dir / CONTROL_FILE
             tmp = self._control_file.with_suffix(".tmp")
             tmp.write_text(json.dumps({"url": self.url, "mission": channel.mission.name}) + "\n")
@@ -132,6 +153,8 @@ class ControlServer:
     def stop(self) -> None:
         if self._control_file is not None:
             self._control_file.unlink(missing_ok=True)
+        if self.view and self._server is not None:
+            time.sleep(VIEW_LINGER_S)  # a page following the run polls once more and gets the record's end
         if self._server is not None:
             self._server.should_exit = True
         if self._thread is not None:

@@ -224,7 +224,7 @@ class CompiledMission:
         """The ``description`` written on a state (empty when none)."""
         spec: Any = self.spec.machine
         for a in node.ancestors()[1:]:
-            spec = spec.states[a.name]
+            spec = spec.states[a.name] if a.owns is None else spec.regions[a.name]  # a region: its parallel state's
         return getattr(spec, "description", "") or ""
 
     def leaves(self) -> list[StateNode]:

@@ -175,6 +175,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     executor = Executor(mission, world, robot, task_factory=task_factory, on_transition=on_transition)
     if channel is not None:
         channel.on_record = recorder.transition if recorder is not None else None
+        channel.on_wait = recorder.flush if recorder is not None else None
         if server is not None:
             server.start(channel, recorder.dir if recorder is not None else None)
     if on_start is not None:

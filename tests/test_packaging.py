@@ -36,6 +36,8 @@ def test_wheel_holds_the_missions_and_no_common_top_level_name(wheel: Path) -> N
     assert not top & COMMON_NAMES
     shipped = {p.name for p in (ROOT / "missions").glob("*.yaml")}
     assert shipped and {f"taskflow_missions/{n}" for n in shipped} <= set(names)
+    page = {f"taskflow/web/{p.name}" for p in (ROOT / "taskflow" / "web").iterdir()}  # the web view's page
+    assert page and page <= set(names)
 
 
 def test_the_wheel_runs_its_default_mission_beside_a_users_own_tasks_and_sim(wheel: Path, tmp_path: Path) -> None:

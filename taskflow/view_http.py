@@ -1,0 +1,70 @@
+"""The web view's routes, added to the control app (:mod:`taskflow.control_http`), and ``taskflow view``.
+
+A live run (``taskflow run --view``) serves them from its control endpoint; ``taskflow view RUN_DIR``
+serves a finished run with the same app, without a run loop (``GET /state`` then tells the run's end, and
+the operator POSTs answer 409).  :mod:`taskflow.view` says what each route returns.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Any, Callable
+
+from .view import WEB_DIR, RunView, open_run
+
+
+def view_routes(view: RunView) -> list[Any]:
+    """The page, its files and the JSON the page polls."""
+    from starlette.requests import Request
+    from starlette.responses import FileResponse, JSONResponse
+    from starlette.routing import Mount, Route
+    from starlette.staticfiles import StaticFiles
+
+    def since(request: Request) -> int:
+        try:
+            return max(0, int(request.query_params.get("since", "0")))
+        except ValueError:
+            return 0
+
+    async def page(request: Request) -> FileResponse:
+        return FileResponse(WEB_DIR / "index.html", headers={"Cache-Control": "no-store"})
+
+    async def machine(request: Request) -> JSONResponse:
+        return JSONResponse(view.machine())
+
+    async def trace(request: Request) -> JSONResponse:
+        return JSONResponse(view.reader.trace(since(request)))
+
+    async def transitions(request: Request) -> JSONResponse:
+        return JSONResponse(view.reader.transitions(since(request)))
+
+    async def summary(request: Request) -> JSONResponse:
+        return JSONResponse(view.reader.summary())
+
+    return [Route("/", page), Route("/view/machine", machine), Route("/view/trace", trace),
+            Route("/view/transitions", transitions), Route("/view/summary", summary),
+            Mount("/web", app=StaticFiles(directory=WEB_DIR), name="web")]
+
+
+def serve_replay(run_dir: str | Path, address: str,
+                 announce: Callable[[str, Path | None], None] | None = None) -> "Any":
+    """Start serving the finished run ``run_dir`` on ``address`` (``HOST:PORT``) from a daemon thread and
+    return its :class:`~taskflow.control_http.ControlServer` (``.url``; ``.stop()``).  Raises
+    :class:`~taskflow.view.ViewError` or :class:`~taskflow.control.ControlError` with the reason."""
+    from .control_http import ControlServer
+
+    view = open_run(run_dir)
+    server = ControlServer(address, announce)
+    server.start(None, None, view=view)
+    return server
+
+
+def wait_forever(server: Any) -> None:
+    """Block until Ctrl-C (``taskflow view``: the way to end it, not an error), then stop ``server``."""
+    try:
+        threading.Event().wait()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.stop()

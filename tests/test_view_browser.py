@@ -1,0 +1,286 @@
+"""The web view (taskflow/web/, served by taskflow.view_http) in a real headless browser.
+
+Chromium and chromedriver come from the distribution's packages (Debian: ``chromium``,
+``chromium-driver``; ``.ci/run`` installs them when missing); selenium drives them.  Without them the
+tests skip, saying so.  The mission is the toy machine (tests/machine/missions/toy_full.yaml) on the
+scripted backend, whose metric function sleeps 10 ms a tick so that a live run lasts a few seconds of
+wall time: long enough to click on a page that follows it.
+
+Live: an operator script pauses the run at three sim times; at each, the page (following the run) must
+show the state and the guard's metric value of the last trace row written, and its resume button must
+resume the run; then the page's pause button must stop the simulation clock.  Afterwards the shown values
+are checked against ``trace.csv``.  Replay: stepping transition by transition and scrubbing the timeline
+show the states and values of the record.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import pytest
+
+from taskflow.control_http import ControlClient, ControlServer
+from taskflow.loader import load_mission
+from taskflow.records import read_trace
+from taskflow.runtime import RunResult
+from taskflow.testing import Script, drive
+from taskflow.view_http import serve_replay
+
+HERE = Path(__file__).resolve().parent
+TOY = HERE / "machine" / "missions" / "toy_full.yaml"
+DT = 1.0 / 20  # the toy mission's rate
+
+
+def _which(*names: str) -> str | None:
+    for n in names:
+        found = shutil.which(n) or (f"/usr/bin/{n}" if Path(f"/usr/bin/{n}").is_file() else None)
+        if found:
+            return found
+    return None
+
+
+CHROMIUM = _which("chromium", "chromium-browser", "google-chrome")
+DRIVER = _which("chromedriver")
+_MISSING = [name for name, path in (("chromium", CHROMIUM), ("chromedriver", DRIVER)) if path is None]
+pytestmark = pytest.mark.skipif(bool(_MISSING), reason=(
+    f"no {' and no '.join(_MISSING)} on this machine: the browser test needs the distribution's chromium and "
+    "chromium-driver (apt-get install chromium chromium-driver); .ci/run installs them"))
+
+
+def _metrics(slow: bool) -> Callable[[Any], dict[str, float]]:
+    def metrics(s: Any) -> dict[str, float]:
+        if slow:
+            time.sleep(0.01)
+        return {"pos_error": max(0.0, 0.3 - 0.1 * s.time_in_state), "visible": 1.0}
+    return metrics
+
+
+def _script(slow: bool) -> Script:
+    return Script(metrics=_metrics(slow), actions={"tool": (1.0, "tool_done")})
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = CHROMIUM  # type: ignore[assignment]
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--window-size=1400,1000"):
+        opts.add_argument(arg)
+    driver = webdriver.Chrome(service=Service(DRIVER), options=opts)
+    yield driver
+    driver.quit()
+
+
+def _until(pred: Callable[[], Any], what: str, timeout: float = 15.0) -> Any:
+    deadline = time.monotonic() + timeout
+    while True:
+        value = pred()
+        if value:
+            return value
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.02)
+
+
+def _open(browser: Any, url: str) -> None:
+    browser.get(url + "/")
+    _until(lambda: browser.execute_script("return document.body.dataset.ready || document.body.dataset.error"),
+           "the page to load")
+    assert browser.execute_script("return document.body.dataset.error || ''") == ""
+
+
+def _shown(browser: Any) -> dict[str, Any]:
+    """What the page shows now: the time and state of its cursor row, and every guard value displayed."""
+    return browser.execute_script("""
+        const vals = {};
+        document.querySelectorAll('#guards .val').forEach(v => { vals[v.dataset.metric] = v.dataset.value; });
+        return {t: document.getElementById('cur-t').dataset.t, state: document.getElementById('cur-state').textContent,
+                mode: document.getElementById('live-state').dataset.mode || '', values: vals};""")
+
+
+def _row(trace: dict[str, Any], t: float) -> int:
+    k = int(abs(trace["t"] - t).argmin())
+    assert abs(trace["t"][k] - t) < 1e-9, f"no trace row at t={t}"
+    return k
+
+
+def _check_against_trace(trace: dict[str, Any], seen: dict[str, Any]) -> None:
+    k = _row(trace, float(seen["t"]))
+    assert seen["state"] == trace["state"][k]
+    for metric, text in seen["values"].items():
+        assert text != "" and float(text) == trace[f"m.{metric}"][k], (metric, text, trace[f"m.{metric}"][k])
+
+
+def test_live_view_follows_the_record_and_its_buttons_resume_and_pause_the_run(browser, tmp_path):
+    mission = load_mission(TOY)
+    out = tmp_path / "live"
+    pauses = [1.5, 4.5, 8.0]
+    server = ControlServer("127.0.0.1:0", view=True)
+    box: dict[str, RunResult | BaseException] = {}
+
+    def run() -> None:
+        try:
+            box["result"] = drive(mission, _script(slow=True), max_time=120, out_dir=out, control=server,
+                                  operator=[{"t": t, "action": "pause", "who": "script"} for t in pauses])
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            box["error"] = exc
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    try:
+        _until(lambda: (out / "control.json").is_file(), "the control endpoint")
+        client = ControlClient.for_run(out)
+        _open(browser, client.url)
+        seen: list[dict[str, Any]] = []
+        for t_pause in pauses:
+            _until(lambda: client.state()["paused"] and client.state()["t"] == t_pause, f"the pause at {t_pause}")
+            # the page follows the record: its last row is the tick before the pause
+            shown = _until(lambda: (s := _shown(browser)) and s["mode"] == "paused"
+                           and abs(float(s["t"] or -1) - (t_pause - DT)) < 1e-9 and s, f"the page at {t_pause}")
+            seen.append(shown)
+            browser.find_element("id", "op-resume").click()
+            _until(lambda: not client.state()["paused"], "the page's resume")
+        # the clock runs …
+        t1 = _until(lambda: (s := client.state())["t"] > pauses[-1] + 0.5 and s["t"], "the run to go on")
+        _until(lambda: client.state()["t"] > t1, "the clock to advance")
+        assert client.state()["running"], "the run ended before the pause button could be tried"
+        # … and the page's pause button stops it
+        browser.find_element("id", "op-pause").click()
+        paused = _until(lambda: (s := client.state())["paused"] and s, "the page's pause")
+        time.sleep(0.5)
+        again = client.state()
+        assert again["paused"] and again["t"] == paused["t"] and again["tick"] == paused["tick"]
+        browser.find_element("id", "op-resume").click()
+        thread.join(60)
+        assert not thread.is_alive(), "the run did not end"
+    finally:
+        if thread.is_alive():
+            try:
+                ControlClient.for_run(out).send("preempt", who="teardown")
+            except Exception:  # noqa: BLE001 - best effort
+                pass
+            thread.join(10)
+    assert "error" not in box, box.get("error")
+    assert box["result"].outcome == "succeeded"  # type: ignore[union-attr]
+    trace = read_trace(out)
+    states = {s["state"] for s in seen}
+    assert "operate.visit.approach" in states, seen  # a state with a guard on pos_error was among them
+    assert any("pos_error" in s["values"] for s in seen)
+    for s in seen:
+        _check_against_trace(trace, s)
+    ops = [json.loads(line) for line in (out / "transitions.jsonl").read_text().splitlines()]
+    by_view = [(r["action"], r["t"]) for r in ops if r.get("cause") == "operator" and r["who"] == "view"]
+    assert [a for a, _ in by_view] == ["resume", "resume", "resume", "pause", "resume"]
+    assert by_view[3][1] == paused["t"]
+
+
+def test_replay_steps_transition_by_transition_and_scrubs_to_the_record(browser, tmp_path):
+    out = tmp_path / "replay"
+    result = drive(load_mission(TOY), _script(slow=False), max_time=120, out_dir=out)
+    assert result.outcome == "succeeded"
+    trace = read_trace(out)
+    records = [json.loads(line) for line in (out / "transitions.jsonl").read_text().splitlines()]
+    last_at: dict[float, dict[str, Any]] = {}  # a final state left in the same tick (next → approach) is never shown
+    for r in records:
+        if r["cause"] != "start":
+            last_at[r["t"]] = r
+    moves = list(last_at.values())
+    server = serve_replay(out, "127.0.0.1:0")
+    try:
+        _open(browser, server.url)
+        first = _shown(browser)
+        assert float(first["t"]) == 0.0 and first["state"] == "search"
+        for rec in moves[:3]:  # three chosen times: just after each of the first three transitions
+            browser.find_element("id", "next-tr").click()
+            shown = _until(lambda: (s := _shown(browser)) and float(s["t"]) > rec["t"] and s, "the step")
+            assert shown["state"] == rec["to"]
+            assert abs(float(shown["t"]) - (rec["t"] + DT)) < 1e-9  # the first row in the new state
+            _check_against_trace(trace, shown)
+        assert "pos_error" in _shown(browser)["values"] or "pos_error" in shown["values"]
+        # scrub: the timeline slider to a row in the middle of an approach
+        k = next(i for i, s in enumerate(trace["state"]) if s == "operate.visit.approach" and trace["t"][i] > 3.0)
+        browser.execute_script("const s = document.getElementById('timeline'); s.value = arguments[0];"
+                               "s.dispatchEvent(new Event('input'));", k)
+        shown = _shown(browser)
+        assert float(shown["t"]) == trace["t"][k] and shown["state"] == "operate.visit.approach"
+        assert shown["values"]["pos_error"] != ""
+        _check_against_trace(trace, shown)
+        # a replay has no run to operate
+        status = browser.execute_script("""
+            const r = await fetch('/pause', {method: 'POST', headers: {'Content-Type': 'application/json'}, body: '{}'});
+            return r.status;""")
+        assert status == 409
+        assert not browser.find_element("id", "operator").is_displayed()
+    finally:
+        server.stop()
+
+
+PARALLEL = """
+mission: par
+robot: toy_point
+world: {name: toy_line, params: {start: 0.0}}
+rate_hz: 20
+max_time: 30 s
+parameters: {tol: 1 cm}
+profiles:
+  gains: {slow: {kp: 1.0}}
+machine:
+  initial: work
+  states:
+    work:
+      regions:
+        drive:
+          owns: [v]
+          initial: go
+          states:
+            go:
+              task: {name: toy_goto, params: {target: 1.0}}
+              bind: {gains: slow}
+              transitions: [{to: there, when: "pos_error < $tol"}]
+            there: {final: succeeded}
+        watch:
+          initial: look
+          states:
+            look:
+              task: toy_watch
+              transitions: [{to: too_far, when: "x_abs > 5 m"}]
+            too_far: {final: failed}
+      transitions:
+        - {to: done, done: succeeded}
+        - {to: stopped, done: failed}
+    done: {final: succeeded}
+    stopped: {final: failed}
+"""
+
+
+def test_parallel_regions_are_drawn_side_by_side_with_a_lit_leaf_each(browser, tmp_path):
+    from taskflow.loader import load_mission_text
+    from taskflow.runtime import run_mission
+
+    out = tmp_path / "par"
+    run_mission(load_mission_text(PARALLEL, "par.yaml"), out_dir=out, max_time=3.0)
+    trace = read_trace(out)
+    server = serve_replay(out, "127.0.0.1:0")
+    try:
+        _open(browser, server.url)
+        for k in (0, len(trace["t"]) // 2, len(trace["t"]) - 1):
+            browser.execute_script("taskflowView.seek(arguments[0])", k)
+            lit = browser.execute_script(
+                "return [...document.querySelectorAll('#chart .st.active')].map(e => e.dataset.path).sort()")
+            assert lit == sorted(trace["state"][k].split("|")) and len(lit) == 2
+        boxes = browser.execute_script("""return ['work.drive', 'work.watch'].map(p => {
+            const r = document.querySelector(`#chart [data-path="${p}"]`).getBoundingClientRect();
+            return [r.left, r.top, r.right]; });""")
+        (l1, t1, r1), (l2, t2, _) = boxes
+        assert t1 == t2 and l2 >= r1  # the regions side by side, inside the parallel state's box
+        assert browser.execute_script(
+            "return document.querySelector('#chart [data-path=\"work\"]').classList.contains('parallel')")
+    finally:
+        server.stop()
