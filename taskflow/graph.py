@@ -23,6 +23,8 @@ def to_mermaid(m: CompiledMission) -> str:
                 label += f" [foreach {child.loop.item} in {child.loop.items}]"
             if child.history:
                 label += " [H]"
+            if child.use:
+                label += f" [use {child.use}]"
             if child.final:
                 label += f" = {child.final}"
             if child.children:
@@ -48,7 +50,7 @@ def to_dot(m: CompiledMission) -> str:
         for child in node.children.values():
             if child.children:
                 lines.append(f'{indent}subgraph "cluster_{_mid(child)}" {{')
-                extra = []
+                extra = [f"use {child.use}"] if child.use else []
                 if child.loop:
                     extra.append(f"foreach {child.loop.item} in {child.loop.items}")
                 if child.history:

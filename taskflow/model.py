@@ -126,6 +126,7 @@ class StateNode:
     action: tuple[str, dict[str, Any]] | None = None
     final: str | None = None  # outcome
     depth: int = 0
+    use: str | None = None  # the sub-mission file its sub-machine came from, as written (`use:`)
 
     @property
     def is_leaf(self) -> bool:

@@ -157,6 +157,10 @@ class State(_Model):
     foreach: Foreach | None = None
     action: Action | None = None
     final: StrictBool | Outcome | None = Field(None, description="final state with this outcome (true = succeeded)")
+    use: str | None = Field(None, description="a sub-mission file (relative to this one) whose machine is this state's "
+                                              "sub-machine; resolved at load by taskflow.submission")
+    with_: dict[str, Any] | None = Field(None, alias="with", description="the used sub-mission's parameters: a value "
+                                                                          "or $name of this file")
 
 
 class Machine(_Model):

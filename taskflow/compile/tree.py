@@ -64,6 +64,7 @@ def _build(c: Compilation, node: StateNode, spec: State | Machine, ypath: YPath)
 
 def _state_keys(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> None:
     node.history = spec.history
+    node.use = c.smap.uses.get(ypath)
     node.final = "succeeded" if spec.final is True else (spec.final or None)
     if spec.foreach is not None:
         fe = spec.foreach
