@@ -19,9 +19,10 @@ the using state's ``bind`` winning slot by slot) are the used machine's.
 Names are scoped so that nothing leaks either way: inside a used machine every ``$name`` (task and
 action parameters, guards), every ``foreach in:`` and every ``foreach as:`` is rewritten —
 a parameter remapped to ``$outer`` becomes the outer name; a parameter given a value (in ``with:`` or
-by its default) and every loop item become new names ``STATE__name`` (``STATE``: the using state's path,
-``.`` → ``__``) added to the mission's ``parameters``.  A ``$name`` the used file does not declare is an
-error in that file.  Positions stay true: the source map gets a :class:`~taskflow.yamlsrc.Graft` per
+by its default) becomes a new name ``STATE__name`` (``STATE``: the using state's path, ``.`` → ``__``)
+added to the mission's ``parameters``.  Loop items (``foreach as:``) keep their names (tasks read items
+by name): an item shadows the names around it, and an outer name passed in that an item of the used file
+would hide is an error.  A ``$name`` the used file does not declare is an error in that file.  Positions stay true: the source map gets a :class:`~taskflow.yamlsrc.Graft` per
 spliced region, so a problem inside a used file is reported at that file's line and column, with
 where it was used from (``Problem.via``).  A file that uses itself, directly or through others, is
 refused with the chain.
@@ -38,7 +39,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from .diagnostics import pydantic_problems
 from .errors import MissionError, Problem
-from .model import YPath
+from .model import YPath, has_refs
 from .registry import describe_choices
 from .yamlsrc import Graft, SourceMap, load_yaml_file
 
@@ -65,15 +66,17 @@ class Submission(BaseModel):
 
 
 class _Scope:
-    """Where a walk is: the file the states were written in, its chain of use (for cycles), and how
-    its names map to the expanded mission's (``None``: the mission itself, whose names stay)."""
+    """Where a walk is: the file the states were written in, its chain of use (for cycles), how its
+    parameters map to the expanded mission's (``env``; ``None``: the mission itself, whose names stay),
+    and the loop items (``foreach as:``) declared around the current state — kept as written, since
+    tasks and scripts read items by name."""
 
-    def __init__(self, file: str, chain: tuple[Path, ...], env: dict[str, str] | None, known: set[str]) -> None:
-        self.file, self.chain, self.env, self.known = file, chain, env, known
+    def __init__(self, file: str, chain: tuple[Path, ...], env: dict[str, str] | None, known: set[str],
+                 items: frozenset[str] = frozenset()) -> None:
+        self.file, self.chain, self.env, self.known, self.items = file, chain, env, known, items
 
-    def with_item(self, name: str, scoped: str) -> "_Scope":
-        env = None if self.env is None else {**self.env, name: scoped}
-        return _Scope(self.file, self.chain, env, self.known | {name})
+    def with_item(self, name: str) -> "_Scope":
+        return _Scope(self.file, self.chain, self.env, self.known | {name}, self.items | {name})
 
 
 class _Expander:
@@ -106,11 +109,7 @@ class _Expander:
         inner = scope
         fe = st.get("foreach")
         if isinstance(fe, dict) and isinstance(fe.get("as"), str):
-            item = fe["as"]
-            scoped = item if scope.env is None else self.new_name(ypath, item)
-            if scope.env is not None:
-                fe["as"] = scoped
-            inner = scope.with_item(item, scoped)
+            inner = scope.with_item(fe["as"])
         if "use" in st or "with" in st:
             self.use(st, ypath, inner)
         else:
@@ -129,18 +128,11 @@ class _Expander:
                 tr["when"] = self.rename_guard(tr["when"], ypath + ("transitions", i, "when"), scope)
         fe = st.get("foreach")
         if isinstance(fe, dict) and isinstance(fe.get("in"), str):
-            if fe["in"] in scope.env:
-                fe["in"] = scope.env[fe["in"]]
-            else:
-                self.unknown(fe["in"], ypath + ("foreach", "in"), scope)
+            fe["in"] = self.rename(fe["in"], ypath + ("foreach", "in"), scope)
 
     def rename_value(self, value: Any, ypath: YPath, scope: _Scope) -> Any:
-        assert scope.env is not None
         if isinstance(value, str) and value.startswith("$") and value[1:].isidentifier():
-            if value[1:] in scope.env:
-                return "$" + scope.env[value[1:]]
-            self.unknown(value[1:], ypath, scope)
-            return value
+            return "$" + self.rename(value[1:], ypath, scope)
         if isinstance(value, dict):
             return {k: self.rename_value(v, ypath + (k,), scope) for k, v in value.items()}
         if isinstance(value, list):
@@ -148,20 +140,21 @@ class _Expander:
         return value
 
     def rename_guard(self, text: str, ypath: YPath, scope: _Scope) -> str:
+        return _GUARD_REF.sub(lambda m: "$" + self.rename(m.group(1), ypath, scope), text)
+
+    def rename(self, name: str, ypath: YPath, scope: _Scope) -> str:
+        """The mission's name for ``$name`` written at ``ypath`` of a used file (problems recorded)."""
         assert scope.env is not None
-        env = scope.env
-
-        def sub(m: re.Match[str]) -> str:
-            if m.group(1) in env:
-                return "$" + env[m.group(1)]
-            self.unknown(m.group(1), ypath, scope)
-            return m.group(0)
-
-        return _GUARD_REF.sub(sub, text)
-
-    def unknown(self, name: str, ypath: YPath, scope: _Scope) -> None:
-        self.err(ypath, f"${name} is not a parameter of this sub-mission nor a loop item around it",
-                 "declare it under `parameters:` of the file — " + describe_choices(name, sorted(scope.known)))
+        if name in scope.items:
+            return name
+        if name not in scope.env:
+            self.err(ypath, f"${name} is not a parameter of this sub-mission nor a loop item around it",
+                     "declare it under `parameters:` of the file — " + describe_choices(name, sorted(scope.known)))
+            return name
+        if scope.env[name] in scope.items:  # the outer name would be captured by a loop item of this file
+            self.err(ypath, f"${name} is the using file's ${scope.env[name]}, which the loop item "
+                     f"{scope.env[name]!r} here hides", "rename that loop item (`foreach as:`)")
+        return scope.env[name]
 
     def new_name(self, ypath: YPath, name: str) -> str:
         """The mission-wide name of ``name`` defined by the used file at state ``ypath``."""
@@ -302,12 +295,17 @@ class _Expander:
                 value = with_[name]
                 if isinstance(value, str) and value.startswith("$") and value[1:].isidentifier():
                     ref = value[1:]
-                    if scope.env is not None and ref not in scope.env or scope.env is None and ref not in scope.known:
+                    if ref not in scope.known:
                         self.err(ypath + ("with", name), f"${ref} is not a parameter or loop item here",
                                  describe_choices(ref, sorted(scope.known)))
                         ok = False
                         continue
-                    env[name] = ref if scope.env is None else scope.env[ref]
+                    env[name] = ref if scope.env is None else self.rename(ref, ypath + ("with", name), scope)
+                    continue
+                if has_refs(value):
+                    self.err(ypath + ("with", name), "`with:` gives a value or one $name, not a value holding $names",
+                             "parameters are not resolved inside other parameters: pass the list as a parameter")
+                    ok = False
                     continue
                 where: Graft = Graft(("parameters",), self.smap, ypath + ("with", name))
             elif default is None:
