@@ -289,3 +289,17 @@ def test_an_outer_name_a_loop_item_of_the_used_file_would_hide_is_refused(tmp_pa
     (msg,) = problems(write(tmp_path, {"m.yaml": main, "lib/goto.yaml": lib}))
     assert msg.startswith(f"{tmp_path / 'lib' / 'goto.yaml'}:22:43: $target is the using file's $via, which the loop "
                           "item 'via' here hides — rename that loop item"), msg
+
+
+def test_the_worked_example_of_docs_missions_md_loads(tmp_path: Path) -> None:
+    import re
+
+    text = (Path(__file__).parents[2] / "docs" / "missions.md").read_text()
+    section = text[text.index("## Sub-missions"):text.index("## Testing a mission")]
+    lib, main = re.findall(r"```yaml\n(.*?)```", section, re.S)
+    head = ("mission: my_mission\nrobot: racecar\nworld: {name: flat_ground}\nrate_hz: 20\n"
+            "profiles:\n  gains:\n    cruise: {k1: [0.6, 0.6], d: 0.3}\n")
+    m = load_mission(write(tmp_path, {"m.yaml": head + main, "lib/approach.yaml": lib}))
+    assert list(m.states) == ["drive", "drive.approach", "drive.settle", "drive.reached", "done"]
+    assert list(m.spec.parameters) == ["waypoints", "tight"]  # both parameters passed as outer names
+    assert any(t.label == "pos_error < $tight for 0.3 s" for t in m.transitions)
