@@ -92,8 +92,11 @@ class _Expander:
     def err(self, path: YPath, message: str, hint: str = "") -> None:
         self.problems.append(self.smap.problem(path, message, hint))
 
-    def at(self, path: YPath) -> Problem:
-        return self.smap.problem(path, "")
+    def via(self, path: YPath) -> tuple[str, ...]:
+        """Where the value at ``path`` is written, as a ``via`` chain: ``FILE:LINE:COL`` and where that file was
+        used from."""
+        where = self.smap.problem(path, "")
+        return (f"{where.file}:{where.line}:{where.col}",) + where.via
 
     # -- walking states ---------------------------------------------------------------------------
 
@@ -191,8 +194,7 @@ class _Expander:
         if loaded is None:
             return
         doc, inner_map = loaded
-        where = self.at(ypath + ("use",))
-        via = (f"{where.file}:{where.line}:{where.col}",) + where.via
+        via = self.via(ypath + ("use",))
         env = self.bind_parameters(doc, inner_map, with_ or {}, ypath, scope, via)
         if env is None:
             return
@@ -245,13 +247,10 @@ class _Expander:
                 self.err(ypath + ("use",), f"sub-mission {target!r}: {first.message} ({path})",
                          "the path is relative to the file that uses it")
             else:
-                where = self.at(ypath + ("use",))
-                self.problems.extend(_with_via(p, (f"{where.file}:{where.line}:{where.col}",) + where.via)
-                                     for p in got.problems)
+                self.problems.extend(_with_via(p, self.via(ypath + ("use",))) for p in got.problems)
             return None
         data, inner_map = got
-        where = self.at(ypath + ("use",))
-        via = (f"{where.file}:{where.line}:{where.col}",) + where.via
+        via = self.via(ypath + ("use",))
         if not isinstance(data, dict):
             self.problems.append(_with_via(inner_map.problem((), "a sub-mission is a mapping of keys",
                                                              "start with `submission: NAME`"), via))

@@ -303,3 +303,10 @@ def test_the_worked_example_of_docs_missions_md_loads(tmp_path: Path) -> None:
     assert list(m.states) == ["drive", "drive.approach", "drive.settle", "drive.reached", "done"]
     assert list(m.spec.parameters) == ["waypoints", "tight"]  # both parameters passed as outer names
     assert any(t.label == "pos_error < $tight for 0.3 s" for t in m.transitions)
+
+
+def test_malformed_yaml_in_the_used_file_is_located_there(tmp_path: Path) -> None:
+    main = write(tmp_path, {"m.yaml": MAIN, "lib/goto.yaml": "submission: g\nmachine: {initial: a\n"})
+    (msg,) = problems(main)
+    assert msg.startswith(f"{tmp_path / 'lib' / 'goto.yaml'}:3:1: YAML error"), msg
+    assert msg.endswith(f"(used from {main}:14:7)"), msg
