@@ -2,12 +2,13 @@
 
 A *sub-mission* file holds a reusable machine and the parameters it reads::
 
-    submission: screw_operation       # instead of `mission:`; no robot, world or rate — the user's apply
+    submission: screw_operation       # instead of `mission:`; no robot, world or rate: the using mission's apply
     description: ...
     parameters:                        # what the machine reads with $name; `~` (null): no default, required
       screws: ~
       eps_t: 1.5 mm
     profiles: {...}                    # optional; merged into the using mission's (same name: same values)
+    exits: [error_stop]                # optional; states of the using mission its transitions may name
     machine: {initial: ..., states: {...}, task: ..., bind: ...}
 
 A state of a mission (or of another sub-mission) uses it with ``use: PATH`` (relative to the using
