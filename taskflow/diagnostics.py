@@ -71,7 +71,7 @@ def pydantic_problems(exc: ValidationError, smap: SourceMap, base: YPath, model:
 def dedupe(problems: list[Problem]) -> list[Problem]:
     out: list[Problem] = []
     for p in problems:
-        if any(q.line == p.line and q.col == p.col and q.message == p.message for q in out):
+        if any((q.file, q.line, q.col, q.message, q.via) == (p.file, p.line, p.col, p.message, p.via) for q in out):
             continue
         out.append(p)
     return sorted(out, key=lambda p: (p.line, p.col))

@@ -14,11 +14,13 @@ class Problem:
     col: int  # 1-based; 0 when unknown
     message: str
     hint: str = ""
+    via: tuple[str, ...] = ()  # where ``file`` was used from (``FILE:LINE:COL``, innermost first): sub-missions
 
     def __str__(self) -> str:
         where = f"{self.file}:{self.line}:{self.col}" if self.line else f"{self.file}"
         tail = f" — {self.hint}" if self.hint else ""
-        return f"{where}: {self.message}{tail}"
+        used = ", ".join(("used from " if i == 0 else "itself used from ") + v for i, v in enumerate(self.via))
+        return f"{where}: {self.message}{tail}" + (f" ({used})" if used else "")
 
 
 class MissionError(Exception):

@@ -50,6 +50,8 @@ def _state_label(node: StateNode) -> str:
         label += f" [foreach {node.loop.item} in {node.loop.items}]"
     if node.history:
         label += " [H]"
+    if node.use:
+        label += f" [use {node.use}]"
     if node.final:
         label += f" = {node.final}"
     return label
@@ -112,7 +114,7 @@ def to_dot(m: CompiledMission) -> str:
         for child in node.children.values():
             if child.children:
                 lines.append(f'{indent}subgraph "cluster_{_mid(child)}" {{')
-                extra = []
+                extra = [f"use {child.use}"] if child.use else []
                 if child.loop:
                     extra.append(f"foreach {child.loop.item} in {child.loop.items}")
                 if child.history:

@@ -22,6 +22,7 @@ from .errors import MissionError, Problem
 from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, Loop, StateNode,  # noqa: F401
                     TimeoutTransition, Transition, UnknownRef, resolve_refs, with_model_defaults)
 from .schema import Mission
+from .submission import expand_uses
 from .yamlsrc import MissionLoader, SourceMap, load_yaml_file, load_yaml_text
 
 
@@ -82,6 +83,8 @@ def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap 
 
 def compile_mission(data: Any, smap: SourceMap, overrides: list[str] | None = None) -> CompiledMission:
     file = smap.file
+    if isinstance(data, dict):
+        data = expand_uses(data, smap)  # `use:` sub-missions spliced in; `--set` applies to the result
     if overrides:
         data = apply_overrides(data, overrides, file, smap)
     if not isinstance(data, dict):

@@ -129,6 +129,7 @@ class StateNode:
     parallel: bool = False  # its children are regions, all active together
     outcome_map: tuple[tuple[str, dict[str, str]], ...] = ()  # parallel: (outcome, {region: outcome}) in order
     owns: tuple[str, ...] | None = None  # a region: the command parts it drives (None: not a region)
+    use: str | None = None  # the sub-mission file its sub-machine came from, as written (`use:`)
 
     @property
     def is_leaf(self) -> bool:

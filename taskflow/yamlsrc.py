@@ -10,6 +10,7 @@ Aliases are allowed (handy for sharing gains), but a document that expands past 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -49,13 +50,28 @@ def _construct_bool(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> bool:
 MissionLoader.add_constructor("tag:yaml.org,2002:bool", _construct_bool)
 
 
+@dataclass(frozen=True)
+class Graft:
+    """Values spliced into a document from elsewhere (a used sub-mission, :mod:`taskflow.submission`):
+    whatever sits under ``prefix`` came from ``smap`` under ``base``; ``via`` is where that file was used
+    from (``FILE:LINE:COL``, innermost first; empty when ``smap`` is the same document)."""
+
+    prefix: Path_
+    smap: "SourceMap"
+    base: Path_
+    via: tuple[str, ...] = ()
+
+
 class SourceMap:
-    """Where each value of a loaded document sits in its file."""
+    """Where each value of a loaded document sits in its file — or, under a :class:`Graft`, in the file
+    it was spliced from."""
 
     def __init__(self, file: str) -> None:
         self.file = file
         self.marks: dict[Path_, tuple[int, int]] = {}
         self.overrides: dict[Path_, str] = {}  # path → the --set KEY=VALUE that wrote it
+        self.grafts: list[Graft] = []
+        self.uses: dict[Path_, str] = {}  # state path → the sub-mission file it uses, as written (graphs)
 
     def where(self, path: Path_) -> tuple[int, int]:
         """Line and column of ``path``, or of its nearest ancestor that has a mark."""
@@ -74,6 +90,10 @@ class SourceMap:
             # inside the overridden value, or the mapping it was written into (e.g. a missing key there)
             if p[: len(opath)] == opath or (len(p) == len(opath) - 1 and opath[: len(p)] == p and p):
                 return Problem(self.file, 0, 0, f"--set {item}: {message}", hint)
+        graft = max((g for g in self.grafts if p[: len(g.prefix)] == g.prefix), key=lambda g: len(g.prefix), default=None)
+        if graft is not None:
+            inner = graft.smap.problem(graft.base + p[len(graft.prefix):], message, hint)
+            return replace(inner, via=inner.via + graft.via)
         line, col = self.where(path)
         return Problem(self.file, line, col, message, hint)
 

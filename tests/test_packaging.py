@@ -34,7 +34,8 @@ def test_wheel_holds_the_missions_and_no_common_top_level_name(wheel: Path) -> N
     top = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
     assert top == {"taskflow", "taskflow_tasks", "taskflow_robots", "taskflow_sim", "taskflow_missions"}
     assert not top & COMMON_NAMES
-    shipped = {p.name for p in (ROOT / "missions").glob("*.yaml")}
+    shipped = {p.relative_to(ROOT / "missions").as_posix() for p in (ROOT / "missions").rglob("*.yaml")}
+    assert "lib/screw_operation.yaml" in shipped  # the sub-missions the shipped missions use travel with them
     assert shipped and {f"taskflow_missions/{n}" for n in shipped} <= set(names)
     page = {f"taskflow/web/{p.name}" for p in (ROOT / "taskflow" / "web").iterdir()}  # the web view's page
     assert page and page <= set(names)
@@ -53,6 +54,9 @@ def test_the_wheel_runs_its_default_mission_beside_a_users_own_tasks_and_sim(whe
         "import taskflow, tasks\n"
         f"assert taskflow.__file__.startswith({str(site)!r}), taskflow.__file__\n"
         "assert tasks.MINE == 'tasks'\n"
+        "import pathlib, taskflow_missions\n"
+        "from taskflow.loader import load_mission\n"  # a shipped mission that uses a sub-mission of missions/lib
+        "load_mission(pathlib.Path(taskflow_missions.__file__).parent / 'screw_fastening.yaml')\n"
         "from taskflow.cli import main\n"
         "sys.exit(main(['run', '--max-time', '0.5', '--out', 'run', '--quiet']))\n"
     )

@@ -111,6 +111,7 @@ def _build_regions(c: Compilation, node: StateNode, spec: State, ypath: YPath) -
 
 def _state_keys(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> None:
     node.history = spec.history
+    node.use = c.smap.uses.get(ypath)
     node.final = "succeeded" if spec.final is True else (spec.final or None)
     if spec.foreach is not None:
         fe = spec.foreach
