@@ -67,7 +67,7 @@ def run_one(job: tuple[str, int, bool, str]) -> dict[str, Any]:
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     s = r.summary
     met = s["metrics"]
-    its = [it for it in s["iterations"] if it["state"] == "operate.screws"]
+    its = [it for it in s["iterations"] if it["state"].endswith("operate.screws")]
     log = met.get("operation_log") or []
     n_items = len(m.spec.parameters["screws"])
     out = {

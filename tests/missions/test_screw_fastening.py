@@ -18,7 +18,8 @@ from taskflow_sim.screw_world import ScrewConveyor
 ROOT = Path(__file__).resolve().parents[2]
 CONVEYOR = ROOT / "missions" / "screw_fastening.yaml"
 TROLLEY = ROOT / "missions" / "screw_fastening_trolley.yaml"
-S = "operate.screws."
+S = "cell.operation.operate.screws."  # the operation region of the parallel state `cell`
+OP = "cell.operation."
 
 
 def test_conveyor_fastens_four_screws_within_a_millimetre_and_a_half():
@@ -45,8 +46,8 @@ def test_marker_hidden_for_a_second_resumes_the_interrupted_state_on_pybullet():
     m = load_mission(CONVEYOR, ["world.params.occlusions=[[12.0, 13.0]]"])
     r = run_on_world(m, seed=0)
     path = r.summary["states_visited"]
-    i = path.index("searching")
-    assert path[i - 1] == path[i + 1] and path[i - 1].startswith("operate.")
+    i = path.index(OP + "searching")
+    assert path[i - 1] == path[i + 1] and path[i - 1].startswith("cell.operation.operate.")
     # the screw the occlusion interrupted lost its approach (the part moved on while the robot stood still)
     # and failed its coupling; the others were fastened. Not every screw fastened: the mission's rule
     # (`require: all`) makes the run fail, and the summary says which item it was
@@ -54,7 +55,7 @@ def test_marker_hidden_for_a_second_resumes_the_interrupted_state_on_pybullet():
     hit = [it for it in its if it["t_start"] <= 12.0 < it["t_end"]]
     assert len(hit) == 1 and hit[0]["outcome"] == "failed"
     assert all(it["outcome"] == "succeeded" for it in its if it is not hit[0])
-    assert r.summary["items"]["operate.screws"]["succeeded"] == 3
+    assert r.summary["items"]["cell.operation.operate.screws"]["succeeded"] == 3
     assert_outcome(r, "failed")
     assert "3 of 4 items succeeded" in r.summary["reason"]
     assert r.summary["metrics"]["operations_fastened"] == 3
@@ -64,7 +65,7 @@ def test_marker_lost_for_good_ends_in_error_with_the_platform_stopped_and_the_ar
     m = load_mission(CONVEYOR, ["world.params.occlusions=[[6.0, 100.0]]"])
     r = run_on_world(m, seed=0)
     assert_outcome(r, "failed")
-    assert r.summary["states_visited"][-3:] == ["searching", "error_stop", "error"]
+    assert r.summary["states_visited"][-3:] == [OP + "searching", "error_stop", "error"]
     metrics = r.summary["metrics"]
     assert metrics["final_base_speed_mps"] < 1e-3
     assert metrics["joint_error"] < 0.03  # the arm retracted to q_home before the error state
@@ -84,7 +85,7 @@ def test_rendered_mode_short_run_reaches_the_arm_approach():
     m = load_mission(CONVEYOR, ["world.params.perception=rendered", "robot={name: mobile_iiwa, params: {camera: {rate_hz: 20}}}"])
     r = run_on_world(m, seed=0, max_time=4.0)
     path = r.summary["states_visited"]
-    assert path[:3] == ["initial_search", "operate.s1_platform_approach", S + "s2_arm_approach"]
+    assert path[:4] == [OP + "initial_search", "cell.safety.watch", OP + "operate.s1_platform_approach", S + "s2_arm_approach"]
     metrics = r.summary["metrics"]
     assert metrics["rendered_frames"] >= 70
     assert metrics["camera_error.t"] < 0.05
@@ -102,7 +103,7 @@ def test_a_mission_pose_with_no_bolt_is_a_visible_failure_kept_out_of_the_error_
     r = run_on_world(load_mission(CONVEYOR, [f"parameters.screws={screws}"]), seed=0)
     assert [it["outcome"] for it in r.summary["iterations"]] == ["succeeded", "succeeded", "failed", "succeeded", "succeeded"]
     assert_outcome(r, "failed")  # the mission's rule (every screw) is not met
-    assert r.summary["items"]["operate.screws"]["succeeded"] == 4
+    assert r.summary["items"]["cell.operation.operate.screws"]["succeeded"] == 4
     m = r.summary["metrics"]
     assert (m["operations"], m["operations_fastened"], m["operations_failed"], m["operations_no_bolt"]) == (5, 4, 1, 1)
     miss = m["operation_log"][2]
@@ -118,7 +119,8 @@ def test_a_mission_pose_with_no_bolt_is_a_visible_failure_kept_out_of_the_error_
 def test_a_negative_fastening_duration_is_refused_not_reported_fastened():
     """It used to run and report 4 of 4 screws fastened; the screwdriver's parameter model now refuses
     it at load, at the `--set` that wrote it."""
-    override = "machine.states.operate.states.screws.states.s5_operation.action.params.duration=-3"
+    override = ("machine.states.cell.regions.operation.states.operate.states.screws.states.s5_operation.action.params."
+                "duration=-3")
     with pytest.raises(MissionError) as exc:
         load_mission(CONVEYOR, [override])
     assert str(exc.value.first).startswith(f"{CONVEYOR}: --set {override}: ") and "duration" in str(exc.value)
@@ -155,5 +157,31 @@ def test_thresholds_that_fasten_nothing_end_failed(eps_t):
     start (each approach times out). Both used to end `succeeded` with 0 of 4 bolts fastened."""
     r = run_on_world(load_mission(CONVEYOR, [f"parameters.eps_t={eps_t}"]), seed=0)
     assert_outcome(r, "failed")
-    assert r.summary["items"]["operate.screws"]["succeeded"] == 0
+    assert r.summary["items"]["cell.operation.operate.screws"]["succeeded"] == 0
     assert r.summary["metrics"]["operations_fastened"] == 0 and r.summary["metrics"]["bolts_fastened"] == 0
+
+
+def test_the_safety_region_stops_an_over_force_and_leaves_the_robot_at_rest(tmp_path: Path):
+    """A wrong operation pose — the first bolt 8 cm too deep, as from a wrong part model — drives the
+    stiff approach into the part.  The monitor region (it commands nothing) sees the F/T force pass
+    max_tool_force, pre-empts the operation region and the controlled stop retracts the arm; judged from
+    the world's ground truth in the trace."""
+    import csv
+
+    deep = "parameters.screws=[{xyz: [0.14, 0.06, -0.0725], rpy_deg: [180, 0, -90]}]"
+    r = run_mission(load_mission(CONVEYOR, overrides=[deep]), seed=0, out_dir=tmp_path / "run")
+    assert_outcome(r, "failed")
+    trip = next(t for t in r.executor.transitions_fired if t.target == "cell.safety.over_force")
+    assert trip.metrics["tool_force"] > 40.0  # the guard's own reading, for the record
+    # the operation region was pre-empted the same tick, from the screw approach, and never touched a bolt
+    cause = next(t for t in r.executor.transitions_fired if t.source.endswith("|cell.safety.over_force"))
+    assert cause.t == trip.t and cause.target == "error_stop" and cause.source.startswith(S + "s2_arm_approach")
+    assert r.summary["metrics"]["operations"] == 0 and r.summary["states_visited"][-2:] == ["error_stop", "error"]
+    rows = list(csv.DictReader(open(tmp_path / "run" / "trace.csv")))
+    at_trip = [row for row in rows if abs(float(row["t"]) - trip.t) < 1e-6][0]
+    assert float(at_trip["gt.contact_force"]) > 40.0  # the over-force was real, in the simulation
+    before = [float(row["gt.contact_force"]) for row in rows if float(row["t"]) < trip.t - 0.05]
+    assert max(before) < 40.0  # and it was caught within a few ticks of its start
+    end = rows[-1]  # after the controlled stop and the runtime's safe stop
+    assert float(end["gt.base_speed"]) < 1e-3 and float(end["gt.arm_speed"]) < 1e-3
+    assert float(end["gt.contact_force"]) < 1.0  # the tool is off the part
