@@ -129,10 +129,11 @@ def _first_items(c: Compilation, n: StateNode) -> dict[str, Any]:
 def _refs_resolve(c: Compilation, n: StateNode, raw: dict[str, Any], where: YPath) -> bool:
     """Whether every ``$reference`` in ``raw`` names a mission parameter or an enclosing foreach item."""
     scope = _first_items(c, n)
+    data = c.data.samples() if raw is n.task_params else None  # $data.<key>: task parameters only
     try:
-        resolve_refs(raw, c.spec.parameters, scope)
+        resolve_refs(raw, c.spec.parameters, scope, data=data)
     except UnknownRef as exc:
-        valid = ["$" + k for k in list(c.spec.parameters) + list(scope)]
+        valid = ["$" + k for k in list(c.spec.parameters) + list(scope) + ["data." + k for k in data or ()]]
         c.err(where + exc.path, f"unknown reference ${exc.name}", describe_choices("$" + exc.name, valid))
         return False
     return True
@@ -144,7 +145,8 @@ def validate_every_item(c: Compilation, n: StateNode, model: type[BaseModel], ra
     enclosing foreach, then with every other item of each list (the others at their first item)."""
     params = c.spec.parameters
     first = _first_items(c, n)
-    if c.validate_model(model, resolve_refs(raw, params, first), where) is None:
+    data = c.data.samples()
+    if c.validate_model(model, resolve_refs(raw, params, first, data=data), where) is None:
         return
     for item, lst in n.scope_items():
         values = params.get(lst)
@@ -152,7 +154,8 @@ def validate_every_item(c: Compilation, n: StateNode, model: type[BaseModel], ra
             if idx == 0:
                 continue
             try:
-                model.model_validate(with_model_defaults(model, resolve_refs(raw, params, {**first, item: value})))
+                model.model_validate(with_model_defaults(model, resolve_refs(raw, params, {**first, item: value},
+                                                                             data=data)))
             except ValidationError as exc:
                 err = exc.errors()[0]
                 loc = ".".join(str(x) for x in clean_loc(tuple(err["loc"])))
