@@ -187,9 +187,10 @@ def check_dataflow(c: Compilation, root: StateNode) -> None:
         if leaf.final or leaf.task_cls is None:
             continue
         task = f"task {leaf.task_cls.name!r} of state {leaf.path!r}"
+        named = leaf.task_ypath + ("name",)  # `task: {name: …}`, else `task: NAME`
         for key in leaf.task_cls.reads:
             if key.name not in written[leaf.path]:
-                missing(key.name, leaf, task, leaf.task_ypath + ("name",))
+                missing(key.name, leaf, task, named if named in c.smap.marks else leaf.task_ypath)
         for name, sub in data_refs(leaf.task_params):
             if name in cat.keys and name not in written[leaf.path]:
                 missing(name, leaf, f"{task} (parameter $data.{name})", leaf.task_ypath + ("params",) + sub)
