@@ -49,6 +49,10 @@ def data_catalogue(c: Compilation, root: StateNode) -> DataCatalogue:
         cls = n.task_cls
         if cls is None:
             continue
+        for metric in cls.metrics:
+            if metric.startswith(DATA_PREFIX):
+                c.err(n.task_ypath, f"task {cls.name!r} publishes metric {metric!r}, but guard names starting "
+                      f"with {DATA_PREFIX!r} read mission data", "rename the metric")
         for key in (*cls.writes, *cls.reads):
             known = cat.keys.setdefault(key.name, key)
             if known is not key:
