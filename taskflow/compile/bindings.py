@@ -80,7 +80,7 @@ def check_parameters(c: Compilation, root: StateNode) -> None:
         if isinstance(spec, State) and spec.foreach is not None:
             _check_loop(c, n, spec)
         if n.is_leaf and n.task_cls is not None:
-            if _refs_resolve(c, n, n.task_params, n.task_ypath + ("params",)):
+            if _refs_resolve(c, n, n.task_params, n.task_ypath + ("params",), c.data.samples()):
                 validate_every_item(c, n, n.task_cls.Params, n.task_params, n.task_ypath + ("params",),
                                     f"task {n.task_cls.name!r}")
 
@@ -126,10 +126,11 @@ def _first_items(c: Compilation, n: StateNode) -> dict[str, Any]:
             for item, lst in n.scope_items()}
 
 
-def _refs_resolve(c: Compilation, n: StateNode, raw: dict[str, Any], where: YPath) -> bool:
-    """Whether every ``$reference`` in ``raw`` names a mission parameter or an enclosing foreach item."""
+def _refs_resolve(c: Compilation, n: StateNode, raw: dict[str, Any], where: YPath,
+                  data: dict[str, Any] | None = None) -> bool:
+    """Whether every ``$reference`` in ``raw`` names a mission parameter or an enclosing foreach item (or,
+    given ``data``, the mission's data keys — task parameters only: ``$data.<key>``)."""
     scope = _first_items(c, n)
-    data = c.data.samples() if raw is n.task_params else None  # $data.<key>: task parameters only
     try:
         resolve_refs(raw, c.spec.parameters, scope, data=data)
     except UnknownRef as exc:
