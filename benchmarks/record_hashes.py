@@ -4,9 +4,13 @@ Each shipped mission runs to its end with seed 0 in its default perception mode 
 of its world (as `benchmarks/determinism.py`); for each run one JSON line gives the outcome and the
 sha256 of `trace.csv`, `transitions.jsonl` and `summary.json` (the summary without `file` and
 `versions.taskflow_commit`, which name the checkout).  With `--compare OLD.jsonl` (this script's output
-on another checkout) the last line counts the runs whose three fingerprints are identical.
+on another checkout) the last line counts the runs whose three fingerprints are identical.  `--skip-summary-key
+KEY` leaves a top-level summary key out of the summary's fingerprint (a key the other checkout does not
+write, e.g. `outputs` against a checkout from before mission data); each row then also lists that key's
+value, so what was left out is shown.
 
-Run: ``python benchmarks/record_hashes.py [--workers 2] [--only NAME ...] [--compare OLD.jsonl] > NEW.jsonl``
+Run: ``python benchmarks/record_hashes.py [--workers 2] [--only NAME ...] [--compare OLD.jsonl]
+[--skip-summary-key KEY ...] > NEW.jsonl``
 (the missions and code are those of the checkout installed in the running interpreter: run the same
 file with another checkout's environment to fingerprint that one).
 """
@@ -26,20 +30,24 @@ from determinism import MODES
 MISSIONS = Path(taskflow_missions.__file__).resolve().parent  # the installed checkout's missions
 
 
-def _fingerprints(job: tuple[str, list[str], str]) -> dict[str, object]:
+def _fingerprints(job: tuple[str, list[str], str, list[str]]) -> dict[str, object]:
     from taskflow.loader import load_mission
     from taskflow.runtime import run_mission
 
-    path, overrides, out = job
+    path, overrides, out, skip = job
     result = run_mission(load_mission(path, overrides), seed=0, out_dir=out)
     summary = json.loads((Path(out) / "summary.json").read_text())
     summary.pop("file", None)
     summary.get("versions", {}).pop("taskflow_commit", None)
+    skipped = {key: summary.pop(key) for key in skip if key in summary}
     digest = {name: hashlib.sha256((Path(out) / name).read_bytes()).hexdigest()
               for name in ("trace.csv", "transitions.jsonl")}
     digest["summary.json"] = hashlib.sha256(json.dumps(summary, sort_keys=True).encode()).hexdigest()
-    return {"run": f"{Path(path).stem}{'@' + overrides[0].split('=')[1] if overrides else ''}",
-            "outcome": result.outcome, "sha256": digest}
+    row: dict[str, object] = {"run": f"{Path(path).stem}{'@' + overrides[0].split('=')[1] if overrides else ''}",
+                              "outcome": result.outcome, "sha256": digest}
+    if skipped:
+        row["skipped_summary_keys"] = skipped
+    return row
 
 
 def main() -> None:
@@ -47,6 +55,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--only", nargs="*", default=None, help="mission file stems")
     ap.add_argument("--compare", type=Path, default=None, help="this script's output on another checkout")
+    ap.add_argument("--skip-summary-key", nargs="*", default=[], metavar="KEY",
+                    help="top-level summary keys left out of the summary's fingerprint (listed in each row)")
     args = ap.parse_args()
     from taskflow.loader import load_mission
 
@@ -56,7 +66,7 @@ def main() -> None:
         if args.only and f.stem not in args.only:
             continue
         for i, overrides in enumerate([[], *MODES.get(load_mission(f).world_cls.name, [])]):
-            jobs.append((str(f), overrides, str(tmp / f"{f.stem}-{i}")))
+            jobs.append((str(f), overrides, str(tmp / f"{f.stem}-{i}"), list(args.skip_summary_key)))
     rows = []
     with ProcessPoolExecutor(max(1, args.workers)) as pool:
         for row in pool.map(_fingerprints, jobs):

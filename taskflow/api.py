@@ -19,17 +19,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Generic, Mapping, TypeVar, cast
+from typing import Any, ClassVar, Generic, Mapping, MutableMapping, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict
 
 from .markers import ControlPoint, Marker, TaskScene
-from .specs import ObsSpec, RobotNeeds, array, mapping, message, scalar, sequence, text
+from .specs import ObsSpec, RobotNeeds, array, flag, instance, mapping, message, scalar, sequence, text
 
-__all__ = ["Command", "ControlPoint", "Marker", "MemoryKey", "NoParams", "ObsSpec", "Observation", "Robot", "RobotNeeds", "StepResult",
-           "StrictModel", "Task", "TaskContext", "TaskScene", "World", "array", "mapping", "message", "scalar", "sequence", "text"]
+__all__ = ["Command", "ControlPoint", "Marker", "MemoryKey", "NO_DEFAULT", "NoParams", "ObsSpec", "Observation", "Robot",
+           "RobotNeeds", "StepResult", "StrictModel", "Task", "TaskContext", "TaskScene", "World", "array", "flag",
+           "instance", "mapping", "message", "scalar", "sequence", "text"]
 
 Command = dict[str, NDArray[np.float64]]
 """Robot command: named arrays (e.g. ``{"v": [0.3], "steer": [0.1]}``); keys are the robot's."""
@@ -87,14 +88,47 @@ class StepResult:
 ValueT = TypeVar("ValueT")
 
 
-@dataclass(frozen=True)
+class _NoDefault:
+    """The default of a :class:`MemoryKey` that has none (the key must be written before it is read)."""
+
+    def __repr__(self) -> str:
+        return "NO_DEFAULT"
+
+
+NO_DEFAULT: Any = _NoDefault()
+
+
+@dataclass(frozen=True, eq=False)
 class MemoryKey(Generic[ValueT]):
-    """One entry of a run's shared memory (:attr:`TaskContext.memory`), defined once by the module that
-    writes it: its whole name (the owner's namespace and the entry, ``"screw.pid_b"``) and, through its
-    type parameter, what it holds — ``PID_B: MemoryKey[PidState] = MemoryKey("screw.pid_b")``.  The memory
-    stays a plain dict (tests and tools read it by name); tasks go through keys instead of spelling names."""
+    """One entry of a run's mission data (:attr:`TaskContext.memory`), defined once by the module that
+    owns it and declared by every task that writes it (:attr:`Task.writes`) or needs it (:attr:`Task.reads`):
+
+    * ``name`` — its whole name, the owner's namespace and the entry (``"viki.object"``); missions name it
+      so (``data:`` defaults, ``data.viki.object[0]`` in guards, ``$data.viki.object`` in parameters);
+    * ``spec`` — the type of its value, in the observation-spec vocabulary (``array(2)``, ``scalar()``,
+      ``flag()``, ``text()``, ``mapping()``, ``sequence()``, ``instance(PidState)``); every write is checked
+      against it, and it decides what a mission may do with the key (guards read ``scalar``/``flag`` keys
+      and the components of fixed-shape 1-D ``array`` keys; an ``instance`` cannot be given in YAML);
+    * ``unit`` — the SI base unit of its numbers (``"m"``), for guards (``data.viki.object[0] < 2 cm``);
+    * ``default`` — the value it holds from the start of every run (copied), or :data:`NO_DEFAULT`;
+    * ``doc`` — what it holds, for ``docs/missions.md``;
+    * ``output`` — whether the run summary lists its final value under ``outputs`` (False for a
+      controller's internal state — integrators, histories — that would only bloat the summary).
+
+    Through its type parameter it types the accessors: ``MEM_OBJECT: MemoryKey[NDArray[np.float64]]``;
+    ``key(memory)`` reads an entry that must exist (the error names it), ``key.get``, ``key.set``,
+    ``key.setdefault``, ``key.present`` the rest."""
 
     name: str
+    spec: ObsSpec
+    unit: str = ""
+    default: Any = NO_DEFAULT
+    doc: str = ""
+    output: bool = True
+
+    @property
+    def has_default(self) -> bool:
+        return self.default is not NO_DEFAULT
 
     def get(self, memory: Mapping[str, Any]) -> ValueT | None:
         return cast("ValueT | None", memory.get(self.name))
@@ -106,10 +140,10 @@ class MemoryKey(Generic[ValueT]):
         except KeyError:
             raise KeyError(f"shared memory has no {self.name!r} yet (written by an earlier state)") from None
 
-    def set(self, memory: dict[str, Any], value: ValueT) -> None:
+    def set(self, memory: MutableMapping[str, Any], value: ValueT) -> None:
         memory[self.name] = value
 
-    def setdefault(self, memory: dict[str, Any], default: ValueT) -> ValueT:
+    def setdefault(self, memory: MutableMapping[str, Any], default: ValueT) -> ValueT:
         return cast(ValueT, memory.setdefault(self.name, default))
 
     def present(self, memory: Mapping[str, Any]) -> bool:
@@ -127,8 +161,13 @@ class TaskContext(Generic[ParamsT, RobotParamsT]):
 
     ``params`` is the task's validated parameter model (``$name`` references already resolved
     against mission parameters and ``foreach`` items), ``profiles`` maps each profile slot to its
-    validated model, ``memory`` is a mission-wide blackboard shared by all tasks of one run (e.g. a
-    target fixed by the first detection and used by later states), ``robot`` the robot model,
+    validated model, ``memory`` is the run's mission data as this task may use it (e.g. a target fixed
+    by the first detection and used by later states): it reads the keys it declares in
+    :attr:`Task.reads` or :attr:`Task.writes` and writes those of :attr:`Task.writes`, any other access
+    being an error that names the task and the key; ``cache`` is a per-run memo shared by the run's
+    tasks for values *derived* from the run's constant inputs (keyframe features) — not mission data:
+    undeclared, unchecked, never in the summary, and a task behaves the same with it empty, only
+    slower (keys are namespaced by their owner, ``"visual_path.keyframe_features"``); ``robot`` the robot model,
     ``robot_params`` the robot parameters the task declared it reads (:attr:`Task.robot_params`, built
     from the robot's own), ``items`` the current ``foreach`` items and ``dt`` the control period.
 
@@ -140,11 +179,12 @@ class TaskContext(Generic[ParamsT, RobotParamsT]):
     t: float
     params: ParamsT
     profiles: Mapping[str, BaseModel]
-    memory: dict[str, Any]
+    memory: MutableMapping[str, Any]
     robot: "Robot"
     items: Mapping[str, Any] = field(default_factory=dict)
     dt: float = 0.0  # the control period (1 / rate_hz), s
     robot_params: RobotParamsT = None  # type: ignore[assignment]  # None when the task declares none
+    cache: dict[str, Any] = field(default_factory=dict)  # per-run memo of derived values, not mission data
 
     def profile(self, slot: str, model: type[ProfileT]) -> ProfileT:
         """The profile bound to ``slot``, typed as ``model`` (the slot's declared model, which the loader
@@ -176,7 +216,11 @@ class Task(Generic[ParamsT, RobotParamsT]):
     * ``robot_params`` — a pydantic model of the robot parameters the law reads (geometry, limits,
       camera mounts).  The robot is accepted for its fields, not its name: the loader checks that the
       robot's ``Params`` has each field with a compatible type, and the framework builds this model from
-      the robot's parameters as ``ctx.robot_params``.
+      the robot's parameters as ``ctx.robot_params``;
+    * ``writes`` — the mission-data keys (:class:`MemoryKey`) it may write (and read, whether written yet
+      or not); ``reads`` — the keys it needs written before its state is entered.  The loader checks that
+      every key a state reads is written on every path into it or has a default
+      (:mod:`taskflow.compile.dataflow`); at run time ``ctx.memory`` refuses any other key.
     """
 
     name: ClassVar[str] = ""
@@ -187,6 +231,8 @@ class Task(Generic[ParamsT, RobotParamsT]):
     command_interface: ClassVar[str] = ""
     requires: ClassVar[dict[str, ObsSpec]] = {}
     robot_params: ClassVar[type[BaseModel] | None] = None
+    writes: ClassVar[tuple[MemoryKey[Any], ...]] = ()
+    reads: ClassVar[tuple[MemoryKey[Any], ...]] = ()
 
     def __init__(self, ctx: TaskContext[ParamsT, RobotParamsT]) -> None:
         self.ctx = ctx

@@ -32,9 +32,10 @@ from typing import Any, Callable, Collection
 
 from .api import Command, Observation, Robot, Task, TaskContext, World
 from .contracts import build_robot_params
+from .data import DataAccess
 from .engine import START, MissionMachine, MissionState, leaf_paths
 from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode, TimeoutTransition,
-                    Transition, has_refs, resolve_refs)
+                    Transition, UnknownRef, has_refs, resolve_refs)
 from .records import (CAUSES, DONE, EVENT, GUARD, NEXT_ITEM, START_CAUSE, TIMEOUT, ItemCount, IterationRecord,
                       TransitionRecord)
 from .records import OPERATOR
@@ -70,7 +71,8 @@ class Executor:
         self._dt = 1.0 / mission.spec.rate_hz
         self.task_factory = task_factory or (lambda cls, ctx: cls(ctx))
         self.on_transition = on_transition
-        self.memory: dict[str, Any] = {}
+        self.memory: dict[str, Any] = mission.data.initial_values()  # the run's mission data, by key name
+        self.cache: dict[str, Any] = {}  # the run's memo of derived values (TaskContext.cache), not mission data
         self.t = 0.0
         self.task: Task | None = None  # the task of the leaf entered last (the only one without parallel regions)
         self.tasks: dict[str, Task] = {}  # active leaf → its task
@@ -106,6 +108,9 @@ class Executor:
         # per task class of the mission: its view of the robot's parameters (Task.robot_params), built once
         self._robot_params: dict[type[Task], Any] = {
             n.task_cls: build_robot_params(n.task_cls, robot) for n in mission.states.values() if n.task_cls}
+        # per task class: its checked view of the mission data (Task.reads / Task.writes)
+        self._data_access: dict[type[Task], DataAccess] = {
+            n.task_cls: DataAccess(self.memory, n.task_cls) for n in mission.states.values() if n.task_cls}
         self._scoped: set[str] = {n.path for n in mission.states.values() if any(a.loop for a in n.ancestors())}
         self._below: dict[str, list[MissionState]] = {
             n.path: [self._states[d.path] for d in n.walk() if d is not n] for n in mission.states.values() if n.children}
@@ -195,11 +200,17 @@ class Executor:
                 items = self.items(node)
                 params = self._static_params.get(node.path)
                 if params is None:
-                    params = node.task_cls.Params.model_validate(resolve_refs(node.task_params, self.params, items))
+                    try:
+                        raw = resolve_refs(node.task_params, self.params, items, data=self.memory)
+                    except UnknownRef as exc:  # declared written on every path, but the writer did not write it
+                        raise RuntimeError(f"state {node.path!r}: parameter ${exc.name} has no value yet (its "
+                                           "writer declares it but did not write it)") from None
+                    params = node.task_cls.Params.model_validate(raw)
                     if not has_refs(node.task_params):
                         self._static_params[node.path] = params
-                ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self.memory, robot=self.robot,
-                                  items=items, dt=self._dt, robot_params=self._robot_params[node.task_cls])
+                ctx = TaskContext(t=t, params=params, profiles=node.profiles, memory=self._data_access[node.task_cls],
+                                  robot=self.robot, items=items, dt=self._dt,
+                                  robot_params=self._robot_params[node.task_cls], cache=self.cache)
                 self.task = self.task_factory(node.task_cls, ctx)
                 if self.task is not None:
                     self.tasks[node.path] = self.task
@@ -460,7 +471,7 @@ class Executor:
                 seen.add(tr.index)
             kind = type(tr)
             if kind is GuardTransition:
-                if tr.predicate(metrics):  # type: ignore[attr-defined]
+                if tr.predicate(metrics, self.memory):  # type: ignore[attr-defined]
                     if tr.dwell > 0.0:  # type: ignore[attr-defined]
                         since = self.dwell_since.setdefault(tr.index, t)
                         if t - since + 1e-9 < tr.dwell:  # type: ignore[attr-defined]
@@ -469,7 +480,7 @@ class Executor:
                 if tr.dwell > 0.0:  # type: ignore[attr-defined]
                     self.dwell_since.pop(tr.index, None)
             elif kind is EventTransition:
-                if tr.event in events and (tr.predicate is None or tr.predicate(metrics)):  # type: ignore[attr-defined]
+                if tr.event in events and (tr.predicate is None or tr.predicate(metrics, self.memory)):  # type: ignore[attr-defined]
                     return self._fire_from(table, i, metrics)
             elif kind is TimeoutTransition:
                 since = clock.first_entered if tr.since_first else clock.entered_at  # type: ignore[attr-defined,union-attr]
@@ -483,7 +494,7 @@ class Executor:
         metrics (a break in their condition must not go unnoticed if their state stays active)."""
         for later, _ in table[i + 1:]:
             if (type(later) is GuardTransition and later.dwell > 0.0 and later.index in self.dwell_since  # type: ignore[attr-defined]
-                    and not later.predicate(metrics)):  # type: ignore[attr-defined]
+                    and not later.predicate(metrics, self.memory)):  # type: ignore[attr-defined]
                 del self.dwell_since[later.index]
         tr = table[i][0]
         self.fire(tr, metrics)

@@ -8,7 +8,7 @@ Grammar (keywords are lower case)::
     primary    := "(" expr ")" | comparison
     comparison := operand OP operand              OP: < <= > >= == !=
     operand    := metric | "abs" "(" metric ")" | quantity | "$" parameter
-    metric     := NAME ("." NAME)*
+    metric     := NAME ("." NAME)* ["[" INDEX "]"]
     quantity   := NUMBER [UNIT]                   e.g. 2 px, 1 cm, 3 deg, 0.5 m/s
 
 Parentheses and ``not`` nest at most :data:`MAX_DEPTH` levels deep (a deeper guard is a load-time
@@ -18,6 +18,12 @@ Examples: ``feature_error < 2 px``, ``pos_error < 1 cm and yaw_error < 2 deg``,
 ``abs(lateral_error) <= $eps_t``.  A quantity is converted to the SI base unit of the metric it
 is compared with; comparing a length metric with ``3 deg`` is a load-time error.  A comparison whose
 metric has no value this tick is false.
+
+A metric named ``data.<key>`` reads the run's mission data instead of the tick's metrics
+(:mod:`taskflow.data`): a scalar key as a number, a flag as 1 (true) or 0 (false), and component ``i`` of
+a 1-D array key as ``data.<key>[i]`` (``data.viki.object[0] < 2 m``); the key's declared unit converts
+the quantity.  Which names exist is the loader's business (it passes them with their units); a key
+with no value yet compares false, as a missing metric does.
 """
 
 from __future__ import annotations
@@ -26,12 +32,16 @@ import math
 import operator
 import re
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
+from typing import Any, Callable, Mapping
 
 from .units import BASE_UNIT_OF, UNITS, dimension, with_article as _a
 
 Metrics = Mapping[str, float]
-Predicate = Callable[[Metrics], bool]
+Data = Mapping[str, Any]
+Predicate = Callable[[Metrics, Data], bool]
+"""``pred(metrics, data)``: the tick's metrics and the run's mission data values."""
+
+DATA_PREFIX = "data."
 
 
 class GuardSyntaxError(ValueError):
@@ -48,7 +58,7 @@ _TOKEN = re.compile(
     r"|(?P<par>[()])"
     r"|(?P<param>\$[A-Za-z_][A-Za-z0-9_]*)"
     r"|(?P<unit>(?:deg|rad|cm|mm|m|px|ms|s|min|N|Nm)/s|%)"
-    r"|(?P<name>[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*)"
+    r"|(?P<name>[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*(?:\[\d+\])?)"
     r"|(?P<neg>-))"
 )
 _OPS: dict[str, Callable[[float, float], bool]] = {
@@ -99,7 +109,22 @@ class Guard:
 
     @property
     def metrics(self) -> set[str]:
-        return {c.metric for c in self.comparisons()}
+        """The tick metrics it reads (``data.…`` names excluded)."""
+        return {c.metric for c in self.comparisons() if not c.metric.startswith(DATA_PREFIX)}
+
+    @property
+    def data(self) -> set[str]:
+        """The mission-data keys it reads (without ``data.`` and any ``[i]``)."""
+        return {_data_key(c.metric)[0] for c in self.comparisons() if c.metric.startswith(DATA_PREFIX)}
+
+
+def _data_key(name: str) -> tuple[str, int | None]:
+    """``data.viki.object[1]`` → (``viki.object``, 1); ``data.count`` → (``count``, None)."""
+    key = name[len(DATA_PREFIX):]
+    if key.endswith("]"):
+        key, index = key[:-1].split("[")
+        return key, int(index)
+    return key, None
 
 
 def _tokenize(text: str) -> list[tuple[str, str, int]]:
@@ -286,32 +311,50 @@ def bind_units(guard: Guard, metric_units: Mapping[str, str], params: Mapping[st
     return problems
 
 
+def _data_comparison(c: Comparison) -> Predicate:
+    """A comparison of a mission-data value: a scalar, a flag (1/0) or one component of an array."""
+    fn, (key, index), value, absolute = _OPS[c.op], _data_key(c.metric), float(c.value), c.absolute  # type: ignore[arg-type]
+
+    def pred(m: Metrics, d: Data) -> bool:
+        x = d.get(key)
+        if x is None:
+            return False
+        x = float(x if index is None else x[index])
+        if absolute:
+            return not math.isnan(x) and fn(abs(x), value)
+        return fn(x, value)
+
+    return pred
+
+
 def compile_guard(guard: Guard) -> Predicate:
-    """A closure over plain floats: ``pred(metrics) -> bool``; missing or NaN metrics compare false."""
+    """A closure over plain floats: ``pred(metrics, data) -> bool``; missing or NaN metrics compare false."""
 
     def build(n: Node) -> Predicate:
         if n.kind == "cmp":
             c = n.cmp
             assert c is not None and c.value is not None, "bind_units() must run first"
+            if c.metric.startswith(DATA_PREFIX):
+                return _data_comparison(c)
             fn, name, value = _OPS[c.op], c.metric, float(c.value)
             if c.absolute:
-                def pred(m: Metrics, fn=fn, name=name, value=value) -> bool:
+                def pred(m: Metrics, d: Data, fn=fn, name=name, value=value) -> bool:
                     x = m.get(name)
                     return x is not None and not math.isnan(x) and fn(abs(x), value)
             else:
-                def pred(m: Metrics, fn=fn, name=name, value=value) -> bool:
+                def pred(m: Metrics, d: Data, fn=fn, name=name, value=value) -> bool:
                     x = m.get(name)
                     return x is not None and fn(x, value)  # NaN compares false except '!='
             return pred
         kids = [build(k) for k in n.children]
         if n.kind == "not":
             k0 = kids[0]
-            return lambda m: not k0(m)
+            return lambda m, d: not k0(m, d)
         if n.kind == "and":
             if len(kids) == 2:
                 a, b = kids
-                return lambda m: a(m) and b(m)
-            return lambda m: all(k(m) for k in kids)
-        return lambda m: any(k(m) for k in kids)
+                return lambda m, d: a(m, d) and b(m, d)
+            return lambda m, d: all(k(m, d) for k in kids)
+        return lambda m, d: any(k(m, d) for k in kids)
 
     return build(guard.tree)

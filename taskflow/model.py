@@ -16,6 +16,7 @@ from typing import Any, Iterator
 from pydantic import BaseModel
 
 from .api import Robot, Task, World
+from .data import DATA_PREFIX, DataCatalogue, json_value
 from .distributions import sample, world_rng
 from .guards import Guard, Predicate
 from .schema import Mission
@@ -201,6 +202,7 @@ class CompiledMission:
     world_params_raw: dict[str, Any]
     metric_units: dict[str, str]  # every metric any task or the world publishes
     events: set[str]
+    data: DataCatalogue = field(default_factory=DataCatalogue)  # the mission data its tasks declare
 
     @property
     def name(self) -> str:
@@ -257,20 +259,42 @@ class UnknownRef(KeyError):
         self.name, self.path = name, path
 
 
-def resolve_refs(value: Any, params: dict[str, Any], items: dict[str, Any], path: YPath = ()) -> Any:
-    """Replace every ``"$name"`` string by the foreach item or mission parameter of that name."""
-    if isinstance(value, str) and value.startswith("$") and value[1:].isidentifier():
+def resolve_refs(value: Any, params: dict[str, Any], items: dict[str, Any], path: YPath = (),
+                 data: dict[str, Any] | None = None) -> Any:
+    """Replace every ``"$name"`` string by the foreach item or mission parameter of that name, and every
+    ``"$data.<key>"`` by the mission data's value of ``key`` in JSON form (``data``: the run's values; None
+    where mission data is not available, e.g. action parameters — the reference is then unknown)."""
+    if isinstance(value, str) and value.startswith("$"):
         key = value[1:]
+        if key.startswith(DATA_PREFIX):
+            name = key[len(DATA_PREFIX):]
+            if data is None or name not in data:
+                raise UnknownRef(key, path)
+            return json_value(data[name])
+        if not key.isidentifier():
+            return value
         if key in items:
             return items[key]
         if key in params:
             return params[key]
         raise UnknownRef(key, path)
     if isinstance(value, dict):
-        return {k: resolve_refs(v, params, items, path + (k,)) for k, v in value.items()}
+        return {k: resolve_refs(v, params, items, path + (k,), data) for k, v in value.items()}
     if isinstance(value, list):
-        return [resolve_refs(v, params, items, path + (i,)) for i, v in enumerate(value)]
+        return [resolve_refs(v, params, items, path + (i,), data) for i, v in enumerate(value)]
     return value
+
+
+def data_refs(value: Any, path: YPath = ()) -> Iterator[tuple[str, YPath]]:
+    """Every ``$data.<key>`` in ``value``: (key, where below ``value``)."""
+    if isinstance(value, str) and value.startswith("$" + DATA_PREFIX):
+        yield value[1 + len(DATA_PREFIX):], path
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            yield from data_refs(v, path + (k,))
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            yield from data_refs(v, path + (i,))
 
 
 def has_refs(value: Any) -> bool:

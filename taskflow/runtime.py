@@ -334,6 +334,7 @@ def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: f
         "items": {path: count.as_dict() for path, count in ex.item_counts.items()},
         "transitions": len(ex.transitions_fired),
         "metrics": metrics,
+        "outputs": mission.data.outputs(ex.memory),
         "versions": versions(),
     })
 

@@ -207,6 +207,8 @@ class Mission(_Model):
     parameters: dict[str, Any] = Field(default_factory=dict, description="poses, lists of poses, thresholds ...")
     profiles: dict[str, dict[str, dict[str, Any]]] = Field(
         default_factory=dict, description="profile kind (gains, pid, impedance, setpoints ...) → name → values")
+    data: dict[str, Any] = Field(default_factory=dict, description="mission-data key (declared by a task of the "
+                                 "mission, e.g. viki.object) → the value it holds from the start of the run")
     machine: Machine
 
 

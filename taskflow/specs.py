@@ -19,7 +19,7 @@ class ObsSpec:
     """The declared type of one observation entry, named ``"state.<key>"`` or ``"sensors.<key>"``.
 
     ``kind`` is ``"array"`` (a numpy float/int array of ``shape``; ``None`` in the shape matches any
-    length), ``"scalar"`` (a real number), ``"text"`` (a string), ``"message"`` (an instance of ``cls``,
+    length), ``"scalar"`` (a real number), ``"flag"`` (a bool), ``"text"`` (a string), ``"message"`` (an instance of ``cls``,
     e.g. :class:`taskflow.messages.Detection`) or ``"sequence"`` (a tuple or list; of instances of ``cls``
     when it is set, e.g. the keyframes' :class:`taskflow.messages.Image`) or ``"mapping"`` (a dict).  ``optional``
     entries may be absent or ``None`` on a tick (a camera between frames, a perception mode that does
@@ -27,7 +27,7 @@ class ObsSpec:
     compiler matches the two and :mod:`taskflow.conformance` checks real observations against them.
     """
 
-    kind: Literal["array", "scalar", "text", "message", "sequence", "mapping"]
+    kind: Literal["array", "scalar", "flag", "text", "message", "sequence", "mapping"]
     shape: tuple[int | None, ...] = ()
     cls: type | None = None
     optional: bool = False
@@ -63,6 +63,8 @@ class ObsSpec:
         if self.kind == "scalar":
             ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
             return None if ok else f"is {type(value).__name__}, not a real number"
+        if self.kind == "flag":
+            return None if isinstance(value, (bool, np.bool_)) else f"is {type(value).__name__}, not a bool"
         if self.kind == "text":
             return None if isinstance(value, str) else f"is {type(value).__name__}, not a string"
         if self.kind == "sequence":
@@ -87,6 +89,11 @@ def scalar(optional: bool = False) -> ObsSpec:
     return ObsSpec("scalar", optional=optional)
 
 
+def flag(optional: bool = False) -> ObsSpec:
+    """A bool entry."""
+    return ObsSpec("flag", optional=optional)
+
+
 def text(optional: bool = False) -> ObsSpec:
     return ObsSpec("text", optional=optional)
 
@@ -102,6 +109,12 @@ def mapping(optional: bool = False) -> ObsSpec:
 
 def message(cls: type, optional: bool = True) -> ObsSpec:
     """A typed sensor message (optional by default: a sensor may have no frame yet)."""
+    return ObsSpec("message", cls=cls, optional=optional)
+
+
+def instance(cls: type, optional: bool = False) -> ObsSpec:
+    """Any object of class ``cls`` that is not a sensor message: a controller's state kept in mission data
+    (:class:`taskflow.api.MemoryKey`), e.g. ``instance(PidState)``."""
     return ObsSpec("message", cls=cls, optional=optional)
 
 

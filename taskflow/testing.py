@@ -35,6 +35,7 @@ import pytest
 
 from .api import Observation, Robot, StepResult, Task, TaskContext, World
 from .contracts import build_robot_params
+from .data import DataAccess
 from .loader import CompiledMission, load_mission as _load
 from .runtime import RunResult, run_mission
 
@@ -47,7 +48,7 @@ class ScriptState:
     state: str  # active leaf path
     time_in_state: float
     items: Mapping[str, Any]
-    memory: dict[str, Any]
+    memory: dict[str, Any]  # the run's mission data, by key name
 
 
 MetricFn = Callable[[ScriptState], Mapping[str, float]]
@@ -173,8 +174,11 @@ def task_context(task: type[Task], params: Any, robot: Robot, profiles: dict[str
                  t: float = 0.0, memory: dict[str, Any] | None = None, items: dict[str, Any] | None = None,
                  dt: float = 0.0) -> TaskContext:
     """The context the executor would give ``task`` on entry — for unit tests of one task outside a
-    mission: ``robot_params`` is built from the robot's parameters as the framework builds it."""
-    return TaskContext(t=t, params=params, profiles=profiles or {}, memory={} if memory is None else memory,
+    mission: ``robot_params`` is built from the robot's parameters as the framework builds it, and
+    ``memory`` (the run's mission data: a plain dict the test may read and fill) is reached through the
+    task's declared view, as in a run (an undeclared key is refused)."""
+    return TaskContext(t=t, params=params, profiles=profiles or {},
+                       memory=DataAccess({} if memory is None else memory, task),
                        robot=robot, items=items or {}, dt=dt, robot_params=build_robot_params(task, robot))
 
 

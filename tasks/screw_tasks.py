@@ -22,8 +22,8 @@ eq. 35, the arm step of eq. 37, the admittance of eqs. 38–40, :class:`ArmHome`
 control period ``TaskContext.dt`` = 1 / ``rate_hz``, the time that passes between two ticks of the
 mission; it is not estimated from observation times.
 
-The PID and admittance states, the nominal joint trajectory ``q*`` and the part-motion history live
-in the mission's shared ``memory``: a state change switches gains and set-points, not the
+The PID and admittance states, the nominal joint trajectory ``q*`` and the part-motion history are
+mission data (declared keys ``screw.*``, written by every PBVS task): a state change switches gains and set-points, not the
 controllers' memory (the platform keeps the integral that carries it along with the part).
 
 Profile slots: ``platform`` and ``arm`` take ``pid`` profiles (:class:`taskflow_tasks.pid.PidProfile`),
@@ -46,7 +46,8 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator
 
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
-from taskflow.api import MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, message
+from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, instance,
+                          message, scalar, sequence)
 from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import register_task
 from taskflow.spatial import inverse, transform_xyz_yaw
@@ -54,16 +55,26 @@ from taskflow_tasks import pbvs
 from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step
 from taskflow_tasks.pid import PidProfile, PidState, pid_step
 
-# what the screw tasks keep in the run's shared memory, across states (one definition each)
-PID_B: MemoryKey[PidState] = MemoryKey("screw.pid_b")  # platform PID state (eqs. 25-33)
-PID_A: MemoryKey[PidState] = MemoryKey("screw.pid_a")  # arm PID state (eqs. 34-36)
-Q_NOM: MemoryKey[NDArray[np.float64]] = MemoryKey("screw.q_nom")  # the arm's nominal joint trajectory q*
-ADMITTANCE: MemoryKey[AdmittanceState] = MemoryKey("screw.adm")  # compliance offset (eqs. 38-40)
-ODOM_T: MemoryKey[list[float]] = MemoryKey("screw.odom_t")  # odometry history: times ...
-ODOM_P: MemoryKey[list[tuple[float, float, float]]] = MemoryKey("screw.odom_p")  # ... and poses
-OBJ_SEQ: MemoryKey[int] = MemoryKey("screw.obj_seq")  # the last marker used
-OBJ_HIST: MemoryKey[list[tuple[float, float, float, float]]] = MemoryKey("screw.obj_hist")  # (t, x, y, yaw) of the part
-OBJ_FIT: MemoryKey[tuple[float, NDArray[np.float64], NDArray[np.float64]]] = MemoryKey("screw.obj_fit")  # (t, H_wo, slope)
+# the mission data the screw tasks keep across states (one definition each; every MobilePbvs task writes
+# them all — each one starts from what is there, or from zero — and ArmHome the arm's)
+PID_B: MemoryKey[PidState] = MemoryKey("screw.pid_b", instance(PidState), output=False,
+                                       doc="platform PID state (eqs. 25-33)")
+PID_A: MemoryKey[PidState] = MemoryKey("screw.pid_a", instance(PidState), output=False,
+                                       doc="arm PID state (eqs. 34-36)")
+Q_NOM: MemoryKey[NDArray[np.float64]] = MemoryKey("screw.q_nom", array(7), unit="rad",
+                                                  doc="the arm's nominal joint trajectory q*")
+ADMITTANCE: MemoryKey[AdmittanceState] = MemoryKey("screw.adm", instance(AdmittanceState), output=False,
+                                                   doc="compliance offset (eqs. 38-40)")
+ODOM_T: MemoryKey[list[float]] = MemoryKey("screw.odom_t", sequence(), unit="s", output=False,
+                                           doc="odometry history (prediction): times ...")
+ODOM_P: MemoryKey[list[tuple[float, float, float]]] = MemoryKey("screw.odom_p", sequence(), output=False,
+                                                                doc="... and poses (x m, y m, yaw rad)")
+OBJ_SEQ: MemoryKey[int] = MemoryKey("screw.obj_seq", scalar(), doc="the last marker used (prediction)")
+OBJ_HIST: MemoryKey[list[tuple[float, float, float, float]]] = MemoryKey(
+    "screw.obj_hist", sequence(), output=False, doc="(t, x, y, yaw) of the part (prediction)")
+OBJ_FIT: MemoryKey[tuple[float, NDArray[np.float64], NDArray[np.float64]]] = MemoryKey(
+    "screw.obj_fit", sequence(), output=False, doc="(t, H_wo, slope): the part's last fitted motion (prediction)")
+_PBVS_DATA = (PID_B, PID_A, Q_NOM, ADMITTANCE, ODOM_T, ODOM_P, OBJ_SEQ, OBJ_HIST, OBJ_FIT)
 ODOM_HISTORY_S = 0.5  # odometry kept to place a marker pose at its capture time (latency ≪ this)
 RELAX_TAU = 0.1  # s: a state without an impedance set lets the compliance offset decay with this time constant
 _ZERO3 = np.zeros(3)
@@ -147,6 +158,7 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
     robot_params: ClassVar[type[BaseModel]] = MobileIiwaParams
     requires: ClassVar[dict[str, ObsSpec]] = {"state.odom": array(3), "state.q": array(7), "state.q_ref": array(7),
                                               "sensors.marker": message(MarkerPose), "sensors.wrench": message(Wrench)}
+    writes: ClassVar[tuple[MemoryKey[Any], ...]] = _PBVS_DATA
 
     def __init__(self, ctx: TaskContext[Any, MobileIiwaParams]) -> None:
         super().__init__(ctx)
@@ -369,6 +381,7 @@ class ArmHome(Task[HomeParams, HomePose]):
     command_interface: ClassVar[str] = "base_arm"
     robot_params: ClassVar[type[BaseModel]] = HomePose
     requires: ClassVar[dict[str, ObsSpec]] = {"state.q": array(7), "state.q_ref": array(7)}
+    writes: ClassVar[tuple[MemoryKey[Any], ...]] = (Q_NOM, ADMITTANCE)
 
     def __init__(self, ctx: TaskContext[HomeParams, HomePose]) -> None:
         super().__init__(ctx)

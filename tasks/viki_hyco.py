@@ -29,10 +29,10 @@ If ``Z_d`` cannot be read (desired centre outside the image) the tick falls back
 
 Kinematic target (eq. 25's fallback, eq. 4's ``h_d``): the object's position in the odometry frame is
 fixed by the **first** usable detection of the mission (eq. 18 + base-centre estimate) and stored in the
-mission memory (``memory["viki.object"]``) so later states — the rotation, the backward positioning —
+mission data (key ``viki.object``) so later states — the rotation, the backward positioning —
 use it.  A state turns it into its control-point target once (on entry if the memory has the object,
 else at its first detection): the pose with the object at ``desired`` and the heading of
-:func:`taskflow_tasks.viki_laws.goal_heading` (stored as ``memory["viki.target"]``).  ``target_update: latest``
+:func:`taskflow_tasks.viki_laws.goal_heading` (stored as ``viki.target``).  ``target_update: latest``
 re-anchors the object on every detection instead (not the paper's rule).  For a goal behind the robot
 (``desired[0] < 0``, the rear camera) the fallback is the paper's *backward* kinematic controller: eq. 4 on
 the car seen backwards, servoing the point ``d`` behind the rear axle (:func:`taskflow_tasks.viki_laws.reverse_control`;
@@ -58,7 +58,7 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.racecar import CameraMount
 from taskflow.api import (ControlPoint, MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext,
-                          TaskScene, array, message)
+                          TaskScene, array, mapping, message)
 from taskflow.messages import Detection
 from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry
@@ -73,10 +73,13 @@ from taskflow_tasks.viki_laws import (
     viki_velocity,
 )
 
-# what the ViKi-HyCo tasks keep in the run's shared memory, across states (one definition each)
-MEM_OBJECT: MemoryKey[NDArray[np.float64]] = MemoryKey("viki.object")  # odometry (x, y) of the object's base centre
-MEM_TARGET: MemoryKey[NDArray[np.float64]] = MemoryKey("viki.target")  # the active state's control-point target (x, y)
-MEM_FIRST: MemoryKey[dict[str, Any]] = MemoryKey("viki.first_detection")  # {"t", "camera"} of the fixing detection
+# the mission data the ViKi-HyCo tasks keep across states (one definition each)
+MEM_OBJECT: MemoryKey[NDArray[np.float64]] = MemoryKey(
+    "viki.object", array(2), unit="m", doc="odometry (x, y) of the object's base centre, fixed by the first detection")
+MEM_TARGET: MemoryKey[NDArray[np.float64]] = MemoryKey(
+    "viki.target", array(2), unit="m", doc="the active state's control-point target (x, y) in odometry")
+MEM_FIRST: MemoryKey[dict[str, Any]] = MemoryKey(
+    "viki.first_detection", mapping(), doc='{"t": s, "camera": front|rear} of the detection that fixed the object')
 
 
 class ViKiGains(CarGains):
@@ -154,6 +157,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
     command_interface: ClassVar[str] = "ackermann"
     robot_params: ClassVar[type[BaseModel]] = CameraCar
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "sensors.detection": message(Detection)}
+    writes: ClassVar[tuple[MemoryKey[Any], ...]] = (MEM_OBJECT, MEM_TARGET, MEM_FIRST)
 
     def __init__(self, ctx: TaskContext[ViKiHyCoParams, CameraCar]) -> None:
         super().__init__(ctx)

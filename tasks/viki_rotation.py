@@ -12,7 +12,7 @@ reverse.  So the rotation is a **K-turn** (two arcs of radius ``radius``), track
 which ends ``2 radius`` behind the start on the line to the object, facing away from it: the object is
 then straight behind, ``|object| + 2 radius`` from the rear axle, in the rear camera's view.  The path is
 laid out at entry in the frame whose x axis points from the rear axle to the object (the object's
-odometry position fixed by the first detection, ``memory["viki.object"]``), so the end pose faces exactly
+odometry position fixed by the first detection, mission data ``viki.object``, which it reads), so the end pose faces exactly
 away from the object even if the forward positioning ended a few degrees off.
 
 Tracking: eq. 4 ``V = J_b^-1 k1 tanh(h_d - h)`` toward a carrot ``lookahead`` metres further along the
@@ -26,7 +26,7 @@ the final target, approached by eq. 4 alone.
 
 Metrics: ``pos_error`` (m) — distance from the control point (``d`` ahead) to the final target, the
 paper's ``-0.01 < h < 0.01`` m test; ``leg`` (0, 1); ``heading_error`` (rad) to the final heading;
-``speed`` (m/s).  No object in memory: the task holds still and raises ``no_target``.
+``speed`` (m/s).  No object in the mission data: the task holds still and raises ``no_target``.
 """
 
 from __future__ import annotations
@@ -47,7 +47,8 @@ from taskflow_tasks.viki_hyco import MEM_OBJECT
 from taskflow_tasks.viki_laws import reverse_control
 
 FloatArray = NDArray[np.float64]
-MEM_ROTATION: MemoryKey[NDArray[np.float64]] = MemoryKey("viki.rotation_target")  # the K-turn's end pose
+MEM_ROTATION: MemoryKey[NDArray[np.float64]] = MemoryKey(
+    "viki.rotation_target", array(2), unit="m", doc="the K-turn's end point (x, y) in odometry")
 
 
 def k_turn_legs(start: tuple[float, float], heading: float, radius: float, turn: int, d: float,
@@ -115,6 +116,8 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
     command_interface: ClassVar[str] = "ackermann"
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3)}
     robot_params: ClassVar[type[BaseModel]] = CarGeometry
+    reads: ClassVar[tuple[MemoryKey[NDArray[np.float64]], ...]] = (MEM_OBJECT,)
+    writes: ClassVar[tuple[MemoryKey[NDArray[np.float64]], ...]] = (MEM_ROTATION,)
 
     def __init__(self, ctx: TaskContext[ViKiRotateParams, CarGeometry]) -> None:
         super().__init__(ctx)

@@ -32,7 +32,7 @@ the pipeline, correspondences by landmark id instead of ORB matching and LK trac
 the homography on is the same code.
 
 Feed-forward (Alg. 2, lines 2–15): the velocity ``nu_p`` of each segment ``k → k+1`` is computed once
-per run from the keyframe images (kept in the mission memory) and applied while servoing toward
+per run from the keyframe images (memoised in the run's cache, ``TaskContext.cache``) and applied while servoing toward
 keyframe ``k`` (Alg. 2's ``vVec`` = ``k``); the last keyframe has no segment, so it is reached with
 feedback alone.
 
@@ -265,18 +265,19 @@ class RematchParams(StrictModel):
 
 
 # ---------------------------------------------------------------------------------------------
-# shared, per-run caches (mission memory)
+# per-run memos of what the keyframe images give (TaskContext.cache: derived from the run's constant
+# keyframes, shared by the states of one run, not mission data — an empty cache only costs time)
 
 
-def _keyframe_features(memory: dict[str, Any], image: NDArray[np.uint8], kf_id: int, kind: str, n: int) -> Features:
-    cache = memory.setdefault("visual_path.keyframe_features", {})
+def _keyframe_features(cache: dict[str, Any], image: NDArray[np.uint8], kf_id: int, kind: str, n: int) -> Features:
+    memo = cache.setdefault("visual_path.keyframe_features", {})
     key = (kf_id, kind, n)
-    if key not in cache:
-        cache[key] = detect(make_detector(kind, n), to_grey(image), kind)
-    return cache[key]
+    if key not in memo:
+        memo[key] = detect(make_detector(kind, n), to_grey(image), kind)
+    return memo[key]
 
 
-def match_with_retry(memory: dict[str, Any], kf_image: NDArray[np.uint8], kf_id: int, grey: NDArray[np.uint8],
+def match_with_retry(cache: dict[str, Any], kf_image: NDArray[np.uint8], kf_id: int, grey: NDArray[np.uint8],
                      p: VisualPathParams | RematchParams, model: str = "homography") -> tuple[NDArray[np.float32],
                                                                                             NDArray[np.float32]]:
     """``matchingKeyPoints`` of the current frame against keyframe ``kf_id``, with ``p.n_features``
@@ -290,7 +291,7 @@ def match_with_retry(memory: dict[str, Any], kf_image: NDArray[np.uint8], kf_id:
     budgets = [p.n_features] + ([p.n_features * p.retry_scale] if p.retry_scale > 1 else [])
     cur = kfp = np.zeros((0, 2), np.float32)
     for n in budgets:
-        kf = _keyframe_features(memory, kf_image, kf_id, p.features, n)
+        kf = _keyframe_features(cache, kf_image, kf_id, p.features, n)
         cur, kfp = match_keyframe(kf, detect(make_detector(p.features, n), grey, p.features), model=model)
         if len(cur) >= p.min_points:
             break
@@ -299,14 +300,14 @@ def match_with_retry(memory: dict[str, Any], kf_image: NDArray[np.uint8], kf_id:
 
 def segment_velocities(keyframes: tuple[NDArray[np.uint8], ...], K: NDArray[np.float64], Ad_body_camera: NDArray[np.float64],
                        gains: VisualGains, gamma: float, kind: str = "orb", n_features: int = 1000,
-                       memory: dict[str, Any] | None = None) -> list[NDArray[np.float64]]:
+                       cache: dict[str, Any] | None = None) -> list[NDArray[np.float64]]:
     """Alg. 2 lines 2–15: ``nu_p`` (eq. 32) of every segment ``k → k+1`` from the keyframe images.
 
     Keyframe ``k``'s image plays the current image and ``k+1``'s the target: ``H`` maps ``k`` to ``k+1``,
     ``e`` is eq. (2), the gain eq. (4), the law eq. (3), scaled by ``γ`` and taken to the body frame.
     A segment whose images do not match gets ``nu_p = 0``.
     """
-    mem = memory if memory is not None else {}
+    mem = cache if cache is not None else {}
     out = []
     for k in range(len(keyframes) - 1):
         fa = _keyframe_features(mem, keyframes[k], k, kind, n_features)
@@ -561,7 +562,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         self.tri_ids: NDArray[np.int64] | None = None  # … and those of the largest triangle
 
     def _kf_grey(self, obs: Observation) -> NDArray[np.uint8]:
-        cache = self.ctx.memory.setdefault("visual_path.keyframe_grey", {})
+        cache = self.ctx.cache.setdefault("visual_path.keyframe_grey", {})
         k = self.p.keyframe.id
         if k not in cache:
             cache[k] = to_grey(_keyframe_image(obs, k))
@@ -574,7 +575,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
     def _feedforward(self, obs: Observation, view: FeatureView | Image) -> NDArray[np.float64]:
         if not self.p.feedforward or self.p.is_last:
             return np.zeros(4)
-        mem = self.ctx.memory
+        mem = self.ctx.cache
         geometric = isinstance(view, FeatureView)
         key = ("visual_path.feedforward", "points" if geometric else self.p.features, self.p.n_features,
                self.path_gains.gamma, self.visual)
@@ -604,7 +605,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         grey = to_grey(image)
         p = self.p
         if self.tracker is None:
-            cur, kfp = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, grey, p,
+            cur, kfp = match_with_retry(self.ctx.cache, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, grey, p,
                                         "homography" if p.homography == "ransac" else "fundamental")
             if len(cur) < p.min_points:
                 self.metrics_out = {"n_points": float(len(cur)), "keyframe": float(p.keyframe.id)}
@@ -652,7 +653,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         if n >= p.min_points and n >= p.refresh_fraction * self.n_matched:
             return n
         eps_old = mean_pixel_error(tr.cur, tr.kf) if n else 0.0
-        cur, kfp = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, grey, p,
+        cur, kfp = match_with_retry(self.ctx.cache, _keyframe_image(obs, p.keyframe.id), p.keyframe.id, grey, p,
                                     "homography" if p.homography == "ransac" else "fundamental")
         if len(kfp) and n:
             new = np.min(np.linalg.norm(kfp[:, None, :] - tr.kf[None, :, :], axis=2), axis=1) > 2.0
@@ -761,7 +762,7 @@ class VisualPathRematch(Task[RematchParams, ForwardCamera]):
                 self.n = int(estimate_homography(cur, kfp, self.ctx.robot_params.camera.K())[1].sum()) \
                     if len(cur) >= 8 else len(cur)
             else:
-                matched, _ = match_with_retry(self.ctx.memory, _keyframe_image(obs, p.keyframe.id), p.keyframe.id,
+                matched, _ = match_with_retry(self.ctx.cache, _keyframe_image(obs, p.keyframe.id), p.keyframe.id,
                                               to_grey(view.pixels), p)
                 self.n = len(matched)
             if self.n >= p.min_points:

@@ -1,18 +1,21 @@
 """Small registered robot/world/task used by the framework's own tests (no simulator).
 
 ``toy_point`` is a 1-D point moved by a velocity command; ``toy_line`` integrates it exactly and
-emits ``target_lost`` / ``target_found`` at scheduled times; ``toy_goto`` is a P controller.
+emits ``target_lost`` / ``target_found`` at scheduled times; ``toy_goto`` is a P controller (it records
+its targets and robot view in mission data); ``toy_mark`` holds still and writes where it is
+(``toy.mark``, mission data), ``toy_return`` reads that mark and drives back to it.
 They exist so the machine tests exercise real task and world code paths without PyBullet.
 """
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 import numpy as np
 from pydantic import Field
 
-from taskflow.api import Observation, Robot, StepResult, StrictModel, Task, TaskContext, World
+from taskflow.api import (MemoryKey, Observation, Robot, StepResult, StrictModel, Task, TaskContext, World, instance,
+                          scalar, sequence)
 from taskflow.registry import ROBOTS, TASKS, WORLDS
 
 
@@ -119,19 +122,26 @@ class ToyLimits(StrictModel):
     v_max: float
 
 
+ENTRIES: MemoryKey[list[float]] = MemoryKey("toy.entries", sequence(), doc="every toy_goto target, in entry order")
+ROBOT_VIEW: MemoryKey[ToyLimits] = MemoryKey("toy.robot_params", instance(ToyLimits), output=False,
+                                             doc="the last toy_goto's view of the robot parameters")
+MARK: MemoryKey[float] = MemoryKey("toy.mark", scalar(), unit="m", doc="where toy_mark stood")
+
+
 class ToyGoto(Task[GotoParams, ToyLimits]):
     Params = GotoParams
     slots = {"gains": GainsModel}
     robot_params = ToyLimits
     metrics = {"pos_error": "m", "feature_error": "px", "yaw_error": "rad"}
     events = ("arrived",)
+    writes: ClassVar[tuple[MemoryKey[Any], ...]] = (ENTRIES, ROBOT_VIEW)
 
     def __init__(self, ctx: TaskContext[GotoParams, ToyLimits]) -> None:
         super().__init__(ctx)
         self.kp = ctx.profile("gains", GainsModel).kp
         self.target = ctx.params.target
-        self.ctx.memory.setdefault("entries", []).append(self.target)
-        self.ctx.memory["robot_params"] = ctx.robot_params
+        ENTRIES.setdefault(ctx.memory, []).append(self.target)
+        ROBOT_VIEW.set(ctx.memory, ctx.robot_params)
 
     def step(self, obs: Observation) -> StepResult:
         e = self.target - obs.state["x"]
@@ -154,8 +164,37 @@ class ToyWatch(Task[WatchParams, None]):
         return StepResult({"v": np.array([-9.0])}, {"x_abs": abs(float(obs.state["x"]))})
 
 
+class ToyMark(Task):
+    """Holds still and writes its position as ``toy.mark`` on every step."""
+
+    writes: ClassVar[tuple[MemoryKey[Any], ...]] = (MARK,)
+
+    def step(self, obs: Observation) -> StepResult:
+        MARK.set(self.ctx.memory, float(obs.state["x"]))
+        return StepResult({"v": np.zeros(1)})
+
+
+class ToyReturn(Task[Any, ToyLimits]):
+    """A P controller back to ``toy.mark`` (which must be written before its state: ``reads``)."""
+
+    slots = {"gains": GainsModel}
+    robot_params = ToyLimits
+    metrics = {"pos_error": "m"}
+    reads: ClassVar[tuple[MemoryKey[Any], ...]] = (MARK,)
+
+    def __init__(self, ctx: TaskContext[Any, ToyLimits]) -> None:
+        super().__init__(ctx)
+        self.kp = ctx.profile("gains", GainsModel).kp
+        self.target = MARK(ctx.memory)
+
+    def step(self, obs: Observation) -> StepResult:
+        e = self.target - obs.state["x"]
+        return StepResult({"v": np.array([self.kp * e])}, {"pos_error": abs(e)})
+
+
 def register() -> None:
     for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (ROBOTS, "toy_wheel", ToyWheel), (WORLDS, "toy_line", ToyLine),
-                           (TASKS, "toy_goto", ToyGoto), (TASKS, "toy_watch", ToyWatch)):
+                           (TASKS, "toy_goto", ToyGoto), (TASKS, "toy_watch", ToyWatch), (TASKS, "toy_mark", ToyMark),
+                           (TASKS, "toy_return", ToyReturn)):
         if name not in reg._items:
             reg.add(name, cls)

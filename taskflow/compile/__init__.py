@@ -5,9 +5,11 @@ stops after a pass that found problems, so later passes see a consistent tree):
 
 1. ``components`` — robot, world, their parameters, distributions, rates;
 2. ``tree`` — the state tree with inherited tasks and bindings, then the catalogue of metrics and events;
-3. ``bindings`` — profiles, task and action parameters for every ``foreach`` item, loop rules;
-4. ``transitions`` — typed transition records, guards, events, clocks;
-5. ``structure`` — ``done`` coverage, a way to end, reachability, ways out.
+3. ``dataflow`` (catalogue) — the mission-data keys the tasks declare, the ``data:`` defaults;
+4. ``bindings`` — profiles, task and action parameters for every ``foreach`` item, loop rules;
+5. ``transitions`` — typed transition records, guards, events, clocks;
+6. ``structure`` — ``done`` coverage, a way to end, reachability, ways out;
+7. ``dataflow`` — every mission-data key a state reads is written on every path into it.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from ..yamlsrc import SourceMap
 from .bindings import bind_profiles, check_parameters, profile_kind
 from .components import resolve_components
 from .context import Compilation
+from .dataflow import check_dataflow, data_catalogue
 from .structure import check_structure, finishing_outcomes
 from .transitions import compile_transitions
 from .tree import build_tree, catalogue, check_region_metrics
@@ -36,13 +39,16 @@ def compile_document(data: dict[str, Any], spec: Mission, smap: SourceMap) -> Co
     check_region_metrics(c, root)
     c.fail_if_problems()
     metric_units, events = catalogue(c, root)
+    mission_data = data_catalogue(c, root)
     bind_profiles(c, root)
     check_parameters(c, root)
     compile_transitions(c, root, events)
     c.fail_if_problems()
     check_structure(c, root)
     c.fail_if_problems()
+    check_dataflow(c, root)
+    c.fail_if_problems()
     return CompiledMission(
         file=smap.file, raw=data, spec=spec, root=root, states=c.states, transitions=c.transitions,
         robot_cls=c.robot_cls, robot_params=c.robot_params, world_cls=c.world_cls,
-        world_params_raw=c.world_params_raw, metric_units=metric_units, events=events)
+        world_params_raw=c.world_params_raw, metric_units=metric_units, events=events, data=mission_data)

@@ -80,7 +80,7 @@ def check_parameters(c: Compilation, root: StateNode) -> None:
         if isinstance(spec, State) and spec.foreach is not None:
             _check_loop(c, n, spec)
         if n.is_leaf and n.task_cls is not None:
-            if _refs_resolve(c, n, n.task_params, n.task_ypath + ("params",)):
+            if _refs_resolve(c, n, n.task_params, n.task_ypath + ("params",), c.data.samples()):
                 validate_every_item(c, n, n.task_cls.Params, n.task_params, n.task_ypath + ("params",),
                                     f"task {n.task_cls.name!r}")
 
@@ -126,13 +126,15 @@ def _first_items(c: Compilation, n: StateNode) -> dict[str, Any]:
             for item, lst in n.scope_items()}
 
 
-def _refs_resolve(c: Compilation, n: StateNode, raw: dict[str, Any], where: YPath) -> bool:
-    """Whether every ``$reference`` in ``raw`` names a mission parameter or an enclosing foreach item."""
+def _refs_resolve(c: Compilation, n: StateNode, raw: dict[str, Any], where: YPath,
+                  data: dict[str, Any] | None = None) -> bool:
+    """Whether every ``$reference`` in ``raw`` names a mission parameter or an enclosing foreach item (or,
+    given ``data``, the mission's data keys — task parameters only: ``$data.<key>``)."""
     scope = _first_items(c, n)
     try:
-        resolve_refs(raw, c.spec.parameters, scope)
+        resolve_refs(raw, c.spec.parameters, scope, data=data)
     except UnknownRef as exc:
-        valid = ["$" + k for k in list(c.spec.parameters) + list(scope)]
+        valid = ["$" + k for k in list(c.spec.parameters) + list(scope) + ["data." + k for k in data or ()]]
         c.err(where + exc.path, f"unknown reference ${exc.name}", describe_choices("$" + exc.name, valid))
         return False
     return True
@@ -144,7 +146,8 @@ def validate_every_item(c: Compilation, n: StateNode, model: type[BaseModel], ra
     enclosing foreach, then with every other item of each list (the others at their first item)."""
     params = c.spec.parameters
     first = _first_items(c, n)
-    if c.validate_model(model, resolve_refs(raw, params, first), where) is None:
+    data = c.data.samples()
+    if c.validate_model(model, resolve_refs(raw, params, first, data=data), where) is None:
         return
     for item, lst in n.scope_items():
         values = params.get(lst)
@@ -152,7 +155,8 @@ def validate_every_item(c: Compilation, n: StateNode, model: type[BaseModel], ra
             if idx == 0:
                 continue
             try:
-                model.model_validate(with_model_defaults(model, resolve_refs(raw, params, {**first, item: value})))
+                model.model_validate(with_model_defaults(model, resolve_refs(raw, params, {**first, item: value},
+                                                                             data=data)))
             except ValidationError as exc:
                 err = exc.errors()[0]
                 loc = ".".join(str(x) for x in clean_loc(tuple(err["loc"])))

@@ -8,6 +8,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from ..api import Robot, World
+from ..data import DataCatalogue
 from ..diagnostics import dedupe, pydantic_problems
 from ..errors import MissionError, Problem
 from ..model import StateNode, Transition, YPath, with_model_defaults
@@ -28,6 +29,7 @@ class Compilation:
         self.world_params_raw: dict[str, Any] = {}
         self.states: dict[str, StateNode] = {}
         self.transitions: list[Transition] = []
+        self.data = DataCatalogue()  # the mission data its tasks declare (set by dataflow.data_catalogue)
 
     def err(self, path: YPath, message: str, hint: str = "") -> None:
         self.problems.append(self.smap.problem(path, message, hint))

@@ -11,6 +11,7 @@ from ..schema import SINCE_ENTRY, SINCE_FIRST_ENTRY, State
 from ..schema import Transition as TransitionSpec
 from ..units import UnitError, parse_quantity
 from .context import Compilation
+from .dataflow import data_hint
 from .tree import metrics_under
 
 
@@ -145,8 +146,13 @@ def _compile_guard(c: Compilation, n: StateNode, text: str, where: YPath, quanti
     for m in unknown:
         c.err(where, f"metric {m!r} is not published in state {n.path!r}",
               f"{describe_choices(m, list(available))}; `taskflow describe TASK` lists a task's metrics")
-    if unknown:
+    readable = c.data.guard_units()  # data.<key> names (taskflow.compile.dataflow)
+    unknown_data = sorted({cmp.metric for cmp in guard.comparisons()} - set(guard.metrics) - set(readable))
+    for m in unknown_data:
+        c.err(where, f"guard {text!r}: {m!r} is not mission data a guard can read", data_hint(c, m))
+    if unknown or unknown_data:
         return None
+    available = {**available, **readable}
     for cmp in guard.comparisons():
         if cmp.param is not None and cmp.param in not_quantities:
             c.err(where, f"guard {text!r}: {not_quantities[cmp.param]}", "give the parameter a number with a unit")

@@ -234,7 +234,7 @@ def test_foreach_exposes_each_item_to_the_task_in_order():
     m = load_mission(FULL)
     r = run_mission(m, record=False)
     assert_outcome(r, "succeeded")
-    entries = r.executor.memory["entries"]
+    entries = r.executor.memory["toy.entries"]
     # approach and settle both run toy_goto with $goal; home runs with target 0
     assert entries == [1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 0.0]
     assert [it["outcome"] for it in r.summary["iterations"]] == ["succeeded"] * 3

@@ -271,3 +271,32 @@ def test_an_operator_preempts_into_a_parallel_state_but_not_into_one_region():
     assert r.executor.state == "both.a.a1|both.b.b1"  # every region entered again
     with pytest.raises(ControlError, match="inside a parallel region"):
         drive(mission_, Script(), max_time=2.0, operator=[OperatorAction(t=1.0, action="preempt", args={"to": "both.a.a1"})])
+
+
+def test_data_written_in_one_region_is_not_on_the_path_into_another():
+    text = """
+machine:
+  initial: both
+  states:
+    both:
+      regions:
+        a:
+          owns: [v]
+          initial: mark
+          states:
+            mark: {task: toy_mark, transitions: [{to: a_end, after: 1 s}]}
+            a_end: {final: true}
+        b:
+          initial: back
+          states:
+            back:
+              task: toy_return
+              bind: {gains: slow}
+              transitions: [{to: b_end, after: 1 s}]
+            b_end: {final: true}
+      transitions: [{to: ok, done: succeeded}]
+    ok: {final: true}
+"""
+    msg = load_error(text)
+    assert "reads mission data 'toy.mark', which is not written on every path into state 'both.b.back'" in msg
+    assert "not on (start) → both.b.back" in msg  # the regions are entered together: region a has not run yet

@@ -87,7 +87,7 @@ def test_the_used_machine_runs_with_the_remapped_parameters_and_its_defaults(tmp
     r = run_mission(m, record=False)  # the real toy world and task
     assert_outcome(r, "succeeded")
     # $target ← the outer loop's $spot; $vias ← its default [0.25], once per spot
-    assert r.executor.memory["entries"] == [1.0, 0.25, 0.5, 0.25]
+    assert r.executor.memory["toy.entries"] == [1.0, 0.25, 0.5, 0.25]
     # $reach ← $tol (2 cm): the guard reads the outer parameter, as written in the label
     labels = {(t.source.path, t.label) for t in m.transitions}
     assert ("pick.go", "pos_error < $tol") in labels
@@ -99,7 +99,7 @@ def test_a_value_given_at_the_point_of_use_overrides_the_default(tmp_path: Path)
     main = MAIN.replace("reach: $tol}", "reach: $tol, vias: [0.75, 0.5]}")
     m = load_mission(write(tmp_path, {"m.yaml": main, "lib/goto.yaml": GOTO}))
     r = run_mission(m, record=False)
-    assert r.executor.memory["entries"] == [1.0, 0.75, 0.5, 0.5, 0.75, 0.5]
+    assert r.executor.memory["toy.entries"] == [1.0, 0.75, 0.5, 0.5, 0.75, 0.5]
     # the value and the default got scoped names: the outer mission's own names are untouched
     assert m.spec.parameters["pick__vias"] == [0.75, 0.5] and m.spec.parameters["spots"] == [1.0, 0.5]
 
@@ -109,7 +109,7 @@ def test_names_inside_cannot_collide_with_the_outer_missions(tmp_path: Path) -> 
     main = MAIN.replace("tol: 2 cm", "tol: 2 cm\n  reach: 3 m\n  vias: [9.0]").replace(", reach: $tol", "")
     m = load_mission(write(tmp_path, {"m.yaml": main, "lib/goto.yaml": GOTO}))
     r = run_mission(m, record=False)
-    assert r.executor.memory["entries"] == [1.0, 0.25, 0.5, 0.25]
+    assert r.executor.memory["toy.entries"] == [1.0, 0.25, 0.5, 0.25]
     assert m.spec.parameters["reach"] == "3 m" and m.spec.parameters["pick__reach"] == "1 cm"
 
 
@@ -155,7 +155,7 @@ machine:
     r = run_mission(m, record=False)
     assert_outcome(r, "succeeded")
     # one: $target ← twice's $first ← the mission's $where, $vias ← twice's default; two: its own values
-    assert r.executor.memory["entries"] == [1.5, 0.25, 0.5, 0.75]
+    assert r.executor.memory["toy.entries"] == [1.5, 0.25, 0.5, 0.75]
     assert m.spec.parameters["job__vias"] == [0.25] and m.spec.parameters["job__two__vias"] == [0.75]
 
 
@@ -295,7 +295,8 @@ def test_the_worked_example_of_docs_missions_md_loads(tmp_path: Path) -> None:
     import re
 
     text = (Path(__file__).parents[2] / "docs" / "missions.md").read_text()
-    section = text[text.index("## Sub-missions"):text.index("## Testing a mission")]
+    start = text.index("## Sub-missions")
+    section = text[start:text.index("\n## ", start + 1)]
     lib, main = re.findall(r"```yaml\n(.*?)```", section, re.S)
     head = ("mission: my_mission\nrobot: racecar\nworld: {name: flat_ground}\nrate_hz: 20\n"
             "profiles:\n  gains:\n    cruise: {k1: [0.6, 0.6], d: 0.3}\n")

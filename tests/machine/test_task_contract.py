@@ -80,7 +80,7 @@ def test_a_parameter_of_the_wrong_type_is_named() -> None:
 def test_any_robot_with_the_fields_is_accepted_and_the_task_gets_a_typed_view() -> None:
     r = run_on_world(load_mission_text(MISSION % "toy_fast", "m.yaml"))
     assert_outcome(r, "succeeded")
-    view = r.executor.memory["robot_params"]
+    view = r.executor.memory["toy.robot_params"]
     assert type(view).__name__ == "ToyLimits" and view.v_max == 2.5 and not hasattr(view, "mass")
 
 
@@ -102,8 +102,8 @@ class _Looker(ToyGoto):
 
     def step(self, obs):  # type: ignore[no-untyped-def]
         res = super().step(obs)
-        first = not self.ctx.memory.get("looked")
-        self.ctx.memory["looked"] = True
+        first = not getattr(self, "_looked", False)
+        self._looked = True
         return StepResult(res.command, res.metrics, sensors=("cam",) if first else None)
 
 

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from taskflow.api import MemoryKey
+from taskflow.api import MemoryKey, sequence
 from taskflow_tasks.screw_tasks import PID_B, Q_NOM
 from taskflow_tasks.viki_hyco import MEM_OBJECT
 
 
 def test_a_key_reads_and_writes_its_entry_by_its_whole_name() -> None:
-    key: MemoryKey[list[int]] = MemoryKey("test.items")
+    key: MemoryKey[list[int]] = MemoryKey("test.items", sequence())
     memory: dict = {}
     assert key.get(memory) is None and not key.present(memory)
     assert key.setdefault(memory, [1]) == [1]
