@@ -207,6 +207,9 @@ class Mission(_Model):
     parameters: dict[str, Any] = Field(default_factory=dict, description="poses, lists of poses, thresholds ...")
     profiles: dict[str, dict[str, dict[str, Any]]] = Field(
         default_factory=dict, description="profile kind (gains, pid, impedance, setpoints ...) → name → values")
+    events: list[str] = Field(default_factory=list, description="events the mission itself declares, raised only by an "
+                                                            "operator (`taskflow ctl RUN inject NAME`), e.g. "
+                                                            "operator_confirmed")
     data: dict[str, Any] = Field(default_factory=dict, description="mission-data key (declared by a task of the "
                                  "mission, e.g. viki.object) → the value it holds from the start of the run")
     machine: Machine

@@ -403,3 +403,44 @@ def test_taskflow_run_opens_the_endpoint_by_default_and_ctl_drives_it(tmp_path, 
     op = [r for r in operator_records(out) if "from" in r]
     assert op == [{"t": 1.0, "from": "operate.visit.approach", "to": "operate.home", "cause": "operator", "state": "",
                    "label": "preempt --to operate.home", "who": "ivy"}]
+
+
+def test_a_mission_declares_its_own_operator_event_and_an_injected_one_fires_it():
+    from taskflow.loader import load_mission_text
+
+    m = load_mission_text("""
+mission: m
+robot: toy_point
+world: {name: toy_line}
+rate_hz: 20
+max_time: 30 s
+events: [operator_confirmed]
+machine:
+  initial: wait_for_go
+  states:
+    wait_for_go:
+      transitions:
+        - {to: done, on: operator_confirmed}
+        - {to: gave_up, after: 20 s}
+    done: {final: true}
+    gave_up: {final: failed}
+""", "ev.yaml")
+    assert "operator_confirmed" in m.events
+    r = drive(m, Script(), operator=[OperatorAction(t=2.0, action="inject", args={"event": "operator_confirmed"},
+                                                    who="dora")])
+    assert r.outcome == "succeeded"
+    fired = r.executor.transitions_fired[-1]
+    assert (fired.t, fired.target, fired.event) == (2.0, "done", "operator_confirmed")
+    # without the declaration `on: operator_confirmed` is an unknown event at load
+    with pytest.raises(MissionError, match="operator_confirmed"):
+        load_mission_text("""
+mission: m
+robot: toy_point
+world: {name: toy_line}
+rate_hz: 20
+machine:
+  initial: a
+  states:
+    a: {transitions: [{to: b, on: operator_confirmed}]}
+    b: {final: true}
+""", "ev2.yaml")

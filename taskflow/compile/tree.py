@@ -132,10 +132,11 @@ def _state_keys(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> N
 
 
 def catalogue(c: Compilation, root: StateNode) -> tuple[dict[str, str], set[str]]:
-    """Every metric (→ unit) and every event the mission's world, actions and tasks publish."""
+    """Every metric (→ unit) and every event the mission's world, actions and tasks publish, and the events
+    the mission declares for its operator (``events:``)."""
     world = c.world
     units: dict[str, str] = dict(world.metrics)
-    events: set[str] = set(world.events)
+    events: set[str] = set(world.events) | set(c.spec.events)
     for evs in world.actions.values():
         events.update(evs)
     for n in root.walk():
