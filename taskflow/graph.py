@@ -1,7 +1,8 @@
 """The nested machine as a Mermaid ``stateDiagram-v2`` or a Graphviz ``dot`` digraph.
 
-A parallel state's regions are drawn side by side inside it (Mermaid's ``--`` concurrency separator;
-dashed clusters in dot), each labelled with the command parts it owns.
+A parallel state's regions are drawn as its concurrent blocks (Mermaid's ``--`` concurrency separator;
+in dot, dashed clusters stacked top to bottom by invisible edges, so a wide region does not widen the
+row of the others), each labelled with the command parts it owns.
 
 Dot output is laid out top to bottom with every composite a cluster.  Each non-parallel composite (and
 the machine itself) holds a small filled start node with an edge to its initial state; a transition to or
@@ -71,6 +72,11 @@ def to_mermaid(m: CompiledMission) -> str:
                 lines.append(f'{indent}state "{label}" as {_mid(child)} {{')
                 block(child, indent + "    ")
                 lines.append(f"{indent}}}")
+                if node.parallel and child is not next(iter(node.children.values())):
+                    # regions are stacked top to bottom, so a wide region does not widen the others' row
+                    above = list(node.children.values())[list(node.children).index(child.name) - 1]
+                    for leaf in (d for d in above.walk() if d.is_leaf):
+                        lines.append(f'{indent}"{_mid(leaf)}" -> "{start_id(child)}" [style=invis, weight=0];')
             else:
                 lines.append(f'{indent}state "{label}" as {_mid(child)}')
             if child.final:
@@ -128,6 +134,11 @@ def to_dot(m: CompiledMission) -> str:
                 lines.append(f'{indent}    label="{_dot_text(title)}"; labeljust=l;')
                 block(child, indent + "    ")
                 lines.append(f"{indent}}}")
+                if node.parallel and child is not next(iter(node.children.values())):
+                    # regions are stacked top to bottom, so a wide region does not widen the others' row
+                    above = list(node.children.values())[list(node.children).index(child.name) - 1]
+                    for leaf in (d for d in above.walk() if d.is_leaf):
+                        lines.append(f'{indent}"{_mid(leaf)}" -> "{start_id(child)}" [style=invis, weight=0];')
             else:
                 shape = ", peripheries=2" if child.final else ""
                 task = f" ({child.task_cls.name})" if child.task_cls is not None and not child.final else ""

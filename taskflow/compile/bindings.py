@@ -80,7 +80,7 @@ def check_parameters(c: Compilation, root: StateNode) -> None:
         if isinstance(spec, State) and spec.foreach is not None:
             _check_loop(c, n, spec)
         if n.is_leaf and n.task_cls is not None:
-            if _refs_resolve(c, n, n.task_params, n.task_ypath + ("params",), c.data.samples()):
+            if _refs_resolve(c, n, n.task_params, n.task_ypath + ("params",), c.mission_data.samples()):
                 validate_every_item(c, n, n.task_cls.Params, n.task_params, n.task_ypath + ("params",),
                                     f"task {n.task_cls.name!r}")
 
@@ -146,7 +146,7 @@ def validate_every_item(c: Compilation, n: StateNode, model: type[BaseModel], ra
     enclosing foreach, then with every other item of each list (the others at their first item)."""
     params = c.spec.parameters
     first = _first_items(c, n)
-    data = c.data.samples()
+    data = c.mission_data.samples()
     if c.validate_model(model, resolve_refs(raw, params, first, data=data), where) is None:
         return
     for item, lst in n.scope_items():

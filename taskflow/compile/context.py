@@ -29,7 +29,7 @@ class Compilation:
         self.world_params_raw: dict[str, Any] = {}
         self.states: dict[str, StateNode] = {}
         self.transitions: list[Transition] = []
-        self.data = DataCatalogue()  # the mission data its tasks declare (set by dataflow.data_catalogue)
+        self.mission_data = DataCatalogue()  # the mission data its tasks declare (set by dataflow.data_catalogue)
 
     def err(self, path: YPath, message: str, hint: str = "") -> None:
         self.problems.append(self.smap.problem(path, message, hint))

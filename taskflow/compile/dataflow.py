@@ -42,7 +42,7 @@ from .structure import finishing_outcomes
 
 def data_catalogue(c: Compilation, root: StateNode) -> DataCatalogue:
     """Every key the mission's tasks declare, and the defaults (the keys' own, the mission's ``data:`` over
-    them); sets ``c.data``."""
+    them); sets ``c.mission_data``."""
     cat = DataCatalogue()
     owner: dict[str, str] = {}
     for n in root.walk():
@@ -71,19 +71,19 @@ def data_catalogue(c: Compilation, root: StateNode) -> DataCatalogue:
             cat.defaults[name] = from_yaml(cat.keys[name].spec, value)
         except ValueError as exc:
             c.err(("data", name), f"mission data {name!r} {exc}")
-    c.data = cat
+    c.mission_data = cat
     return cat
 
 
 def data_hint(c: Compilation, name: str) -> str:
     """What a guard may write instead of the unknown ``data.…`` name ``name``."""
-    key = c.data.keys.get(name[len(DATA_PREFIX):].split("[")[0])
+    key = c.mission_data.keys.get(name[len(DATA_PREFIX):].split("[")[0])
     if key is not None:
         names = guard_names(key)
         if names:
             return f"{key.name!r} holds {key.spec}: compare one of {', '.join(names)}"
         return f"{key.name!r} holds {key.spec}; guards read scalar, flag and fixed-length 1-D array keys only"
-    return describe_choices(name, list(c.data.guard_units()))
+    return describe_choices(name, list(c.mission_data.guard_units()))
 
 
 # -- the must-be-written analysis ---------------------------------------------------------------------
@@ -169,7 +169,7 @@ def _witness(key: str, leaf: StateNode, starts: set[str], preds: dict[str, set[s
 def check_dataflow(c: Compilation, root: StateNode) -> None:
     """Every key a state reads is written on every path into it, or has a default (a problem at the reading
     task or guard naming a path on which it is not)."""
-    cat = c.data
+    cat = c.mission_data
     leaves = [n for n in root.walk() if n.is_leaf and n is not root]
     if not leaves or root.initial is None:
         return

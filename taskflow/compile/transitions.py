@@ -146,7 +146,7 @@ def _compile_guard(c: Compilation, n: StateNode, text: str, where: YPath, quanti
     for m in unknown:
         c.err(where, f"metric {m!r} is not published in state {n.path!r}",
               f"{describe_choices(m, list(available))}; `taskflow describe TASK` lists a task's metrics")
-    readable = c.data.guard_units()  # data.<key> names (taskflow.compile.dataflow)
+    readable = c.mission_data.guard_units()  # data.<key> names (taskflow.compile.dataflow)
     unknown_data = sorted({cmp.metric for cmp in guard.comparisons()} - set(guard.metrics) - set(readable))
     for m in unknown_data:
         c.err(where, f"guard {text!r}: {m!r} is not mission data a guard can read", data_hint(c, m))

@@ -248,7 +248,7 @@ machine:
     assert r.executor.state == "outer.both.a.a1|outer.both.b.b1"
 
 
-def test_graphs_draw_regions_side_by_side():
+def test_graphs_draw_regions_as_concurrent_blocks():
     from taskflow.graph import to_dot, to_mermaid
 
     m = timed("1 s", "1 s")
@@ -257,6 +257,7 @@ def test_graphs_draw_regions_side_by_side():
     assert 'state "a [region: commands nothing]" as both__a {' in mer
     dot = to_dot(m)
     assert 'label="a (region: commands nothing)";' in dot and "style=dashed;" in dot
+    assert '"both__a__a1" -> "__start__both__b" [style=invis, weight=0];' in dot  # region b stacked below a
 
 
 def test_an_operator_preempts_into_a_parallel_state_but_not_into_one_region():
