@@ -109,10 +109,11 @@ class RecordedRun:
         cx, cy = x.copy(), y.copy()
         if yaw is not None:
             states = self.trace["state"]
-            for state, cp in self.scene.control_points.items():
-                m = states == state
-                if m.any():
-                    cx[m], cy[m] = cp.of(x[m], y[m], yaw[m])  # type: ignore[arg-type]
+            for state in dict.fromkeys(states.tolist()):
+                cp = self.scene.control_point(state)
+                if cp is not None:
+                    m = states == state
+                    cx[m], cy[m] = cp.of(x[m], y[m], yaw[m])
         return cx, cy
 
 

@@ -31,7 +31,9 @@ class Scene:
     poses: dict[str, tuple[str, str, str | None]] = field(default_factory=dict)
 
     def control_point(self, state: str) -> ControlPoint | None:
-        return self.control_points.get(state)
+        """The control point drawn for a trace row in ``state``: a leaf path, or the active leaves of
+        parallel regions joined by ``|`` (then the first that declares one)."""
+        return next((cp for leaf in state.split("|") if (cp := self.control_points.get(leaf)) is not None), None)
 
 
 def _item_scopes(node: StateNode, params: dict[str, Any]) -> list[tuple[dict[str, Any], tuple[int, ...]]]:

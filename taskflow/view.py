@@ -8,9 +8,10 @@ loop — so serving it costs the loop nothing per tick: the routes read ``trace.
 
 ``GET /``                   the page;  ``GET /web/FILE`` its script and style (shipped in the package)
 ``GET /view/machine``       the compiled state tree with each state's transitions (:func:`machine_json`), the
-                            metric units, the trace columns of the robot's ground-truth pose and of
-                            other bodies' positions (:data:`BODIES`), and the points the mission's
-                            parameters name (waypoints, keyframes, the room)
+                            metric units, and the top view of the mission's declared scene
+                            (:mod:`taskflow.scene`, as :mod:`taskflow.plots` draws it): the trace columns
+                            of the declared ground-truth poses, the markers, and per state the control
+                            point its guards measure
 ``GET /view/trace?since=N`` trace rows ``N …`` (at most :data:`MAX_ROWS`): ``{columns, rows, next, done}``,
                             a row as ``[t, state, events, numbers…]`` (``null`` for NaN)
 ``GET /view/transitions?since=N``  ``transitions.jsonl`` objects ``N …``: ``{records, next}``
@@ -25,15 +26,13 @@ from pathlib import Path
 from typing import Any
 
 from .guards import Guard, Node
+from .markers import Marker
 from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode,
                     TimeoutTransition, Transition)
+from .scene import Scene, mission_scene
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 MAX_ROWS = 4000  # trace rows per answer: a long run arrives in a few requests
-XY_KEYS = (("x", "y", "yaw"), ("base_x", "base_y", "base_yaw"))  # robot pose columns (gt.*), first match wins
-BODIES = (("obj", "robot"), ("part", "world"))
-"""Other bodies' ground-truth position columns (``gt.NAME_x``, ``gt.NAME_y``) and their frame, as the shipped
-worlds document them: ``viki_ground``'s object in the robot frame, ``screw_conveyor``'s part in the world."""
 
 
 class ViewError(ValueError):
@@ -95,53 +94,41 @@ def state_json(mission: CompiledMission, node: StateNode) -> dict[str, Any]:
     return out
 
 
-def _point(v: Any) -> tuple[float, float] | None:
-    if isinstance(v, dict):
-        v = v.get("pose", v.get("xy", v.get("position")))
-    if isinstance(v, (list, tuple)) and len(v) >= 2 and all(isinstance(a, (int, float)) for a in v[:2]):
-        return float(v[0]), float(v[1])
-    return None
+def marker_json(m: Marker) -> dict[str, Any]:
+    """One declared scene marker (:class:`~taskflow.markers.Marker`): ``kind`` its role, ``label``,
+    ``points`` ``[[x, y], …]`` in the world frame (m), ``closed`` (a polygon), ``yaw`` (rad) and ``radius``
+    (m), null when not given."""
+    return {"kind": m.role, "label": m.label, "points": [list(p) for p in m.points], "closed": m.closed,
+            "yaw": m.yaw, "radius": m.radius}
 
 
-def markers(resolved: dict[str, Any]) -> list[dict[str, Any]]:
-    """Points to draw on the top view, where the mission states them simply in the world frame: every list
-    of two or more ``[x, y, …]`` (or ``{pose: [x, y, …]}``) among the world's parameters and the
-    mission's ``parameters`` (waypoints, keyframes), and a ``room`` ``{x0, x1, y0, y1}``.  Points given in
-    the robot's frame (a single ``goal``) are not guessed at."""
-    out: list[dict[str, Any]] = []
-    world = resolved.get("world")
-    sources = [("world", world.get("params") or {} if isinstance(world, dict) else {}),
-               ("parameters", resolved.get("parameters") or {})]
-    seen: set[tuple[tuple[float, float], ...]] = set()
-    for where, params in sources:
-        if not isinstance(params, dict):
-            continue
-        for key, value in params.items():
-            if key == "room" and isinstance(value, dict) and {"x0", "x1", "y0", "y1"} <= set(value):
-                out.append({"name": key, "kind": "box", "from": where,
-                            "box": [float(value[k]) for k in ("x0", "x1", "y0", "y1")]})
-            elif isinstance(value, list) and len(value) >= 2:
-                pts = [_point(v) for v in value]
-                if all(p is not None for p in pts):
-                    key_pts = tuple(pts)  # type: ignore[arg-type]
-                    if key_pts not in seen:  # a YAML anchor shared by world and parameters: once
-                        seen.add(key_pts)
-                        out.append({"name": key, "kind": "points", "from": where, "points": [list(p) for p in key_pts]})
-    return out
+def _pose_columns(keys: tuple[str, str, str | None], gt_names: list[str]) -> list[str] | None:
+    """The trace columns ``[gt.x, gt.y, gt.yaw]`` of a declared pose (yaw ``""`` when not recorded), None
+    when its position is not in the trace."""
+    x, y, yaw = (f"gt.{k}" if k else "" for k in keys)
+    if x not in gt_names or y not in gt_names:
+        return None
+    return [x, y, yaw if yaw in gt_names else ""]
 
 
-def machine_json(mission: CompiledMission, resolved: dict[str, Any], gt_names: list[str]) -> dict[str, Any]:
-    """``GET /view/machine``: the state tree, the metric units, the ground-truth pose columns of the robot
-    (``xy``: ``[x, y, yaw]``, yaw ``""`` when not recorded; null without a position), other bodies
-    (:data:`BODIES`: ``{name, x, y, frame}``) and the markers of the top view."""
-    pose = next(([f"gt.{a}" for a in k] for k in XY_KEYS if all(f"gt.{a}" in gt_names for a in k[:2])), None)
-    if pose is not None and pose[2] not in gt_names:
-        pose[2] = ""
-    bodies = [{"name": name, "x": f"gt.{name}_x", "y": f"gt.{name}_y", "frame": frame} for name, frame in BODIES
-              if f"gt.{name}_x" in gt_names and f"gt.{name}_y" in gt_names and (frame == "world" or pose and pose[2])]
+def machine_json(mission: CompiledMission, scene: Scene, gt_names: list[str]) -> dict[str, Any]:
+    """``GET /view/machine``: the state tree, the metric units and the top view as the figures draw it
+    (:mod:`taskflow.plots`), from the mission's declared ``scene`` (:func:`taskflow.scene.mission_scene`):
+    ``xy`` the trace columns of the robot's ground-truth pose (:attr:`taskflow.api.World.poses`' first
+    entry: ``[x, y, yaw]``, yaw ``""`` when not recorded; null without a position), ``bodies`` the other
+    declared poses recorded (``{name, x, y}``, world frame), ``markers`` (:func:`marker_json`) and
+    ``control_points``: leaf state path → ``{offset: [ahead, left], label}``, the point of the robot its
+    guards measure (:class:`~taskflow.markers.ControlPoint`; a state not listed measures the pose itself;
+    a row of parallel leaves ``a|b`` takes the first leaf's that declares one, as
+    :meth:`taskflow.scene.Scene.control_point`)."""
+    recorded = {name: _pose_columns(keys, gt_names) for name, keys in scene.poses.items()}
+    pose = next(iter(recorded.values()), None)
+    bodies = [{"name": name, "x": c[0], "y": c[1]} for name, c in list(recorded.items())[1:] if c is not None]
     return {"mission": mission.name, "rate_hz": mission.spec.rate_hz, "root": state_json(mission, mission.root),
             "metric_units": dict(sorted(mission.metric_units.items())),
-            "xy": pose, "bodies": bodies, "markers": markers(resolved)}
+            "xy": pose, "bodies": bodies, "markers": [marker_json(m) for m in scene.markers],
+            "control_points": {state: {"offset": list(cp.offset), "label": cp.label}
+                               for state, cp in sorted(scene.control_points.items())}}
 
 
 # -- the record, read as it is written ------------------------------------------------------------------
@@ -212,7 +199,7 @@ class RecordReader:
 
 
 class RunView:
-    """What the page of one run is served from: its mission (compiled), its resolved document and its record."""
+    """What the page of one run is served from: its mission (compiled) and its record."""
 
     def __init__(self, mission: CompiledMission, run_dir: Path, live: bool) -> None:
         self.mission = mission
@@ -222,16 +209,12 @@ class RunView:
 
     def machine(self) -> dict[str, Any]:
         """:func:`machine_json`, computed once the trace's header is on disk (a live run writes it with its
-        first block of rows; until then the ground-truth columns are unknown: ``columns_known`` false)."""
+        first block of rows; until then the ground-truth columns are unknown: ``columns_known`` false).
+        The scene is the mission's with the world parameters drawn for the run's seed (its summary's)."""
         if self._machine is None or not self._machine["columns_known"]:
-            resolved = self.mission.raw
-            try:
-                import yaml
-
-                resolved = yaml.safe_load((self.reader.dir / "mission.yaml").read_text()) or resolved
-            except (OSError, ValueError):
-                pass
-            self._machine = {**machine_json(self.mission, resolved, self.reader.gt_names()),
+            seed = int(self.reader.summary().get("seed", self.mission.spec.seed))
+            scene = mission_scene(self.mission, self.mission.world_params(seed))
+            self._machine = {**machine_json(self.mission, scene, self.reader.gt_names()),
                              "columns_known": bool(self.reader.columns)}
         return {**self._machine, "live": self.live}
 

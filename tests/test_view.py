@@ -6,20 +6,26 @@ The page itself is driven in a real browser by tests/test_view_browser.py.
 from __future__ import annotations
 
 import json
+import math
 import urllib.error
 import urllib.request
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from taskflow.cli import main
 from taskflow.loader import load_mission
 from taskflow.testing import Script, drive
-from taskflow.view import RecordReader, ViewError, machine_json, markers, open_run
+from taskflow.recorded import load_run
+from taskflow.runtime import run_mission
+from taskflow.scene import Scene, mission_scene
+from taskflow.view import RecordReader, RunView, ViewError, machine_json, open_run
 from taskflow.view_http import serve_replay
 
 HERE = Path(__file__).resolve().parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
+MISSIONS = HERE.parent / "missions"
 
 
 def _walk(node):
@@ -30,7 +36,7 @@ def _walk(node):
 
 def test_the_machine_carries_each_transition_with_its_guard_tree_in_base_units():
     mission = load_mission(TOY)
-    m = machine_json(mission, mission.raw, ["gt.x"])
+    m = machine_json(mission, Scene(), ["gt.x"])
     nodes = {n["path"]: n for n in _walk(m["root"])}
     assert nodes["operate"]["history"] and nodes["operate.visit"]["loop"] == "foreach goal in goals"
     assert nodes["done"]["kind"] == "final" and nodes["done"]["outcome"] == "succeeded"
@@ -44,18 +50,60 @@ def test_the_machine_carries_each_transition_with_its_guard_tree_in_base_units()
     assert m["xy"] is None and m["metric_units"]["pos_error"] == "m"
 
 
-def test_markers_are_point_lists_and_rooms_never_a_single_robot_frame_goal():
-    resolved = {"world": {"params": {"room": {"x0": -1, "x1": 3, "y0": -1, "y1": 2, "height": 2},
-                                     "keyframes": [{"id": 0, "pose": [0.5, 0.0, 1.0, 0.0]},
-                                                   {"id": 1, "pose": [1.0, 0.0, 1.0, 0.0]}],
-                                     "goal": [-0.9, 0.0]}},
-                "parameters": {"waypoints": [[1, 2], [3, 4], [5, 6]], "path": [{"id": 0, "pose": [0.5, 0.0, 1.0, 0.0]},
-                                                                               {"id": 1, "pose": [1.0, 0.0, 1.0, 0.0]}]}}
-    got = {m["name"]: m for m in markers(resolved)}
-    assert got["room"]["box"] == [-1.0, 3.0, -1.0, 2.0]
-    assert got["keyframes"]["points"] == [[0.5, 0.0], [1.0, 0.0]]
-    assert got["waypoints"]["points"] == [[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]]
-    assert "goal" not in got and "path" not in got  # the same points as keyframes are drawn once
+@pytest.fixture(scope="module")
+def car_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("car") / "run"
+    assert run_mission(load_mission(MISSIONS / "car_waypoints.yaml"), out_dir=out).succeeded
+    return out
+
+
+def _drawn_point(machine: dict, columns: list[str], row: list) -> tuple[float, float]:
+    """The point the page draws for a trace row, from the view's JSON alone (view.js ``controlAt``)."""
+    x, y, yaw = (row[columns.index(c)] for c in machine["xy"])
+    cp = next((machine["control_points"][leaf] for leaf in row[1].split("|") if leaf in machine["control_points"]),
+              None)
+    if cp is None:
+        return x, y
+    (a, b), c, s = cp["offset"], math.cos(yaw), math.sin(yaw)
+    return x + a * c - b * s, y + a * s + b * c
+
+
+def test_the_car_view_has_its_three_waypoints_and_draws_the_control_point_as_the_figure_does(car_run):
+    view = open_run(car_run)
+    machine = view.machine()
+    waypoints = load_mission(car_run / "mission.yaml").spec.parameters["waypoints"]
+    marks = [(m["label"], m["points"]) for m in machine["markers"] if m["kind"] == "waypoint"]
+    assert marks == [(f"waypoint {i + 1}", [list(map(float, w))]) for i, w in enumerate(waypoints)]
+    assert machine["xy"] == ["gt.x", "gt.y", "gt.yaw"] and machine["bodies"] == []
+    assert set(machine["control_points"]) == {"drive.approach", "drive.settle"}
+    assert machine["control_points"]["drive.settle"] == {
+        "offset": [0.325, 0.0], "label": "control point d = 0.325 m ahead of the rear axle"}
+    trace = view.reader.trace(0)
+    assert trace["done"]
+    drawn = np.array([_drawn_point(machine, trace["columns"], r) for r in trace["rows"]])
+    run = load_run(car_run)  # what the figure (taskflow.plots.path_figure) draws
+    cx, cy = run.control_track()
+    np.testing.assert_allclose(drawn[:, 0], cx)
+    np.testing.assert_allclose(drawn[:, 1], cy)
+    settle = run.trace["state"] == "drive.settle"
+    ahead = np.hypot(cx - run.trace["gt.x"], cy - run.trace["gt.y"])
+    np.testing.assert_allclose(ahead[settle], 0.325)  # d ahead of the rear axle, not the axle itself
+
+
+def test_the_viki_view_has_the_object_where_the_world_places_it(tmp_path):
+    from sim.viki_world import object_position
+
+    mission = load_mission(MISSIONS / "viki_hyco.yaml")
+    (tmp_path / "trace.csv").write_text("t,state,events,gt.x,gt.y,gt.yaw,gt.obj_x,gt.obj_y\n")
+    (tmp_path / "summary.json").write_text(json.dumps({"seed": 3}))
+    machine = RunView(mission, tmp_path, live=False).machine()
+    (obj,) = [m for m in machine["markers"] if m["kind"] == "object"]
+    world = mission.world_params(3)  # the object as drawn for the run's seed
+    assert obj["points"] == [list(map(float, object_position(world)))] and obj["radius"] > 0
+    assert obj["label"].startswith("object (")
+    figure = [m for m in mission_scene(mission, world).markers if m.role == "object"]
+    assert [[list(p) for p in m.points] for m in figure] == [obj["points"]]
+    assert machine["bodies"] == []  # the robot-frame obj columns are no declared pose: the marker is the object
 
 
 def test_the_reader_returns_only_complete_lines(tmp_path):
@@ -110,21 +158,19 @@ def test_run_view_needs_the_control_endpoint(capsys):
     assert "--view needs the control endpoint" in capsys.readouterr().err
 
 
-def test_the_top_view_takes_the_robot_pose_and_known_bodies_with_their_frames():
+def test_the_top_view_takes_the_declared_poses_that_the_trace_records():
     mission = load_mission(TOY)
-    viki = machine_json(mission, {}, ["gt.x", "gt.y", "gt.yaw", "gt.obj_x", "gt.obj_y", "gt.err_x", "gt.err_y"])
-    assert viki["xy"] == ["gt.x", "gt.y", "gt.yaw"]
-    assert viki["bodies"] == [{"name": "obj", "x": "gt.obj_x", "y": "gt.obj_y", "frame": "robot"}]  # err is no body
-    screw = machine_json(mission, {}, ["gt.base_x", "gt.base_y", "gt.base_yaw", "gt.part_x", "gt.part_y"])
-    assert screw["xy"] == ["gt.base_x", "gt.base_y", "gt.base_yaw"] and screw["bodies"][0]["frame"] == "world"
-    no_yaw = machine_json(mission, {}, ["gt.x", "gt.y", "gt.obj_x", "gt.obj_y"])
-    assert no_yaw["xy"] == ["gt.x", "gt.y", ""] and no_yaw["bodies"] == []  # a robot-frame body needs the yaw
+    scene = Scene(poses={"robot": ("base_x", "base_y", "base_yaw"), "part": ("part_x", "part_y", "part_yaw")})
+    screw = machine_json(mission, scene, ["gt.base_x", "gt.base_y", "gt.base_yaw", "gt.part_x", "gt.part_y"])
+    assert screw["xy"] == ["gt.base_x", "gt.base_y", "gt.base_yaw"]
+    assert screw["bodies"] == [{"name": "part", "x": "gt.part_x", "y": "gt.part_y"}]
+    no_yaw = machine_json(mission, scene, ["gt.base_x", "gt.base_y"])
+    assert no_yaw["xy"] == ["gt.base_x", "gt.base_y", ""] and no_yaw["bodies"] == []
+    assert machine_json(mission, scene, ["gt.x", "gt.y"])["xy"] is None  # undeclared columns are not guessed at
 
 
 def test_a_live_view_learns_the_columns_once_the_header_is_written(tmp_path):
-    from taskflow.view import RunView
-
-    view = RunView(load_mission(TOY), tmp_path, live=True)
+    view = RunView(load_mission(MISSIONS / "car_waypoints.yaml"), tmp_path, live=True)
     (tmp_path / "trace.csv").write_text("")  # the recorder's header is still in its buffer
     assert view.machine()["columns_known"] is False and view.machine()["live"] is True
     (tmp_path / "trace.csv").write_text("t,state,events,gt.x,gt.y\n")

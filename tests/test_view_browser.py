@@ -284,3 +284,31 @@ def test_parallel_regions_are_drawn_side_by_side_with_a_lit_leaf_each(browser, t
             "return document.querySelector('#chart [data-path=\"work\"]').classList.contains('parallel')")
     finally:
         server.stop()
+
+
+def test_the_car_top_view_draws_the_control_point_where_the_figure_does(browser, tmp_path):
+    """The page's top view of car_waypoints: the point drawn at every row is the figure's
+    (:meth:`taskflow.recorded.RecordedRun.control_track`: d = 0.325 m ahead of the rear axle while a
+    ``car_goto`` state runs), and the page says which point it draws."""
+    import numpy as np
+
+    from taskflow.recorded import load_run
+    from taskflow.runtime import run_mission
+
+    out = tmp_path / "car"
+    assert run_mission(load_mission(HERE.parent / "missions" / "car_waypoints.yaml"), out_dir=out).succeeded
+    run = load_run(out)
+    server = serve_replay(out, "127.0.0.1:0")
+    try:
+        _open(browser, server.url)
+        drawn = np.array(browser.execute_script(
+            "const v = taskflowView; return v.S.rows.map(r => v.controlAt(r));"), dtype=float)
+        cx, cy = run.control_track()
+        np.testing.assert_allclose(drawn[:, 0], cx)
+        np.testing.assert_allclose(drawn[:, 1], cy)
+        k = int(np.flatnonzero(run.trace["state"] == "drive.settle")[0])
+        browser.execute_script("taskflowView.seek(arguments[0])", k)
+        note = browser.find_element("id", "path-note").text
+        assert "drawn now: control point d = 0.325 m ahead of the rear axle" in note and "waypoint" in note
+    finally:
+        server.stop()

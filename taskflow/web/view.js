@@ -4,7 +4,7 @@
 
 const S = {
   machine: null, nodes: {}, els: {}, cols: [], col: {}, rows: [], rowNext: 0, recs: [], recNext: 0,
-  cursor: 0, follow: true, live: false, running: true, plots: [], playing: null, ops: null,
+  cursor: 0, follow: true, live: false, running: true, plots: [], playing: null, ops: null, cpOf: new Map(),
 };
 const $ = (id) => document.getElementById(id);
 const within = (path, p) => p === "" || path === p || path.startsWith(p + ".");
@@ -360,6 +360,80 @@ function renderPlots(i) {
 }
 
 // -- top view ----------------------------------------------------------------------------------------------
+// What it draws is the mission's declared scene (taskflow/scene.py, as the figures of taskflow/plots.py):
+// the markers the world and the tasks declare, and the path of the point each state's guards measure.
+const ROLE_COLOUR = { goal: "crimson", waypoint: "crimson", keyframe: "darkorange", object: "black", start: "dimgray",
+  obstacle: "seagreen", boundary: "black" };  // the figures' colours (taskflow/plots.py, _ROLE_STYLE)
+
+// the control point of a row's state: its leaf's, or the first of parallel leaves that declares one (Scene.control_point)
+function controlPointOf(state) {
+  if (!S.cpOf.has(state)) {
+    const cps = S.machine.control_points || {};
+    S.cpOf.set(state, state.split("|").map((leaf) => cps[leaf]).find(Boolean) || null);
+  }
+  return S.cpOf.get(state);
+}
+
+// the robot's reported pose at a row, [x, y, yaw] (yaw null when not recorded), or null
+function poseAt(r) {
+  const xy = S.machine.xy;
+  const x = r[S.col[xy[0]]], y = r[S.col[xy[1]]];
+  if (x === null || x === undefined || y === null || y === undefined) return null;
+  const yaw = xy[2] && S.col[xy[2]] !== undefined ? r[S.col[xy[2]]] : null;
+  return [x, y, yaw];
+}
+
+// the point drawn for a row: the control point of its state, d ahead of the pose (ControlPoint.of), else the pose
+function controlAt(r) {
+  const p = poseAt(r);
+  if (!p) return null;
+  const cp = controlPointOf(r[1]);
+  if (!cp || p[2] === null) return [p[0], p[1]];
+  const [a, b] = cp.offset, c = Math.cos(p[2]), s = Math.sin(p[2]);
+  return [p[0] + a * c - b * s, p[1] + a * s + b * c];
+}
+
+function drawMarker(ctx, m, X, Y, s) {
+  const colour = ROLE_COLOUR[m.kind] || "#555";
+  ctx.strokeStyle = colour; ctx.fillStyle = colour; ctx.lineWidth = 1.5;
+  const pts = m.points;
+  if (m.closed || pts.length > 1) {
+    ctx.beginPath();
+    pts.forEach((p, k) => (k ? ctx.lineTo(X(p[0]), Y(p[1])) : ctx.moveTo(X(p[0]), Y(p[1]))));
+    if (m.closed) ctx.closePath();
+    if (m.closed && m.kind === "obstacle") { ctx.globalAlpha = 0.5; ctx.fill(); ctx.globalAlpha = 1; } else ctx.stroke();
+    ctx.lineWidth = 1;
+    return;
+  }
+  const x = X(pts[0][0]), y = Y(pts[0][1]);
+  if (m.radius !== null) {
+    ctx.globalAlpha = m.kind === "obstacle" ? 0.5 : 0.25;
+    ctx.beginPath(); ctx.arc(x, y, Math.max(m.radius * s, 2), 0, 2 * Math.PI); ctx.fill();
+    ctx.globalAlpha = 1;
+  }
+  ctx.beginPath();
+  if (m.kind === "goal" || m.kind === "waypoint") {
+    ctx.lineWidth = 2.5;
+    ctx.moveTo(x - 5, y - 5); ctx.lineTo(x + 5, y + 5); ctx.moveTo(x - 5, y + 5); ctx.lineTo(x + 5, y - 5); ctx.stroke();
+  } else if (m.kind === "keyframe") {
+    ctx.moveTo(x, y - 5); ctx.lineTo(x + 4.5, y + 3.5); ctx.lineTo(x - 4.5, y + 3.5); ctx.closePath(); ctx.stroke();
+  } else if (m.kind === "start") {
+    ctx.strokeRect(x - 4, y - 4, 8, 8);
+  } else if (m.kind === "object") {
+    ctx.arc(x, y, 4, 0, 2 * Math.PI); ctx.stroke();
+  } else {
+    ctx.arc(x, y, 3, 0, 2 * Math.PI); ctx.fill();
+  }
+  ctx.lineWidth = 1;
+  if (m.yaw !== null && (m.kind === "keyframe" || m.kind === "start")) {
+    ctx.beginPath(); ctx.moveTo(x, y); ctx.lineTo(x + 12 * Math.cos(m.yaw), y - 12 * Math.sin(m.yaw)); ctx.stroke();
+  }
+  if (m.kind === "goal" || m.kind === "waypoint" || m.kind === "object") {  // labelled, kept inside the canvas
+    const tw = ctx.measureText(m.label).width;
+    ctx.fillText(m.label, x + 6 + tw > ctx.canvas.width ? x - 6 - tw : x + 6, y < 14 ? y + 14 : y - 6);
+  }
+}
+
 function renderPath(i) {
   const canvas = $("path");
   const ctx = canvas.getContext("2d");
@@ -370,28 +444,24 @@ function renderPath(i) {
     $("path-note").textContent = "(the run's world records no ground-truth x/y)";
     return;
   }
-  const jx = S.col[xy[0]], jy = S.col[xy[1]];
+  const cps = Object.values(S.machine.control_points || {});
+  const bodies = (S.machine.bodies || []).filter((b) => S.col[b.x] !== undefined && S.col[b.y] !== undefined);
+  const r = S.rows[i];
+  const cpNow = controlPointOf(r[1]);
+  const kinds = [...new Set(S.machine.markers.map((m) => m.kind))];
   $("path-note").textContent = `(ground truth ${xy[0].slice(3)}, ${xy[1].slice(3)} in m; ` +
-    (S.machine.markers.length ? "markers: " + S.machine.markers.map((m) => m.name).join(", ") : "no markers in the mission") +
-    ((S.machine.bodies || []).length ? "; squares: " + S.machine.bodies.map((b) => b.name).join(", ") : "") + ")";
+    `drawn now: ${cpNow ? cpNow.label : "the robot pose"}` + (cps.length ? ", the robot pose in grey" : "") +
+    (kinds.length ? "; markers: " + kinds.join(", ") : "; no markers declared") +
+    (bodies.length ? "; squares: " + bodies.map((b) => b.name).join(", ") : "") + ")";
+  const track = S.rows.map(controlAt);
+  const poses = S.rows.map(poseAt);
   let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity;
   const grow = (x, y) => { if (x === null || y === null) return; x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y); };
-  for (const r of S.rows) grow(r[jx], r[jy]);
-  const jyaw = xy[2] ? S.col[xy[2]] : undefined;
-  // a body's world position at row r: as recorded, or from the robot frame through the robot's pose
-  const bodyAt = (b, r) => {
-    const bx = r[S.col[b.x]], by = r[S.col[b.y]];
-    if (bx === null || by === null) return null;
-    if (b.frame === "world") return [bx, by];
-    const c = Math.cos(r[jyaw]), s = Math.sin(r[jyaw]);
-    return [r[jx] + c * bx - s * by, r[jy] + s * bx + c * by];
-  };
-  const bodies = (S.machine.bodies || []).filter((b) => S.col[b.x] !== undefined && S.col[b.y] !== undefined);
-  for (const b of bodies) for (const r of [S.rows[0], S.rows[i]]) { const p = bodyAt(b, r); if (p) grow(p[0], p[1]); }
-  for (const m of S.machine.markers) {
-    if (m.kind === "points") m.points.forEach((p) => grow(p[0], p[1]));
-    else { grow(m.box[0], m.box[2]); grow(m.box[1], m.box[3]); }
-  }
+  for (const p of track) if (p) grow(p[0], p[1]);
+  for (const p of poses) if (p) grow(p[0], p[1]);
+  const bodyAt = (b, row) => { const bx = row[S.col[b.x]], by = row[S.col[b.y]]; return bx === null || by === null ? null : [bx, by]; };
+  for (const b of bodies) for (const row of [S.rows[0], r]) { const p = bodyAt(b, row); if (p) grow(p[0], p[1]); }
+  for (const m of S.machine.markers) for (const p of m.points) { const q = m.radius || 0; grow(p[0] - q, p[1] - q); grow(p[0] + q, p[1] + q); }
   if (!Number.isFinite(x0)) return;
   const pad = 20;
   // one scale for x and y (a metre is a metre both ways), at least 0.5 m shown
@@ -406,37 +476,23 @@ function renderPath(i) {
   ctx.strokeStyle = "#555"; ctx.fillStyle = "#555"; ctx.font = "10px sans-serif";
   ctx.beginPath(); ctx.moveTo(8, h - 8); ctx.lineTo(8 + unit * s, h - 8); ctx.stroke();
   ctx.fillText(`${unit} m`, 10, h - 11);
-  for (const m of S.machine.markers) {
-    if (m.kind === "box") {
-      ctx.strokeStyle = "#9e9e9e";
-      ctx.strokeRect(X(m.box[0]), Y(m.box[3]), (m.box[1] - m.box[0]) * s, (m.box[3] - m.box[2]) * s);
-      continue;
-    }
-    ctx.strokeStyle = "#ff8f00"; ctx.fillStyle = "#ff8f00";
-    ctx.setLineDash([3, 3]);
-    ctx.beginPath();
-    m.points.forEach((p, k) => (k ? ctx.lineTo(X(p[0]), Y(p[1])) : ctx.moveTo(X(p[0]), Y(p[1]))));
-    ctx.stroke();
-    ctx.setLineDash([]);
-    m.points.forEach((p, k) => {
-      ctx.beginPath(); ctx.arc(X(p[0]), Y(p[1]), 3, 0, 2 * Math.PI); ctx.fill();
-      if (m.points.length <= 12) ctx.fillText(`${m.name}[${k}]`, X(p[0]) + 4, Y(p[1]) - 4);
-    });
-  }
-  const line = (from, to, color, width) => {
+  for (const m of S.machine.markers) drawMarker(ctx, m, X, Y, s);
+  // a polyline of points per row, broken where a point is missing or the drawn control point changes
+  const line = (pts, from, to, color, width) => {
     ctx.strokeStyle = color; ctx.lineWidth = width; ctx.beginPath();
-    let pen = false;
+    let pen = false, cpPrev;
     for (let k = from; k <= to; k++) {
-      const r = S.rows[k];
-      if (r[jx] === null || r[jy] === null) { pen = false; continue; }
-      if (pen) ctx.lineTo(X(r[jx]), Y(r[jy])); else ctx.moveTo(X(r[jx]), Y(r[jy]));
-      pen = true;
+      const p = pts[k], cp = pts === track ? controlPointOf(S.rows[k][1]) : null;  // the pose never jumps
+      if (!p || (pen && cp !== cpPrev)) pen = false;
+      if (!p) continue;
+      if (pen) ctx.lineTo(X(p[0]), Y(p[1])); else ctx.moveTo(X(p[0]), Y(p[1]));
+      pen = true; cpPrev = cp;
     }
     ctx.stroke(); ctx.lineWidth = 1;
   };
-  line(0, S.rows.length - 1, "#cfd8dc", 1);
-  line(0, i, "#1565c0", 2);
-  const r = S.rows[i];
+  if (cps.length) line(poses, 0, S.rows.length - 1, "#9e9e9e", 1);  // the reported pose (the rear axle)
+  line(track, 0, S.rows.length - 1, "#cfd8dc", 1);
+  line(track, 0, i, "#1565c0", 2);
   ctx.fillStyle = "#6a1b9a";
   for (const b of bodies) {
     const p = bodyAt(b, r);
@@ -444,13 +500,18 @@ function renderPath(i) {
     ctx.fillRect(X(p[0]) - 4, Y(p[1]) - 4, 8, 8);
     ctx.fillText(b.name, X(p[0]) + 6, Y(p[1]) + 4);
   }
-  if (r[jx] !== null && r[jy] !== null) {
-    ctx.fillStyle = "#c62828";
-    ctx.beginPath(); ctx.arc(X(r[jx]), Y(r[jy]), 5, 0, 2 * Math.PI); ctx.fill();
-    if (jyaw !== undefined && r[jyaw] !== null) {  // heading
-      ctx.strokeStyle = "#c62828"; ctx.lineWidth = 2; ctx.beginPath(); ctx.moveTo(X(r[jx]), Y(r[jy]));
-      ctx.lineTo(X(r[jx]) + 16 * Math.cos(r[jyaw]), Y(r[jy]) - 16 * Math.sin(r[jyaw])); ctx.stroke(); ctx.lineWidth = 1;
-    }
+  const pose = poses[i], at = track[i];
+  if (!pose || !at) return;
+  if (at[0] !== pose[0] || at[1] !== pose[1]) {  // the robot pose, and the control point rigidly attached to it
+    ctx.strokeStyle = "#757575"; ctx.fillStyle = "#757575";
+    ctx.beginPath(); ctx.moveTo(X(pose[0]), Y(pose[1])); ctx.lineTo(X(at[0]), Y(at[1])); ctx.stroke();
+    ctx.beginPath(); ctx.arc(X(pose[0]), Y(pose[1]), 3, 0, 2 * Math.PI); ctx.fill();
+  }
+  ctx.fillStyle = "#c62828";
+  ctx.beginPath(); ctx.arc(X(at[0]), Y(at[1]), 5, 0, 2 * Math.PI); ctx.fill();
+  if (pose[2] !== null) {  // heading
+    ctx.strokeStyle = "#c62828"; ctx.lineWidth = 2; ctx.beginPath(); ctx.moveTo(X(at[0]), Y(at[1]));
+    ctx.lineTo(X(at[0]) + 16 * Math.cos(pose[2]), Y(at[1]) - 16 * Math.sin(pose[2])); ctx.stroke(); ctx.lineWidth = 1;
   }
 }
 
@@ -463,7 +524,9 @@ async function pull() {
       tr.columns.forEach((c, k) => { S.col[c] = k; });
       if (!S.machine.columns_known) {  // a live run: the ground-truth columns are known from now on
         const m = await getJSON("/view/machine");
-        Object.assign(S.machine, { xy: m.xy, bodies: m.bodies, markers: m.markers, columns_known: m.columns_known });
+        Object.assign(S.machine, { xy: m.xy, bodies: m.bodies, markers: m.markers, control_points: m.control_points,
+          columns_known: m.columns_known });
+        S.cpOf.clear();
       }
       setupPlots();
     }
@@ -594,5 +657,5 @@ async function main() {
   document.body.dataset.ready = "1";
 }
 
-window.taskflowView = { S, seek, render };
+window.taskflowView = { S, seek, render, controlAt };
 main().catch((e) => { document.body.dataset.error = e.message; $("live-state").textContent = `error: ${e.message}`; });
