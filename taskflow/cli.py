@@ -44,6 +44,19 @@ def _max_time(text: str | None) -> float | None:
         raise UsageError(f"--max-time {text!r}: {exc}") from None
 
 
+def _frames_hz(text: str) -> float:
+    """``--frames HZ``: frames per simulated second, 0 for none."""
+    import math
+
+    try:
+        hz = float(text)
+    except ValueError:
+        hz = math.nan
+    if not (math.isfinite(hz) and hz >= 0):
+        raise UsageError(f"--frames {text!r}: frames per simulated second — valid: a number >= 0 (0: record none)")
+    return hz
+
+
 def _number_or_text(text: str) -> float | str:
     try:
         return float(text)
@@ -68,13 +81,14 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     path = args.mission or str(default_mission())
     max_time = _max_time(args.max_time)
+    frames_hz = _frames_hz(args.frames)
     mission = _load(path, args.set)
     progress = Progress(print_progress) if sys.stderr.isatty() and not args.quiet else None
     control, operator = _operator_options(args, mission)
     print(f"running {mission.name} ({path}) seed={args.seed if args.seed is not None else mission.spec.seed}",
           file=sys.stderr)
     result = run_mission(mission, seed=args.seed, out_dir=args.out, gui=args.gui, max_time=max_time,
-                         progress=progress, control=control, operator=operator)
+                         progress=progress, control=control, operator=operator, frames_hz=frames_hz)
     if progress is not None:
         sys.stderr.write("\n")
     s = result.summary
@@ -341,6 +355,8 @@ def _user() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .frames import DEFAULT_HZ as DEFAULT_FRAMES_HZ
+
     ap = argparse.ArgumentParser(prog="taskflow", description="Run robot missions written as YAML state machines.")
     sub = ap.add_subparsers(dest="cmd", required=True)
 
@@ -360,6 +376,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="operator actions to apply at given sim times: a list of {t, action, args, who}")
     r.add_argument("--record", choices=["mcap"], default=None,
                    help="also write the run's telemetry in this format (RUN_DIR/telemetry.mcap) when it ends")
+    r.add_argument("--frames", default=str(DEFAULT_FRAMES_HZ), metavar="HZ",
+                   help=f"record the camera images the world observes (rendered modes) at HZ frames per simulated "
+                        f"second into RUN_DIR/frames (default {DEFAULT_FRAMES_HZ:g}; 0: none)")
     r.add_argument("--view", action="store_true",
                    help="serve the web view of the live run on the control endpoint (its address is printed)")
     r.set_defaults(fn=cmd_run)

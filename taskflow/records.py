@@ -18,6 +18,8 @@
                           the versions of the packages that shape the result
   ``timing.json``         wall-clock figures only: real-time factor, per-tick loop time and the parts tasks
                           and worlds time (perception, control …) as n / mean / p50 / p95 / max in ms
+  ``frames/``, ``frames.jsonl``  in rendered modes, the camera images the world observed, as PNG at a declared
+                          rate on simulation time, and their index (:mod:`taskflow.frames`)
 
 Everything but ``timing.json`` depends only on the mission and the seed: two runs with one seed write
 the same bytes.

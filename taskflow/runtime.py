@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from .api import World
 from .executor import Executor, TaskFactory
+from .frames import DEFAULT_HZ, FrameRecorder
 from .records import TransitionRecord
 from .model import CompiledMission
 from .provenance import versions
@@ -116,7 +117,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                 world: World | None = None, task_factory: TaskFactory | None = None,
                 record: bool = True, on_start: Callable[[Executor], None] | None = None,
                 safe_stop_s: float = 1.0, control: "str | ControlServer | None" = None,
-                operator: "Sequence[OperatorAction | dict[str, Any]] | None" = None) -> RunResult:
+                operator: "Sequence[OperatorAction | dict[str, Any]] | None" = None,
+                frames_hz: float | None = DEFAULT_HZ) -> RunResult:
     """Run ``mission`` to its end and return the outcome and summary.
 
     Whatever the outcome, the world is then told to stop the robot every tick for ``safe_stop_s``
@@ -132,6 +134,9 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     :class:`~taskflow.control_http.ControlServer`); ``operator`` is an operator script (a list of
     :class:`~taskflow.control.OperatorAction` or their mappings) applied at its sim times.  A bad script, an
     unknown state or event in it, raises :class:`~taskflow.control.ControlError` before the run starts.
+
+    ``frames_hz`` is the rate (frames per simulated second) at which the camera images the world puts in
+    its observations are recorded into the run directory (:mod:`taskflow.frames`); 0 or None records none.
     """
     seed = mission.spec.seed if seed is None else int(seed)
     max_time = float(mission.spec.max_time) if max_time is None else parse_max_time(max_time)
@@ -143,6 +148,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
         run_dir = Path(out_dir) if out_dir is not None else default_run_dir(mission, seed)
         gt_keys = world.ground_truth_keys if world is not None else mission.world_cls.ground_truth_keys
         recorder = RunRecorder(run_dir, sorted(mission.metric_units), robot.command_keys, gt_keys)
+    frames = FrameRecorder(recorder.dir, frames_hz) if recorder is not None and frames_hz else None
     summary: dict[str, Any] = {"mission": mission.name, "file": mission.file, "seed": seed, "outcome": "aborted",
                                "reason": "run did not finish", "versions": versions()}
     resolved = dict(mission.raw)
@@ -227,6 +233,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                 world.select_sensors(sensors)
                 selected = sensors
             world.apply(command)
+            if frames is not None:
+                frames.offer(t, k, obs.sensors)
             if recorder is not None:
                 recorder.tick(t, leaf, events, metrics, command, world.ground_truth())
             k += 1
@@ -278,6 +286,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     finally:
         if recorder is not None:
             recorder.close()
+        if frames is not None:
+            frames.close()
         world.close()
         if server is not None:
             server.stop()

@@ -17,19 +17,22 @@ Topics:
 * ``/transitions`` — ``taskflow.Transition``: one message per record of ``transitions.jsonl``, the same
   fields (``t``, ``from``, ``to``, ``cause``, ``label``, ``metrics`` …);
 * ``/scene`` — ``foxglove.SceneUpdate`` at t = 0: the markers of :mod:`taskflow.scene` (goals, waypoints,
-  keyframes as spheres; obstacles and walls as line loops).
-
-The run record holds no camera images, so the export has none.
+  keyframes as spheres; obstacles and walls as line loops);
+* ``/camera/SENSOR`` — ``foxglove.CompressedImage``: the camera frames the run recorded (rendered modes,
+  :mod:`taskflow.frames`), the PNG base64-encoded in ``data`` as Foxglove's JSON encoding of bytes has it,
+  stamped and logged at the image's capture time, ``frame_id`` its camera frame.
 """
 
 from __future__ import annotations
 
+import base64
 import json
 import math
 from pathlib import Path
 from typing import IO, Any
 
 
+from .frames import FrameRecord, read_frames
 from .recorded import RecordedRun, load_run
 from .records import clean_floats
 
@@ -63,6 +66,10 @@ SCENE_UPDATE_SCHEMA = {
                 "type": {"type": "integer"}, "pose": _POSE, "thickness": {"type": "number"},
                 "scale_invariant": {"type": "boolean"}, "points": {"type": "array", "items": _VEC3},
                 "color": _COLOR}}}}}}}}
+COMPRESSED_IMAGE_SCHEMA = {
+    "title": "foxglove.CompressedImage", "type": "object",
+    "properties": {"timestamp": _TIME, "frame_id": {"type": "string"},
+                   "data": {"type": "string", "contentEncoding": "base64"}, "format": {"type": "string"}}}
 TRANSITION_SCHEMA = {
     "title": "taskflow.Transition", "type": "object",
     "properties": {"t": {"type": "number", "description": "s"}, "from": {"type": "string"}, "to": {"type": "string"},
@@ -155,6 +162,7 @@ def write_mcap(run: RecordedRun, out: str | Path) -> Path:
     bodies = {b: run.pose_track(b) for b in run.scene.poses}
     tracks = {b: v for b, v in bodies.items() if v is not None}
     cx, cy = run.control_track()
+    frames = read_frames(run.dir)
     with open(out, "wb") as f:
         mc = _Mcap(f, run)
         mc.channel("/tf", FRAME_TRANSFORM_SCHEMA)
@@ -168,12 +176,17 @@ def write_mcap(run: RecordedRun, out: str | Path) -> Path:
         mc.channel("/ground_truth", _flat_schema("taskflow.GroundTruth", {c[3:]: "" for c in gts}))
         mc.channel("/transitions", TRANSITION_SCHEMA)
         mc.channel("/scene", SCENE_UPDATE_SCHEMA)
+        for sensor in dict.fromkeys(fr.sensor for fr in frames):
+            mc.channel(f"/camera/{sensor}", COMPRESSED_IMAGE_SCHEMA)
         mc.write("/scene", 0.0, _scene_update(run))
         pending = list(run.transitions)
+        images = list(frames)
         for i in range(t.size):
             ti = float(t[i])
             while pending and pending[0].t <= ti + 1e-9:
                 mc.write("/transitions", pending[0].t, clean_floats(pending.pop(0).as_dict()))
+            while images and images[0].t <= ti + 1e-9:
+                _write_image(mc, run, images.pop(0))
             stamp = _stamp(ti)
             for b, (x, y, yaw) in tracks.items():
                 if not (math.isfinite(x[i]) and math.isfinite(y[i])):
@@ -192,8 +205,18 @@ def write_mcap(run: RecordedRun, out: str | Path) -> Path:
             mc.write("/ground_truth", ti, {"state": state, **{c[3:]: _num(tr[c][i]) for c in gts}})
         for rec in pending:
             mc.write("/transitions", rec.t, clean_floats(rec.as_dict()))
+        for fr in images:
+            _write_image(mc, run, fr)
         mc.finish()
     return out
+
+
+def _write_image(mc: _Mcap, run: RecordedRun, fr: FrameRecord) -> None:
+    """One recorded frame as ``foxglove.CompressedImage`` on ``/camera/SENSOR`` at its capture time."""
+    data = (run.dir / fr.file).read_bytes()
+    mc.write(f"/camera/{fr.sensor}", fr.stamp, {"timestamp": _stamp(fr.stamp), "frame_id": fr.frame,
+                                               "data": base64.b64encode(data).decode("ascii"),
+                                               "format": Path(fr.file).suffix[1:]})
 
 
 def export_run(run_dir: str | Path, fmt: str = "mcap", out: str | Path | None = None) -> Path:

@@ -16,6 +16,11 @@ loop — so serving it costs the loop nothing per tick: the routes read ``trace.
                             a row as ``[t, state, events, numbers…]`` (``null`` for NaN)
 ``GET /view/transitions?since=N``  ``transitions.jsonl`` objects ``N …``: ``{records, next}``
 ``GET /view/summary``       ``summary.json`` (written at the start as ``aborted``, replaced at the end)
+``GET /view/frames?since=N``  ``frames.jsonl`` objects ``N …`` (the camera frames recorded in rendered modes,
+                            :mod:`taskflow.frames`): ``{records, next}``
+``GET /view/frame?sensor=S&t=T``  the PNG of camera entry ``S`` captured nearest sim time ``T`` (without
+                            ``t``: its latest), its capture time in the header ``X-Frame-Stamp`` (s) and
+                            its tick's in ``X-Frame-T``; 404 with ``{error}`` when there is none
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from .frames import INDEX as FRAMES_INDEX, FrameRecord, nearest
 from .guards import Guard, Node
 from .markers import Marker
 from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode,
@@ -143,7 +149,7 @@ def _number(text: str) -> float | None:
 
 
 class RecordReader:
-    """Reads a run directory's ``trace.csv`` and ``transitions.jsonl`` incrementally: each call reads only
+    """Reads a run directory's ``trace.csv``, ``transitions.jsonl`` and ``frames.jsonl`` incrementally: each call reads only
     the complete lines written since the last one (the recorder may be half-way through a line).  Used
     from the server's one event-loop thread."""
 
@@ -152,7 +158,8 @@ class RecordReader:
         self.columns: list[str] = []
         self.rows: list[list[Any]] = []
         self.records: list[dict[str, Any]] = []
-        self._offsets = {"trace.csv": 0, "transitions.jsonl": 0}
+        self.frames: list[FrameRecord] = []
+        self._offsets = {"trace.csv": 0, "transitions.jsonl": 0, FRAMES_INDEX: 0}
 
     def _new_lines(self, name: str) -> list[str]:
         try:
@@ -175,6 +182,9 @@ class RecordReader:
         for line in self._new_lines("transitions.jsonl"):
             if line.strip():
                 self.records.append(json.loads(line))
+        for line in self._new_lines(FRAMES_INDEX):
+            if line.strip():
+                self.frames.append(FrameRecord(**json.loads(line)))
 
     def trace(self, since: int) -> dict[str, Any]:
         self.refresh()
@@ -185,6 +195,21 @@ class RecordReader:
     def transitions(self, since: int) -> dict[str, Any]:
         self.refresh()
         return {"records": self.records[since:], "next": len(self.records)}
+
+    def frame_records(self, since: int) -> dict[str, Any]:
+        self.refresh()
+        return {"records": [f.as_dict() for f in self.frames[since:]], "next": len(self.frames)}
+
+    def frame(self, sensor: str, t: float | None) -> tuple[FrameRecord, bytes] | None:
+        """The frame of ``sensor`` nearest sim time ``t`` (its latest when None) and its file's bytes."""
+        self.refresh()
+        rec = nearest(self.frames, sensor, t)
+        if rec is None:
+            return None
+        try:
+            return rec, (self.dir / rec.file).read_bytes()
+        except OSError:
+            return None
 
     def summary(self) -> dict[str, Any]:
         try:

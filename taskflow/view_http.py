@@ -7,6 +7,7 @@ the operator POSTs answer 409).  :mod:`taskflow.view` says what each route retur
 
 from __future__ import annotations
 
+import math
 import threading
 from pathlib import Path
 from typing import Any, Callable
@@ -17,7 +18,7 @@ from .view import WEB_DIR, RunView, open_run
 def view_routes(view: RunView) -> list[Any]:
     """The page, its files and the JSON the page polls."""
     from starlette.requests import Request
-    from starlette.responses import FileResponse, JSONResponse
+    from starlette.responses import FileResponse, JSONResponse, Response
     from starlette.routing import Mount, Route
     from starlette.staticfiles import StaticFiles
 
@@ -42,8 +43,31 @@ def view_routes(view: RunView) -> list[Any]:
     async def summary(request: Request) -> JSONResponse:
         return JSONResponse(view.reader.summary())
 
+    async def frames(request: Request) -> JSONResponse:
+        return JSONResponse(view.reader.frame_records(since(request)))
+
+    async def frame(request: Request) -> Response:
+        sensor = request.query_params.get("sensor", "")
+        text = request.query_params.get("t")
+        try:
+            t = None if text is None else float(text)
+            if t is not None and not math.isfinite(t):
+                raise ValueError(text)
+        except ValueError:
+            return JSONResponse({"error": f"t={text!r}: a sim time in seconds"}, status_code=400)
+        found = view.reader.frame(sensor, t)
+        if found is None:
+            known = sorted({f.sensor for f in view.reader.frames})
+            return JSONResponse({"error": f"no frame of camera {sensor!r} in this run — recorded: "
+                                          f"{', '.join(known) or 'none'}"}, status_code=404)
+        rec, data = found
+        return Response(data, media_type=f"image/{Path(rec.file).suffix[1:]}",
+                        headers={"X-Frame-Stamp": repr(rec.stamp), "X-Frame-T": repr(rec.t),
+                                 "Cache-Control": "no-store"})
+
     return [Route("/", page), Route("/view/machine", machine), Route("/view/trace", trace),
             Route("/view/transitions", transitions), Route("/view/summary", summary),
+            Route("/view/frames", frames), Route("/view/frame", frame),
             Mount("/web", app=StaticFiles(directory=WEB_DIR), name="web")]
 
 

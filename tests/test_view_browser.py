@@ -312,3 +312,29 @@ def test_the_car_top_view_draws_the_control_point_where_the_figure_does(browser,
         assert "drawn now: control point d = 0.325 m ahead of the rear axle" in note and "waypoint" in note
     finally:
         server.stop()
+
+
+def test_a_rendered_run_shows_the_camera_frame_nearest_the_cursor(browser, rendered_run_dir):
+    """The page of a rendered run (quad_room, perception rendered): its frame element holds a decoded image,
+    the one of ``frames.jsonl`` captured nearest the cursor's time, with that capture time as its caption;
+    scrubbing to another time shows the frame recorded nearest it."""
+    from taskflow.frames import nearest, read_frames
+
+    frames = read_frames(rendered_run_dir)
+    server = serve_replay(rendered_run_dir, "127.0.0.1:0")
+    try:
+        _open(browser, server.url)
+        for k in (0, 40, 62):  # ticks at t = 0, 1.6 and 2.48 s (25 Hz)
+            browser.execute_script("taskflowView.seek(arguments[0])", k)
+            t = float(browser.find_element("id", "cur-t").get_attribute("data-t"))
+            want = nearest(frames, "image", t)
+            assert want is not None
+            shown = _until(lambda: browser.execute_script("""
+                const img = document.querySelector('img.frame[data-sensor="image"]');
+                return img && img.complete && img.naturalWidth > 0 && img.src.endsWith('t=' + img.dataset.stamp)
+                  ? [img.naturalWidth, img.naturalHeight, +img.dataset.stamp, img.nextSibling.textContent] : null;"""),
+                f"the camera frame at t = {t}")
+            assert shown[:3] == [64, 48, want.stamp]
+            assert f"captured at t = {want.stamp:.3f} s" in shown[3]
+    finally:
+        server.stop()

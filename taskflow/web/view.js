@@ -5,6 +5,7 @@
 const S = {
   machine: null, nodes: {}, els: {}, cols: [], col: {}, rows: [], rowNext: 0, recs: [], recNext: 0,
   cursor: 0, follow: true, live: false, running: true, plots: [], playing: null, ops: null, cpOf: new Map(),
+  frames: [], frameNext: 0, cams: {},
 };
 const $ = (id) => document.getElementById(id);
 const within = (path, p) => p === "" || path === p || path.startsWith(p + ".");
@@ -129,6 +130,7 @@ function render() {
   renderTransitions(t);
   renderPlots(i);
   renderPath(i);
+  renderCameras(t, S.follow && S.live);
 }
 
 function renderChart(leaves) {
@@ -515,6 +517,46 @@ function renderPath(i) {
   }
 }
 
+// -- camera frames -----------------------------------------------------------------------------------------
+// The frames the run recorded (taskflow/frames.py, in rendered modes): per camera, the one captured nearest the
+// cursor's time, or the latest while following a live run; the image comes from /view/frame.
+function nearestFrame(sensor, t, latest) {
+  let best = null;
+  for (const f of S.frames) {
+    if (f.sensor !== sensor) continue;
+    if (best === null || latest || Math.abs(f.stamp - t) < Math.abs(best.stamp - t) - 1e-12) best = f;
+  }
+  return best;
+}
+
+function renderCameras(t, latest) {
+  const sensors = [...new Set(S.frames.map((f) => f.sensor))];
+  $("camera-note").textContent = sensors.length
+    ? `(recorded frame nearest the cursor${latest ? "; following: the latest" : ""}, per camera)`
+    : "(no camera frames in this run: they are recorded in rendered perception modes, taskflow run --frames HZ)";
+  for (const sensor of sensors) {
+    let cam = S.cams[sensor];
+    if (!cam) {
+      const fig = document.createElement("figure");
+      fig.className = "camera";
+      const img = document.createElement("img");
+      img.className = "frame";
+      img.dataset.sensor = sensor;
+      img.alt = `camera ${sensor}`;
+      const cap = document.createElement("figcaption");
+      fig.append(img, cap);
+      $("cameras").appendChild(fig);
+      cam = S.cams[sensor] = { img, cap, file: null };
+    }
+    const f = nearestFrame(sensor, t, latest);
+    if (!f || f.file === cam.file) continue;
+    cam.file = f.file;
+    cam.img.dataset.stamp = String(f.stamp);
+    cam.img.src = `/view/frame?sensor=${encodeURIComponent(sensor)}&t=${f.stamp}`;
+    cam.cap.textContent = `${sensor} (${f.frame}, ${f.width}×${f.height}) captured at t = ${f.stamp.toFixed(3)} s, tick ${f.tick}`;
+  }
+}
+
 // -- data --------------------------------------------------------------------------------------------------
 async function pull() {
   for (;;) {
@@ -537,6 +579,9 @@ async function pull() {
   const rec = await getJSON(`/view/transitions?since=${S.recNext}`);
   for (const r of rec.records) S.recs.push(r);
   S.recNext = rec.next;
+  const fr = await getJSON(`/view/frames?since=${S.frameNext}`);
+  for (const f of fr.records) S.frames.push(f);
+  S.frameNext = fr.next;
 }
 
 function setupPlots() {
