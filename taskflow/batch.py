@@ -123,12 +123,26 @@ def resume_batch(directory: str | Path, *, workers: int | None = None, backend: 
 def check_conditions(spec: CampaignSpec) -> str:
     """Load the mission under every condition of the sweep (a bad key or value fails here, with its
     ``--set``/``--sweep`` named, before any trial starts) and return the mission's name."""
+    from dataclasses import replace
+
+    from .errors import MissionError
     from .loader import load_mission
 
     name = ""
     for c in spec.conditions():
-        name = load_mission(spec.mission, spec.overrides + c.overrides).name
+        try:
+            name = load_mission(spec.mission, spec.overrides + c.overrides).name
+        except MissionError as exc:  # the loader names every override --set: say which came from --sweep
+            swept = [f"--set {o}" for o in c.overrides]
+            raise MissionError([replace(p, message=_as_sweep(p.message, swept)) for p in exc.problems]) from None
     return name
+
+
+def _as_sweep(message: str, swept: list[str]) -> str:
+    for s in swept:
+        if s in message:
+            return message.replace(s, "--sweep " + s[len("--set "):])
+    return message
 
 
 def _run(campaign: Campaign, name: str, workers: int | None, backend: str, address: str | None) -> dict[str, Any]:
