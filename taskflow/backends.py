@@ -20,7 +20,9 @@ the mission, the overrides and the seed alone, whatever the backend.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import secrets
 import shutil
 import signal
 import socket
@@ -31,7 +33,7 @@ import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Protocol
+from typing import Any, Callable, Iterator, Protocol
 
 BACKENDS = ("pool", "ray")
 RAY_INSTALL = "pip install 'taskflow[cluster]'"
@@ -237,7 +239,9 @@ class LocalRayCluster:
     (it schedules nothing) and ``nodes`` worker nodes of ``cpus_per_node`` CPUs each — what ``ray start
     --head`` on one machine and ``ray start --address HEAD`` on the others make.  Every port is chosen
     free, and the cluster has its own temporary directory, so it does not clash with another cluster.
-    Each node is its own process group, ended by :meth:`stop` (SIGTERM, then SIGKILL)."""
+    Each node is its own process group, ended by :meth:`stop` (SIGTERM, then SIGKILL).  The cluster uses
+    Ray's token authentication with a token of its own: a driver connects with :attr:`env` in its
+    environment (:meth:`driver_env` sets it in this process)."""
 
     def __init__(self, nodes: int = 2, cpus_per_node: int = 1, object_store_mb: int = 80) -> None:
         self.nodes, self.cpus_per_node, self.object_store_mb = nodes, cpus_per_node, object_store_mb
@@ -245,6 +249,8 @@ class LocalRayCluster:
         self.temp_dir = tempfile.mkdtemp(prefix="tfray-", dir="/tmp")  # short: Ray's socket paths must fit
         self.port = free_port()
         self.address = f"127.0.0.1:{self.port}"
+        # Ray's token authentication with a token of this cluster's own: a driver needs ``env`` to connect
+        self.env = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32), "RAY_USAGE_STATS_ENABLED": "0"}
 
     def _start(self, head: bool) -> None:
         ray_exe = str(Path(sys.executable).with_name("ray"))
@@ -261,7 +267,7 @@ class LocalRayCluster:
         else:
             cmd += [f"--address={self.address}", f"--num-cpus={self.cpus_per_node}"]
         log = open(Path(self.temp_dir) / f"node-{len(self.procs)}.log", "wb")
-        env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
+        env = dict(os.environ, **self.env)
         self.procs.append(subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
                                            env=env))
 
@@ -298,7 +304,8 @@ class LocalRayCluster:
                 f"    if time.monotonic() - t0 > {timeout}: sys.exit(1)\n"
                 "    time.sleep(0.2)\n")
         # a separate driver: this process may then connect to the cluster itself
-        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout + 30)
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout + 30,
+                              env=dict(os.environ, **self.env))
         if done.returncode:
             raise BackendError(f"the Ray worker nodes did not join within {timeout} s: {done.stderr[-2000:]}")
 
@@ -317,6 +324,20 @@ class LocalRayCluster:
             p.wait()
         self.procs.clear()
         shutil.rmtree(self.temp_dir, ignore_errors=True)
+
+    @contextlib.contextmanager
+    def driver_env(self) -> Iterator[None]:
+        """This process's environment set to connect to the cluster, restored afterwards."""
+        saved = {k: os.environ.get(k) for k in self.env}
+        os.environ.update(self.env)
+        try:
+            yield
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
 
     def __enter__(self) -> "LocalRayCluster":
         return self.start()
