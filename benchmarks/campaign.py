@@ -10,12 +10,16 @@ complete placement in geometric perception) through :func:`taskflow.batch.run_ba
   nodes of one CPU each, every node its own ``ray start`` process (what ``ray start --head`` and
   ``ray start --address`` do on separate machines); its start-up is timed apart.
 
-Trials per hour = trials / wall time of the batch (3600 x).  Scaling efficiency = throughput on two
-workers / (2 x throughput on one).  Ray's overhead per trial = (wall of the Ray batch − wall of the
-two-worker pool batch) x 2 / trials (the CPU-seconds per trial Ray adds over the pool at the same
-parallelism), also given as a fraction of the mean trial's own wall time (``wall_time_s`` of its
-``timing.json``); and, measured without a simulation, the round trip of an empty task on each (Ray
-task vs pool future).  The three campaigns' ``batch.json`` are compared byte for byte (same seeds →
+Trials per hour = trials / wall time of the batch (3600 x), start-up included.  Scaling efficiency =
+throughput on two workers / (2 x throughput on one).  From each trial's wall-clock stamps
+(``timing.json``: ``started``/``ended`` around the trial in its worker): the start-up of each batch
+(batch start to the first trial's start: process spawn, or Ray connect and worker start) and the idle
+gap of a worker between two consecutive trials.  Ray's overhead per trial = Ray's mean gap − the
+pool's (what Ray adds per trial at the same parallelism: scheduling, result transfer), also as a
+fraction of a trial's wall time alone (the one-worker batch); and, without a simulation, the round
+trip of an empty task on each (Ray task vs pool future).  ``contention_2_workers`` = a trial's wall
+time with two workers / alone: 1.0 on two free CPUs; on a shared machine it shows how much of the
+missing scaling is other load.  The three campaigns' ``batch.json`` are compared byte for byte (same seeds →
 same results whatever the backend).  Wall-clock figures depend on the load of the machine: the
 1-minute load average before and after is printed.
 
@@ -76,12 +80,24 @@ def ray_round_trip_ms(address: str, n: int = 200) -> float:
 
 
 def _figures(result: dict[str, Any]) -> dict[str, Any]:
+    """Throughput, and from the trials' wall-clock stamps: the start-up (batch start to the first trial's
+    start) and the idle gap a worker spends between the end of one trial and the start of its next (the
+    backend's cost per trial: result transfer, recording, scheduling)."""
     n = len(result["trials"])
-    wall = result["timing"]["total_wall_s"]
-    per_trial = [t["wall_time_s"] for t in result["timing"]["trials"] if t.get("wall_time_s")]
+    timing = result["timing"]
+    wall = timing["total_wall_s"]
+    trials = timing["trials"]
+    by_worker: dict[tuple[str, int], list[dict[str, Any]]] = {}
+    for t in trials:
+        by_worker.setdefault((t["host"], t["pid"]), []).append(t)
+    gaps = [b["started"] - a["ended"] for ts in by_worker.values()
+            for a, b in zip(sorted(ts, key=lambda t: t["started"]), sorted(ts, key=lambda t: t["started"])[1:])]
     return {"trials": n, "wall_s": wall, "trials_per_hour": 3600.0 * n / wall,
-            "mean_trial_wall_s": statistics.mean(per_trial), "success_rate": result["aggregate"]["success_rate"],
-            "workers": result["timing"]["workers"]}
+            "mean_trial_wall_s": statistics.mean(t["ended"] - t["started"] for t in trials),
+            "startup_s": min(t["started"] for t in trials) - timing["started"],
+            "mean_gap_between_trials_s": statistics.mean(gaps) if gaps else None, "gaps": len(gaps),
+            "worker_processes": len(by_worker), "success_rate": result["aggregate"]["success_rate"],
+            "workers": timing["workers"]}
 
 
 def main() -> None:
@@ -115,27 +131,35 @@ def main() -> None:
         cluster.stop()
     pool_rt = pool_round_trip_ms()
     thr1, thr2, thr_ray = (res[k]["trials_per_hour"] for k in ("pool_1", "pool_2", "ray_2x1"))
-    trial_s = statistics.mean(res[k]["mean_trial_wall_s"] for k in res)
-    overhead_s = (res["ray_2x1"]["wall_s"] - res["pool_2"]["wall_s"]) * 2 / args.trials
+    trial_s = res["pool_1"]["mean_trial_wall_s"]  # a trial alone on the machine's CPUs
+    gap_ray, gap_pool = res["ray_2x1"]["mean_gap_between_trials_s"], res["pool_2"]["mean_gap_between_trials_s"]
+    overhead_s = gap_ray - gap_pool if gap_ray is not None and gap_pool is not None else None
     summary = {
         "mission": Path(args.mission).name, "overrides": args.set, "trials": args.trials,
         "trials_per_hour": {"pool_1": thr1, "pool_2": thr2, "ray_2x1": thr_ray},
         "scaling_efficiency_pool": thr2 / (2 * thr1), "scaling_efficiency_ray": thr_ray / (2 * thr1),
         "mean_trial_wall_s": trial_s, "ray_overhead_per_trial_s": overhead_s,
-        "ray_overhead_fraction_of_trial": overhead_s / trial_s,
+        "ray_overhead_fraction_of_trial": None if overhead_s is None else overhead_s / trial_s,
+        "contention_2_workers": res["pool_2"]["mean_trial_wall_s"] / trial_s,
         "empty_task_round_trip_ms": {"pool": pool_rt, "ray": ray_rt},
         "ray_cluster_start_s": cluster_start,
         "same_batch_json": files["pool_1"] == files["pool_2"] == files["ray_2x1"],
         "loadavg_1min": [load_before, os.getloadavg()[0]], "cpus": os.cpu_count(), "runs": res, "out": str(out),
     }
     print()
-    print(f"{'configuration':12s} {'trials/h':>9s} {'wall s':>8s} {'trial s':>8s}")
+    print(f"{'configuration':12s} {'trials/h':>9s} {'wall s':>8s} {'trial s':>8s} {'start-up s':>10s} {'gap ms':>8s}")
     for k, v in res.items():
-        print(f"{k:12s} {v['trials_per_hour']:9.0f} {v['wall_s']:8.1f} {v['mean_trial_wall_s']:8.2f}")
+        gap = "-" if v["mean_gap_between_trials_s"] is None else f"{1e3 * v['mean_gap_between_trials_s']:.1f}"
+        print(f"{k:12s} {v['trials_per_hour']:9.0f} {v['wall_s']:8.1f} {v['mean_trial_wall_s']:8.2f} "
+              f"{v['startup_s']:10.2f} {gap:>8s}")
     print(f"scaling efficiency 1 -> 2 workers: pool {100 * summary['scaling_efficiency_pool']:.0f} %, "
           f"Ray {100 * summary['scaling_efficiency_ray']:.0f} % (target >= 90 %)")
-    print(f"Ray overhead per trial vs the pool: {overhead_s:.3f} s = {100 * overhead_s / trial_s:.1f} % of a trial "
-          f"(target <= 10 %); empty task round trip: Ray {ray_rt:.2f} ms, pool {pool_rt:.2f} ms")
+    if overhead_s is not None:
+        print(f"Ray overhead per trial vs the pool (worker idle gap between trials): {1e3 * overhead_s:.1f} ms = "
+              f"{100 * overhead_s / trial_s:.2f} % of a trial (target <= 10 %); empty task round trip: Ray "
+              f"{ray_rt:.2f} ms, pool {pool_rt:.2f} ms")
+    print(f"a trial takes {summary['contention_2_workers']:.2f}x as long with two workers as alone "
+          "(1.0 when the two CPUs are free; the scaling efficiency cannot exceed its inverse)")
     print(f"batch.json identical on the three: {summary['same_batch_json']}; load average {load_before:.1f} -> "
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
     print(json.dumps(summary))

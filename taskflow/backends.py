@@ -63,17 +63,19 @@ class TrialJob:
 
 
 def run_trial(job: TrialJob, run_dir: str | None = None) -> TrialResult:
-    """Run one trial and return its summary and wall-clock figures.  ``run_dir`` replaces the job's
-    (a Ray worker writes into its own temporary directory)."""
+    """Run one trial and return its summary and wall-clock figures (``started``/``ended``: epoch seconds
+    around the whole trial, mission loading included; ``host``/``pid``: where it ran).  ``run_dir``
+    replaces the job's (a Ray worker writes into its own temporary directory)."""
     from .loader import load_mission
     from .runtime import run_mission
 
+    started = time.time()
     out = job.run_dir if run_dir is None else run_dir
     mission = load_mission(job.mission, list(job.overrides))
     result = run_mission(mission, seed=job.seed, out_dir=out, max_time=job.max_time, record=out is not None)
     return result.summary, {"seed": job.seed, "wall_time_s": result.timing.get("wall_time_s"),
-                            "real_time_factor": result.timing.get("real_time_factor"), "host": socket.gethostname(),
-                            "pid": os.getpid()}
+                            "real_time_factor": result.timing.get("real_time_factor"), "started": started,
+                            "ended": time.time(), "host": socket.gethostname(), "pid": os.getpid()}
 
 
 class Backend(Protocol):
@@ -272,17 +274,29 @@ class LocalRayCluster:
                                            env=env))
 
     def start(self, timeout: float = 60.0) -> "LocalRayCluster":
-        """Start the nodes and wait until the cluster counts every worker node's CPUs."""
+        """Start the head, then the worker nodes one at a time, each awaited until the cluster counts its
+        CPUs; a worker node whose start fails (a raylet that does not register with the head within
+        Ray's 30 s, which a loaded machine can exceed) is started again, twice at most."""
         try:
             self._start(head=True)
             self._wait_port(timeout)
-            for _ in range(self.nodes):
-                self._start(head=False)
-            self._wait_cpus(timeout)
+            for k in range(1, self.nodes + 1):
+                for attempt in range(3):
+                    self._start(head=False)
+                    if self._wait_cpus(k * self.cpus_per_node, timeout, self.procs[-1]):
+                        break
+                    _kill_group(self.procs[-1].pid, signal.SIGKILL)
+                    self.procs.pop().wait()
+                else:
+                    raise BackendError(f"Ray worker node {k} did not join in 3 attempts: {self._logs()}")
         except BaseException:
             self.stop()
             raise
         return self
+
+    def _logs(self) -> str:
+        return "".join(f"\n--- {f.name}:\n" + f.read_text(errors="replace")[-1500:]
+                       for f in sorted(Path(self.temp_dir).glob("node-*.log")))
 
     def _wait_port(self, timeout: float) -> None:
         t0 = time.monotonic()
@@ -295,19 +309,24 @@ class LocalRayCluster:
                     raise BackendError(f"the Ray head did not start: see {self.temp_dir}/node-0.log") from None
                 time.sleep(0.2)
 
-    def _wait_cpus(self, timeout: float) -> None:
-        want = self.nodes * self.cpus_per_node
+    def _wait_cpus(self, want: int, timeout: float, node: subprocess.Popen[bytes]) -> bool:
+        """Whether the cluster counts ``want`` CPUs before ``timeout`` s pass or ``node`` exits."""
         code = ("import ray, time, sys\n"
                 f"ray.init(address='{self.address}', logging_level='ERROR', log_to_driver=False)\n"
-                f"t0 = time.monotonic()\n"
+                "t0 = time.monotonic()\n"
                 f"while ray.cluster_resources().get('CPU', 0) < {want}:\n"
                 f"    if time.monotonic() - t0 > {timeout}: sys.exit(1)\n"
                 "    time.sleep(0.2)\n")
         # a separate driver: this process may then connect to the cluster itself
-        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout + 30,
-                              env=dict(os.environ, **self.env))
-        if done.returncode:
-            raise BackendError(f"the Ray worker nodes did not join within {timeout} s: {done.stderr[-2000:]}")
+        probe = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                 env=dict(os.environ, **self.env))
+        while probe.poll() is None:
+            if node.poll() is not None:  # the node gave up
+                probe.kill()
+                probe.wait()
+                return False
+            time.sleep(0.2)
+        return probe.returncode == 0
 
     def stop(self) -> None:
         """End every node's process group (SIGTERM, then SIGKILL after 5 s) and remove the temp dir."""

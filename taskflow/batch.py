@@ -155,7 +155,7 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
     def on_result(i: int, result: tuple[dict[str, Any], dict[str, Any]]) -> None:
         campaign.record(todo[i][0].index, todo[i][1], *result)
 
-    t0 = time.perf_counter()
+    t0, started = time.perf_counter(), time.time()
     interrupted: BaseException | None = None
     runner = None
     old_term = None
@@ -178,7 +178,7 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
     timing = clean_floats({"backend": backend, "address": address,
                            "workers": runner.workers if runner is not None else n_workers,
                            "trials_run": len(jobs) - len(campaign.missing()) if jobs else 0,
-                           "total_wall_s": wall, "trials": timing_trials})
+                           "started": started, "total_wall_s": wall, "trials": timing_trials})
     timing["per_trial_wall_s"] = wall / max(1, timing["trials_run"])
     write_json(campaign.root / "timing.json", timing)
     if interrupted is not None:
