@@ -31,6 +31,7 @@ import sys
 import tempfile
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol
@@ -44,6 +45,10 @@ OnResult = Callable[[int, TrialResult], None]
 
 class BackendError(Exception):
     """A backend that cannot run here (Ray missing, a cluster that cannot be reached); says what to do."""
+
+
+class WorkerLost(BackendError):
+    """A worker process or node died mid-trial (killed, out of memory, a node gone for good)."""
 
 
 class TrialInterrupted(Exception):
@@ -130,7 +135,11 @@ class PoolBackend:
             while pending:
                 finished, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for f in finished:
-                    on_result(futures[f], f.result())
+                    try:
+                        result = f.result()
+                    except BrokenProcessPool as exc:
+                        raise WorkerLost(f"a worker process died ({exc})") from None
+                    on_result(futures[f], result)
         except BaseException:
             # stop now: nothing new starts, and the running trials are ended (their workers terminated)
             for proc in list(getattr(pool, "_processes", {}).values()):  # no public API before Python 3.14
@@ -198,7 +207,11 @@ class RayBackend:
                 ready, pending = ray.wait(pending, num_returns=1)
                 for ref in ready:
                     i = refs[ref]
-                    result, files = ray.get(ref)
+                    try:
+                        result, files = ray.get(ref)
+                    except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError,
+                            ray.exceptions.LocalRayletDiedError) as exc:
+                        raise WorkerLost(f"a Ray worker died after Ray's retries ({type(exc).__name__})") from None
                     if files and jobs[i].run_dir is not None:
                         _write_files(Path(jobs[i].run_dir), files)
                     on_result(i, result)

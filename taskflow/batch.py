@@ -13,7 +13,8 @@ waypoints), and mean/std/min/max with the t interval of the mean of every numeri
 ``batch.json`` depends on the mission and the seeds alone; wall-clock figures go to ``timing.json``.
 
 Ctrl-C or SIGTERM stops a batch at once: unfinished trials are cancelled, running workers are
-terminated, and ``batch.json`` is written with the trials that finished (``interrupted: true``);
+terminated, and ``batch.json`` is written with the trials that finished (``interrupted: true``); so
+does a worker that dies (:class:`~taskflow.backends.WorkerLost`, raised once ``batch.json`` is written);
 :func:`resume_batch` then runs only the missing trials and writes the ``batch.json`` an uninterrupted
 run would have written.
 """
@@ -31,7 +32,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .backends import TrialInterrupted, TrialJob, make_backend
+from .backends import TrialInterrupted, TrialJob, WorkerLost, make_backend
 from .campaign import Campaign, CampaignSpec, parse_sweep
 from .records import clean_floats, write_json
 from .stats import mean_interval, wilson_interval
@@ -157,6 +158,7 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
 
     t0, started = time.perf_counter(), time.time()
     interrupted: BaseException | None = None
+    lost: WorkerLost | None = None
     runner = None
     old_term = None
     try:
@@ -166,6 +168,8 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
             runner.run(jobs, on_result)
     except (KeyboardInterrupt, BatchInterrupted, TrialInterrupted) as exc:
         interrupted = exc
+    except WorkerLost as exc:
+        lost = exc
     finally:
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
@@ -183,6 +187,9 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
     write_json(campaign.root / "timing.json", timing)
     if interrupted is not None:
         raise KeyboardInterrupt(str(batch_file)) from None
+    if lost is not None:
+        raise WorkerLost(f"{lost}: the trials that finished are recorded in {batch_file}; run the rest with "
+                         f"taskflow batch --resume {campaign.root}")
     return dict(result, timing=timing, batch_file=str(batch_file))
 
 

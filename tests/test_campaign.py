@@ -194,6 +194,41 @@ def test_an_interrupted_campaign_resumes_to_the_batch_json_of_an_uninterrupted_o
     assert batch["interrupted"] is False and len(batch["trials"]) == 16
 
 
+def _children(pid: int) -> list[int]:
+    """The forked pool workers of ``pid`` (its children with its own command line)."""
+    kids = []
+    cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and (stat.parent / "cmdline").read_bytes() == cmdline:
+            kids.append(int(stat.parent.name))
+    return kids
+
+
+def test_a_lost_worker_leaves_the_finished_trials_and_the_campaign_resumes(tmp_path: Path) -> None:
+    out = tmp_path / "lost"
+    proc = _batch(FAST, "--trials", "6", "--max-time", "8 s", "--workers", "2", "--out", str(out))
+    t0 = time.monotonic()
+    while not list((out / "trials").glob("*.json")):
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() - t0 < 120, "no trial finished"
+        time.sleep(0.02)
+    workers = _children(proc.pid)
+    assert workers, "no worker process found"
+    os.kill(workers[0], signal.SIGKILL)  # as the kernel's out-of-memory killer would
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 1 and "Traceback" not in stderr, stdout + stderr
+    assert "a worker process died" in stderr and f"taskflow batch --resume {out}" in stderr
+    assert len(stderr.strip().splitlines()) == 1
+    partial = json.loads((out / "batch.json").read_text())
+    assert partial["interrupted"] is True and 1 <= len(partial["trials"]) < 6
+    assert main(["batch", "--resume", str(out), "--workers", "1"]) in (0, 1)
+    assert len(json.loads((out / "batch.json").read_text())["trials"]) == 6
+
+
 # -- compare -----------------------------------------------------------------------------------------------
 
 
