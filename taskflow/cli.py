@@ -178,13 +178,20 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from .compare import compare, format_comparison, load_batch
 
     try:
-        results = compare(load_batch(args.a), load_batch(args.b), args.metric or None)
+        a, b = load_batch(args.a), load_batch(args.b)
+        results = compare(a, b, args.metric or None)
+        if args.plot is not None:
+            from .campaign_plots import plot_success_comparison
+
+            figure = plot_success_comparison([(a["mission"], a), (b["mission"], b)], args.plot)
     except CampaignError as exc:
         raise UsageError(str(exc)) from None
     if args.json:
         print(json.dumps(results, indent=2))
     else:
         print(format_comparison((args.a, args.b), results))
+    if args.plot is not None:
+        print(f"figure: {figure}")
     return 0
 
 
@@ -298,6 +305,8 @@ def build_parser() -> argparse.ArgumentParser:
     cm.add_argument("b", help="batch directory (or its batch.json)")
     cm.add_argument("--metric", action="append", default=[], help="compare only this metric (repeatable)")
     cm.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    cm.add_argument("--plot", default=None, metavar="FILE.png",
+                    help="both campaigns' success against the key they swept, on one figure")
     cm.set_defaults(fn=cmd_compare)
 
     t = sub.add_parser("teach", help="render and store a visual path's keyframe images (teach by showing)")

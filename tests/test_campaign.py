@@ -270,7 +270,13 @@ def test_compare_pairs_conditions_of_the_same_grid(tmp_path: Path) -> None:
     results = compare(json.loads((a / "batch.json").read_text()), json.loads((b / "batch.json").read_text()))
     assert [(r["a"], r["b"]) for r in results] == [("world.params.tool_ok=true",) * 2, ("world.params.tool_ok=false",) * 2]
     assert [r["success"]["rate_a"] for r in results] == [1.0, 0.0]
+    figure = tmp_path / "both.png"
+    assert main(["compare", str(a), str(b), "--plot", str(figure)]) == 0
+    assert figure.stat().st_size > 0
     c = tmp_path / "c"
     run_batch(str(TOY), trials=1, workers=1, out=c, sweep=["world.params.start=0,0.1"])
     with pytest.raises(CampaignError, match="swept different grids"):
         compare(json.loads((a / "batch.json").read_text()), json.loads((c / "batch.json").read_text()))
+    plain = tmp_path / "plain"
+    run_batch(str(TOY), trials=1, workers=1, out=plain)
+    assert main(["compare", str(a), str(plain), "--plot", str(tmp_path / "x.png")]) == 1  # nothing swept in one
