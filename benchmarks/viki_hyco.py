@@ -40,7 +40,8 @@ import taskflow_sim.viki_world  # noqa: F401  registers viki_ground (forked batc
 import taskflow_tasks.viki_hyco  # noqa: F401  registers viki_hyco
 import taskflow_tasks.viki_rotation  # noqa: F401  registers viki_rotate
 from taskflow_robots.racecar import Racecar
-from taskflow.api import Observation, TaskContext
+from taskflow.api import Observation
+from taskflow.testing import task_context
 from taskflow.messages import Detection
 from taskflow.batch import run_batch
 from taskflow.stats import mean_interval, wilson_interval
@@ -110,9 +111,8 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
                           v_prev=np.array([0.1, 0.05]))
         out[name] = min(timeit.repeat(lambda inp=inp: viki_velocity(inp, **kw), number=number,
                                       repeat=repeat)) / number * 1e6
-    ctx = TaskContext(t=0.0, params=ViKiHyCo.Params(camera="rear", desired=(-0.9, 0.0)),
-                      profiles={"gains": ViKiGains(lam=(0.85, 1.05, 1.0, 1.0, 1.0), k1=(1.0, 2.0))}, memory={},
-                      robot=robot)
+    ctx = task_context(ViKiHyCo, ViKiHyCo.Params(camera="rear", desired=(-0.9, 0.0)), robot,
+                       {"gains": ViKiGains(lam=(0.85, 1.05, 1.0, 1.0, 1.0), k1=(1.0, 2.0))})
     task = ViKiHyCo(ctx)
     det = Detection(stamp=0.0, frame="rear_camera", camera="rear", seq=0, bbox=(300.0, 120.0, 330.0, 190.0), depth=1.4,
                     intrinsics=K, width=640, height=360, depth_at=lambda u, v: 1.1, depth_in=lambda box: 1.1)
