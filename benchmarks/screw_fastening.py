@@ -142,7 +142,8 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     import numpy as np
 
     from taskflow_robots.mobile_iiwa import MobileIiwa
-    from taskflow.api import Observation, TaskContext
+    from taskflow.api import Observation
+    from taskflow.testing import task_context
     from taskflow.messages import MarkerPose, Wrench
     from taskflow_tasks.impedance import ImpedanceProfile
     from taskflow_tasks.pid import PidProfile
@@ -154,7 +155,7 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     pid = PidProfile(kp=[4, 4, 4, 5, 5, 5], ki=[2, 2, 2, 4, 4, 4], u_max=[0.5, 0.5, 0.5, 0.1, 0.1, 0.1])
     profiles = {"platform": pid, "arm": pid, "impedance": ImpedanceProfile(K=[300, 300, 600], D=[60, 60, 80], force=[0, 0, 3]),
                 "prediction": Prediction(enabled=feedforward)}
-    task = PbvsArm(TaskContext(0.0, params, profiles, {}, robot, dt=0.01))  # the missions' 100 Hz
+    task = PbvsArm(task_context(PbvsArm, params, robot, profiles, dt=0.01))  # the missions' 100 Hz
     q = np.array(robot.params.q_home)
     H_co = params.camera_target.matrix()
     H_co[0, 3] += 0.01
