@@ -30,10 +30,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from .backends import TrialInterrupted, TrialJob, WorkerLost, make_backend
-from .campaign import Campaign, CampaignSpec, parse_sweep
+from .campaign import Campaign, CampaignSpec, parse_sweep, read_value
 from .records import clean_floats, write_json
 from .stats import mean_interval, wilson_interval
 
@@ -209,15 +208,11 @@ def campaign_result(campaign: Campaign, name: str) -> tuple[dict[str, Any], list
     expected = spec.trials * len(conditions)
     result = {
         "mission": name, "file": spec.mission, "overrides": spec.overrides, "first_seed": spec.first_seed,
-        "trials_requested": spec.trials, "sweep": {k: [_yaml(v) for v in vals] for k, vals in spec.sweep},
-        "interrupted": len(trials) < expected, "aggregate": aggregate([t for t in trials]),
+        "trials_requested": spec.trials, "sweep": {k: [read_value(v) for v in vals] for k, vals in spec.sweep},
+        "interrupted": len(trials) < expected, "aggregate": aggregate(trials),
         "conditions": conditions, "trials": trials,
     }
     return clean_floats(result), timing
-
-
-def _yaml(text: str) -> Any:
-    return yaml.safe_load(text)
 
 
 def _on_sigterm() -> Any:

@@ -30,6 +30,12 @@ from typing import Any
 import yaml
 
 from .records import clean_floats, write_json
+from .yamlsrc import MissionLoader
+
+
+def read_value(text: str) -> Any:
+    """A swept value read as ``--set`` reads it (the mission's safe YAML 1.2 reader: ``on`` stays text)."""
+    return yaml.load(text, Loader=MissionLoader)  # noqa: S506 - MissionLoader is a SafeLoader
 
 SPEC_FILE, TRIALS_DIR = "campaign.json", "trials"
 
@@ -57,7 +63,7 @@ class Condition:
 
     def parsed_values(self) -> dict[str, Any]:
         """The values read as YAML, as the mission reads them (``0.5`` a number, ``[1, 2]`` a list)."""
-        return {k: yaml.safe_load(v) for k, v in self.values.items()}
+        return {k: read_value(v) for k, v in self.values.items()}
 
 
 def _split_values(text: str) -> list[str]:
@@ -101,7 +107,7 @@ def parse_sweep(items: list[str], overrides: list[str] | None = None) -> list[tu
             raise CampaignError(f"--sweep {item!r}: an empty value (two commas in a row or a trailing comma)")
         for v in values:
             try:
-                yaml.safe_load(v)
+                read_value(v)
             except yaml.YAMLError:
                 raise CampaignError(f"--sweep {key}: value {v!r} is not valid YAML") from None
         dup = sorted({v for v in values if values.count(v) > 1})
