@@ -185,6 +185,8 @@ class RayBackend:
         self.address = address
         self.workers = workers
         kwargs: dict[str, Any] = {"logging_level": "WARNING", "log_to_driver": False}
+        if address is not None and address != "auto":
+            _check_reachable(address)  # Ray itself retries an unreachable head for minutes
         try:
             if address is not None:
                 ray.init(address=address, **kwargs)
@@ -222,6 +224,18 @@ class RayBackend:
 
     def close(self) -> None:
         self._ray.shutdown()
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    host, sep, port = address.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise BackendError(f"--address {address!r}: expected HOST:PORT of the Ray head, e.g. 10.0.0.5:6379")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise BackendError(f"cannot reach the Ray head at {address} ({exc.strerror or exc}): is "
+                           f"'ray start --head --port {port}' running there?") from None
 
 
 def _write_files(root: Path, files: dict[str, bytes]) -> None:

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from .backends import TrialInterrupted, TrialJob, WorkerLost, make_backend
+from .backends import BackendError, TrialInterrupted, TrialJob, WorkerLost, make_backend
 from .campaign import Campaign, CampaignSpec, parse_sweep, read_value
 from .records import clean_floats, write_json
 from .stats import mean_interval, wilson_interval
@@ -162,7 +162,11 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
     old_term = None
     try:
         if jobs:
-            runner = make_backend(backend, n_workers, address)
+            try:
+                runner = make_backend(backend, n_workers, address)
+            except BackendError as exc:
+                raise BackendError(f"{exc} (the campaign waits in {campaign.root}: taskflow batch --resume "
+                                   f"{campaign.root} runs it)") from None
             old_term = _on_sigterm()  # after the backend starts: Ray's own handler must not win
             runner.run(jobs, on_result)
     except (KeyboardInterrupt, BatchInterrupted, TrialInterrupted) as exc:

@@ -140,7 +140,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
             given = [flag for flag, v in (("MISSION", args.mission), ("--trials", args.trials), ("--seed", args.seed),
                                           ("--set", args.set), ("--sweep", args.sweep), ("--out", args.out),
                                           ("--max-time", args.max_time), ("--keep-runs", args.keep_runs))
-                     if v not in (None, [], False)]
+                     if v is not None and v is not False and v != []]
             if given:
                 raise UsageError(f"--resume {args.resume} runs the campaign as its campaign.json says: drop "
                                  + ", ".join(given))

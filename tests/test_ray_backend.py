@@ -64,6 +64,22 @@ def test_the_ray_backend_without_ray_names_the_install_command(tmp_path: Path) -
             "from taskflow.cli import main; raise SystemExit(main())")
     done = subprocess.run([sys.executable, "-c", code, "batch", FAST, "--trials", "1", "--backend", "ray",
                            "--out", str(tmp_path / "b")], capture_output=True, text=True, timeout=120)
-    assert done.returncode == 1
-    assert done.stderr.strip() == ("taskflow batch: --backend ray needs Ray, which is not installed: "
-                                   "pip install 'taskflow[cluster]'")
+    assert done.returncode == 1 and len(done.stderr.strip().splitlines()) == 1
+    assert done.stderr.startswith("taskflow batch: --backend ray needs Ray, which is not installed: "
+                                  "pip install 'taskflow[cluster]'")
+    # the campaign was set up before the backend: it waits, to be run once Ray is there (or on the pool)
+    assert f"taskflow batch --resume {tmp_path / 'b'} runs it" in done.stderr
+
+
+@pytest.mark.parametrize("address, message", [
+    ("127.0.0.1:1", "cannot reach the Ray head at 127.0.0.1:1"),
+    ("nohost", "expected HOST:PORT of the Ray head"),
+])
+def test_an_unreachable_or_malformed_address_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                          address: str, message: str) -> None:
+    from taskflow.cli import main
+
+    assert main(["batch", FAST, "--trials", "1", "--backend", "ray", "--address", address,
+                 "--out", str(tmp_path / "b")]) == 1
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
