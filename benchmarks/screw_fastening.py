@@ -11,9 +11,10 @@ solvePnP) on the conveyor.  Everything is measured from the simulator's ground t
 Columns (paper, Table 1): time per screw (one ``foreach`` iteration — one of the mission's
 screws — approach, activation, fastening, retract; failed ones included) mean ± std; screwing time
 (tool activation start → fastened, over fastened operations) mean ± std; success rate (the mission's
-screws whose iteration succeeded / the mission's screws), with the world's count of screwdriver
+screws whose iteration succeeded / the mission's screws; with its Wilson 95 % interval, which counts every
+screw as an independent trial, and the sequences that met the rule with theirs), with the world's count of screwdriver
 operations beside it (fastened / started; ``no bolt``: activations with no bolt within the coupling
-tolerance).  Table 2: tool translation and rotation error to the operation's bolt, min / max / mean
+tolerance); the time per screw has the t 95 % interval of its mean.  Table 2: tool translation and rotation error to the operation's bolt, min / max / mean
 over every control tick while the screwdriver ran (activation and fastening), twice: over the
 fastened operations only, and over every operation that had a bolt under the tool (fastened or not —
 the paper's Table 2 covers all its screwing attempts).  Also: the control tick (both twists, the
@@ -36,6 +37,8 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+
+from taskflow.stats import mean_interval, wilson_interval  # noqa: E402
 
 PAPER = {  # papers/002, Tables 1 and 2 (real robot, 10 sequences x 4 screws per scenario)
     "conveyor": {"time_per_screw": (9.45, 2.07), "screwing": (5.28, 1.88), "success": 92.5,
@@ -117,7 +120,19 @@ def aggregate(runs: list[dict[str, Any]]) -> dict[str, Any]:
             "err_t": stats("fastened", "err_t"), "err_r": stats("fastened", "err_r"),
             "at_bolt_err_t": stats("at_bolt", "err_t"), "at_bolt_err_r": stats("at_bolt", "err_r"),
             "rtf": sim / wall if wall else math.nan, "rtf_cpu": sim / cpu if cpu else math.nan, "outcomes": [r["outcome"] for r in runs],
-            "failures": [f for r in runs for f in r["failures"]]}
+            "failures": [f for r in runs for f in r["failures"]],
+            "success_ci95": [100 * x for x in wilson_interval(ok, total)] if total else None,
+            "sequences_ci95": [100 * x for x in wilson_interval(sum(r["outcome"] == "succeeded" for r in runs), len(runs))]
+            if runs else None,
+            "time_per_screw_ci95": _ci(its)}
+
+
+def _ci(xs: list[float]) -> list[float] | None:
+    """The t 95 % interval of the mean of ``xs`` (None below two values)."""
+    if len(xs) < 2:
+        return None
+    m = mean_interval(xs)
+    return [m.low, m.high]  # type: ignore[list-item]
 
 
 def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
@@ -127,7 +142,8 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     import numpy as np
 
     from taskflow_robots.mobile_iiwa import MobileIiwa
-    from taskflow.api import Observation, TaskContext
+    from taskflow.api import Observation
+    from taskflow.testing import task_context
     from taskflow.messages import MarkerPose, Wrench
     from taskflow_tasks.impedance import ImpedanceProfile
     from taskflow_tasks.pid import PidProfile
@@ -139,7 +155,7 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     pid = PidProfile(kp=[4, 4, 4, 5, 5, 5], ki=[2, 2, 2, 4, 4, 4], u_max=[0.5, 0.5, 0.5, 0.1, 0.1, 0.1])
     profiles = {"platform": pid, "arm": pid, "impedance": ImpedanceProfile(K=[300, 300, 600], D=[60, 60, 80], force=[0, 0, 3]),
                 "prediction": Prediction(enabled=feedforward)}
-    task = PbvsArm(TaskContext(0.0, params, profiles, {}, robot, dt=0.01))  # the missions' 100 Hz
+    task = PbvsArm(task_context(PbvsArm, params, robot, profiles, dt=0.01))  # the missions' 100 Hz
     q = np.array(robot.params.q_home)
     H_co = params.camera_target.matrix()
     H_co[0, 3] += 0.01
@@ -169,14 +185,16 @@ def fmt(x: float | None, d: int = 2) -> str:
 def table(rows: list[tuple[str, dict[str, Any]]]) -> str:
     out = ["Table 1 — time per screw, screwing time, success (the mission's screws); sequences that met the mission's "
            "rule (every screw fastened: outcome succeeded); screwdriver operations",
-           f"{'scenario':38s} {'time/screw (s)':>16s} {'screwing (s)':>15s} {'success':>9s}  {'sequences ok':>12s}  "
-           "operations fastened / started (no bolt)"]
+           f"{'scenario':38s} {'time/screw (s)':>16s} {'mean 95 %':>12s} {'screwing (s)':>15s} {'success':>9s} "
+           f"{'95 % Wilson':>12s}  {'sequences ok':>12s} {'95 % Wilson':>12s}  operations fastened / started (no bolt)"]
     for name, a in rows:
         tp, sc = a["time_per_screw"], a["screwing"]
         ops = (f"{a['operations_fastened']} / {a['operations']} ({a['operations_no_bolt']})" if "operations" in a else "—")
         seqs = (f"{a['outcomes'].count('succeeded')} / {a['sequences']}" if "outcomes" in a else "—")
-        out.append(f"{name:38s} {fmt(tp[0]):>7s} ± {fmt(tp[1]):<6s} {fmt(sc[0]):>6s} ± {fmt(sc[1]):<6s} "
-                   f"{fmt(a['success'], 1):>7s} %  {seqs:>12s}  {ops}")
+        iv = lambda k, d=0: (f"{fmt(a[k][0], d)}-{fmt(a[k][1], d)}" if a.get(k) else "—")  # noqa: E731
+        out.append(f"{name:38s} {fmt(tp[0]):>7s} ± {fmt(tp[1]):<6s} {iv('time_per_screw_ci95', 2):>12s} "
+                   f"{fmt(sc[0]):>6s} ± {fmt(sc[1]):<6s} {fmt(a['success'], 1):>7s} % {iv('success_ci95') + ' %':>12s}  "
+                   f"{seqs:>12s} {iv('sequences_ci95') + ' %':>12s}  {ops}")
     for key, title in (("", "over the fastened operations"),
                        ("at_bolt_", "over every operation with a bolt under the tool (fastened or failed)")):
         out += ["", f"Table 2{'b' if key else ''} — tool error to the bolt while the screwdriver runs (activation + "
@@ -259,7 +277,10 @@ def main(argv: list[str] | None = None) -> int:
     summary = {"benchmark": "screw_fastening", "sequences": args.sequences, "rendered": args.rendered,
                "control_tick_us": round(tick_plain, 1), "control_tick_ff_us": round(tick, 1), "pose_rtf": round(rtf, 2), "pose_rtf_cpu": round(rtf_cpu, 2), "wall_s": round(wall, 1),
                "targets_met": checks,
-               "results": {k: {"success_pct": round(a["success"], 1), "screws": a["screws"], "screws_succeeded": a["succeeded"],
+               "results": {k: {"success_pct": round(a["success"], 1), "success_ci95_pct": a.get("success_ci95"),
+                               "sequences_ci95_pct": a.get("sequences_ci95"),
+                               "time_per_screw_ci95_s": a.get("time_per_screw_ci95"),
+                               "screws": a["screws"], "screws_succeeded": a["succeeded"],
                                "operations": a["operations"], "operations_fastened": a["operations_fastened"],
                                "operations_no_bolt": a["operations_no_bolt"],
                                "time_per_screw_s": [round(x, 2) for x in a["time_per_screw"]],

@@ -8,8 +8,10 @@ trial from the missions' distributions):
 * rendered perception (TinyRenderer at ``--rendered-size``, LiDAR fusion for the front camera),
   ``--rendered-trials`` complete placements.
 
-Reported per batch: success rate, final error of the object in the robot frame against the goal (ground
-truth; |X| and |Y| mean ± std, as the paper reports, and the signed means), time to complete (simulated
+Reported per batch: success rate with its Wilson 95 % interval, final error of the object in the robot
+frame against the goal (ground
+truth; |X| and |Y| mean ± std, as the paper reports, with the t 95 % interval of each mean, and the
+signed means), time to complete (simulated
 seconds of the successful trials) and the real-time factor (simulated / wall time inside each trial).
 The real-time factor is also measured for one complete placement run alone in the main process (the batch
 workers compete for the cores).  Costs: µs per control tick of the law alone (eq. 19–26 + eq. 5, no perception; :func:`viki_velocity`)
@@ -38,9 +40,11 @@ import taskflow_sim.viki_world  # noqa: F401  registers viki_ground (forked batc
 import taskflow_tasks.viki_hyco  # noqa: F401  registers viki_hyco
 import taskflow_tasks.viki_rotation  # noqa: F401  registers viki_rotate
 from taskflow_robots.racecar import Racecar
-from taskflow.api import Observation, TaskContext
+from taskflow.api import Observation
+from taskflow.testing import task_context
 from taskflow.messages import Detection
 from taskflow.batch import run_batch
+from taskflow.stats import mean_interval, wilson_interval
 from taskflow_tasks.viki_hyco import ViKiGains, ViKiHyCo
 from taskflow_tasks.viki_laws import ServoInputs, viki_velocity
 
@@ -67,6 +71,7 @@ def batch_stats(result: dict[str, Any]) -> dict[str, Any]:
 
     ex, ey = col("final_error_x_m", trials), col("final_error_y_m", trials)
     t_ok = np.array([s["sim_time_s"] for s in ok], float)
+    ci_x, ci_y = mean_interval(np.abs(ex)), mean_interval(np.abs(ey))
     rtf = np.array([t["real_time_factor"] for t in result["timing"]["trials"] if t.get("real_time_factor")], float)
     outcomes: dict[str, int] = {}
     for s in trials:
@@ -75,6 +80,8 @@ def batch_stats(result: dict[str, Any]) -> dict[str, Any]:
     return {
         "trials": len(trials),
         "success_rate": len(ok) / len(trials),
+        "success_ci95": list(wilson_interval(len(ok), len(trials))),
+        "abs_x_ci95": [ci_x.low, ci_x.high], "abs_y_ci95": [ci_y.low, ci_y.high],
         "outcomes": outcomes,
         "abs_x_mean": float(np.mean(np.abs(ex))), "abs_x_std": float(np.std(np.abs(ex))),
         "abs_y_mean": float(np.mean(np.abs(ey))), "abs_y_std": float(np.std(np.abs(ey))),
@@ -104,9 +111,8 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
                           v_prev=np.array([0.1, 0.05]))
         out[name] = min(timeit.repeat(lambda inp=inp: viki_velocity(inp, **kw), number=number,
                                       repeat=repeat)) / number * 1e6
-    ctx = TaskContext(t=0.0, params=ViKiHyCo.Params(camera="rear", desired=(-0.9, 0.0)),
-                      profiles={"gains": ViKiGains(lam=(0.85, 1.05, 1.0, 1.0, 1.0), k1=(1.0, 2.0))}, memory={},
-                      robot=robot)
+    ctx = task_context(ViKiHyCo, ViKiHyCo.Params(camera="rear", desired=(-0.9, 0.0)), robot,
+                       {"gains": ViKiGains(lam=(0.85, 1.05, 1.0, 1.0, 1.0), k1=(1.0, 2.0))})
     task = ViKiHyCo(ctx)
     det = Detection(stamp=0.0, frame="rear_camera", camera="rear", seq=0, bbox=(300.0, 120.0, 330.0, 190.0), depth=1.4,
                     intrinsics=K, width=640, height=360, depth_at=lambda u, v: 1.1, depth_in=lambda box: 1.1)
@@ -199,8 +205,8 @@ def main() -> None:
     print()
     print("ViKi-HyCo in simulation vs the paper (final object position in the robot frame minus the goal; "
           "cm, |error| mean ± std over all trials)")
-    hdr = (f"{'experiment':22s} {'n':>3s} {'success':>8s} {'|X| cm':>13s} {'|Y| cm':>13s} {'X,Y mean cm':>13s} "
-           f"{'time s':>12s} {'RTF':>6s} | paper")
+    hdr = (f"{'experiment':22s} {'n':>3s} {'success':>8s} {'95 % Wilson':>12s} {'|X| cm':>13s} {'|X| mean 95 %':>14s} "
+           f"{'|Y| cm':>13s} {'|Y| mean 95 %':>14s} {'X,Y mean cm':>13s} {'time s':>12s} {'RTF':>6s} | paper")
     print(hdr)
     print("-" * len(hdr))
     for name, _, _, _ in batches:
@@ -213,8 +219,12 @@ def main() -> None:
             ptxt = (f"X {100 * px:.2f}" + (f" ± {100 * psx:.2f}" if psx is not None else "") +
                     f", Y {100 * py:.2f}" + (f" ± {100 * psy:.2f}" if psy is not None else "") + f" ({note})")
         t = "-" if r["time_s_mean"] is None else f"{r['time_s_mean']:.1f}±{r['time_s_std']:.1f}"
-        print(f"{name:22s} {r['trials']:3d} {100 * r['success_rate']:7.0f}% "
-              f"{fmt(r['abs_x_mean']):>6s}±{fmt(r['abs_x_std']):<6s} {fmt(r['abs_y_mean']):>6s}±{fmt(r['abs_y_std']):<6s} "
+        wil = f"{100 * r['success_ci95'][0]:.0f}-{100 * r['success_ci95'][1]:.0f} %"
+        cix = "-" if r["abs_x_ci95"][0] is None else f"{fmt(r['abs_x_ci95'][0])}-{fmt(r['abs_x_ci95'][1])}"
+        ciy = "-" if r["abs_y_ci95"][0] is None else f"{fmt(r['abs_y_ci95'][0])}-{fmt(r['abs_y_ci95'][1])}"
+        print(f"{name:22s} {r['trials']:3d} {100 * r['success_rate']:7.0f}% {wil:>12s} "
+              f"{fmt(r['abs_x_mean']):>6s}±{fmt(r['abs_x_std']):<6s} {cix:>14s} "
+              f"{fmt(r['abs_y_mean']):>6s}±{fmt(r['abs_y_std']):<6s} {ciy:>14s} "
               f"{fmt(r['x_mean']):>6s},{fmt(r['y_mean']):<6s} {t:>12s} {r['rtf_mean'] or 0:6.1f} | {ptxt}")
     print()
     for name in results:

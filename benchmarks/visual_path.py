@@ -14,7 +14,8 @@ control (excluding rendering) with the real-time factor of the whole run.  The l
 
 ``--perception geometric`` runs the same missions with the world's geometric camera (landmarks
 projected with pixel noise, no rendering) over ``--seeds`` seeds (RANSAC draws and pixel noise
-differ), as :func:`taskflow.batch.run_batch` trials on every core, and prints success rates with the
+differ), as :func:`taskflow.batch.run_batch` trials on every core, and prints success rates (with their
+Wilson 95 % intervals; the t interval of the mean final error) with the
 mean time and final error of the successes.
 """
 
@@ -38,6 +39,7 @@ import taskflow_robots.quadcopter  # noqa: F401 - registration
 import taskflow_sim.room_world  # noqa: F401
 import taskflow_tasks.visual_path  # noqa: F401
 from taskflow.batch import run_batch
+from taskflow.stats import mean_interval, wilson_interval
 from taskflow.loader import load_mission
 from taskflow.records import read_trace
 from taskflow.runtime import run_mission
@@ -225,7 +227,12 @@ def batch(names: list[str], out: Path, perception: str, seeds: int, overrides: l
             v = np.array([x for x in values if x is not None], dtype=float)
             return (float(v.mean()), float(v.std())) if len(v) else (math.nan, math.nan)
 
-        rows[name] = {"runs": len(trials), "succeeded": len(ok), "path_time_s": stat([s["sim_time_s"] for s in ok]),
+        err_ok = [s["metrics"].get("final_position_error_m") for s in ok]
+        err_ok = [x for x in err_ok if x is not None]
+        err_ci = mean_interval(err_ok) if err_ok else None
+        rows[name] = {"runs": len(trials), "succeeded": len(ok), "success_ci95": list(wilson_interval(len(ok), len(trials))),
+                      "final_position_error_ci95_m": None if err_ci is None or err_ci.low is None else [err_ci.low, err_ci.high],
+                      "path_time_s": stat([s["sim_time_s"] for s in ok]),
                       "final_position_error_m": stat([s["metrics"].get("final_position_error_m") for s in ok]),
                       "path_deviation_max_m": stat([s["metrics"].get("path_deviation_max_m") for s in ok]),
                       "collisions_max": max(int(s["metrics"].get("collisions") or 0) for s in trials),
@@ -236,8 +243,11 @@ def batch(names: list[str], out: Path, perception: str, seeds: int, overrides: l
     print(f"\n{perception} camera, {seeds} seeds — success, path time and final error of the successes (mean ± sd)")
     for name, r in rows.items():
         t, e, dv = r["path_time_s"], r["final_position_error_m"], r["path_deviation_max_m"]
-        print(f"  {name:22s} {r['succeeded']:2d}/{r['runs']:<2d}  time {t[0]:6.1f} ± {t[1]:4.1f} s (paper {r['paper_time_s']:g})"
-              f"  final error {100 * e[0]:4.1f} ± {100 * e[1]:3.1f} cm  max path deviation {100 * dv[0]:4.0f} cm"
+        ci, eci = r["success_ci95"], r["final_position_error_ci95_m"]
+        eci_text = "" if eci is None else f" (mean 95 %: {100 * eci[0]:.1f}-{100 * eci[1]:.1f})"
+        print(f"  {name:22s} {r['succeeded']:2d}/{r['runs']:<2d} (95 % Wilson {100 * ci[0]:.0f}-{100 * ci[1]:.0f} %)"
+              f"  time {t[0]:6.1f} ± {t[1]:4.1f} s (paper {r['paper_time_s']:g})"
+              f"  final error {100 * e[0]:4.1f} ± {100 * e[1]:3.1f} cm{eci_text}  max path deviation {100 * dv[0]:4.0f} cm"
               f"  max collisions {r['collisions_max']}  wall {r['wall_s_per_run']:.1f} s/run")
     for name, ratio in time_ratios({n: r["path_time_s"][0] for n, r in rows.items()}).items():
         print(f"  {name} / oval (successful runs): {100 * ratio:.1f} % (paper 25 %, target <= 30 %)")

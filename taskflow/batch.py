@@ -1,13 +1,22 @@
-"""Monte Carlo batches: N independent seeded runs in parallel processes.
+"""Monte Carlo campaigns: N independent seeded runs per condition, on a local pool or a Ray cluster.
 
 Trial ``i`` runs with seed ``seed + i``: its world parameters are drawn from the distributions the
-mission declares and its sensors' noise from the same seed, each in its own process with its own
-PyBullet DIRECT client.  ``batch.json`` holds every trial's summary and the aggregates: mission success
-and, for missions that loop over items (screws, waypoints), item success beside it.  Wall-clock figures
-live under ``timing`` only, so the rest of ``batch.json`` depends on the mission and the seeds alone.
+mission declares and its sensors' noise from the same seed, each with its own PyBullet DIRECT client in
+whichever process or node runs it (:mod:`taskflow.backends`).  With a sweep (``--sweep KEY=V1,V2``,
+repeatable) every condition of the grid runs the same seeds (:mod:`taskflow.campaign`).
+
+The batch directory is a campaign directory: one record per trial is written the moment the trial
+finishes, and ``batch.json`` is rebuilt from the records; it holds every trial's summary and the
+aggregates, over all trials and per condition, with their 95 % intervals (:mod:`taskflow.stats`):
+mission success (Wilson interval), item success for missions that loop over items (screws,
+waypoints), and mean/std/min/max with the t interval of the mean of every numeric final metric.
+``batch.json`` depends on the mission and the seeds alone; wall-clock figures go to ``timing.json``.
 
 Ctrl-C or SIGTERM stops a batch at once: unfinished trials are cancelled, running workers are
-terminated, and ``batch.json`` is written with the trials that finished (``interrupted: true``).
+terminated, and ``batch.json`` is written with the trials that finished (``interrupted: true``); so
+does a worker that dies (:class:`~taskflow.backends.WorkerLost`, raised once ``batch.json`` is written);
+:func:`resume_batch` then runs only the missing trials and writes the ``batch.json`` an uninterrupted
+run would have written.
 """
 
 from __future__ import annotations
@@ -17,52 +26,41 @@ import math
 import os
 import signal
 import time
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .backends import BackendError, TrialInterrupted, TrialJob, WorkerLost, make_backend
+from .campaign import Campaign, CampaignSpec, parse_sweep, read_value
 from .records import clean_floats, write_json
+from .stats import mean_interval, wilson_interval
 
 
 class BatchInterrupted(Exception):
     """Raised inside the parent on SIGTERM so the batch ends like on Ctrl-C."""
 
 
-def _worker_init() -> None:
-    # Ctrl-C reaches every process of the terminal's group: only the parent decides what happens, and
-    # ends a worker with SIGTERM (a run in progress then records itself as aborted)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+def _metric_stats(vals: np.ndarray) -> dict[str, Any]:
+    ci = mean_interval(vals)
+    return {"mean": ci.mean, "std": float(vals.std()), "min": float(vals.min()), "max": float(vals.max()),
+            "n": int(vals.size), "ci95": None if ci.low is None else [ci.low, ci.high]}
 
 
-def _trial(args: tuple[str, list[str], int, str | None, float | None]) -> tuple[dict[str, Any], dict[str, Any]]:
-    path, overrides, seed, out, max_time = args
-    from .loader import load_mission
-    from .runtime import run_mission
-
-    mission = load_mission(path, overrides)
-    out_dir = None if out is None else Path(out) / f"trial-{seed:05d}"
-    result = run_mission(mission, seed=seed, out_dir=out_dir, max_time=max_time, record=out_dir is not None,
-                         frames_hz=0)  # kept trials hold no camera frames: ~100 KB each, times every trial
-    return result.summary, {"seed": seed, "wall_time_s": result.timing.get("wall_time_s"),
-                            "real_time_factor": result.timing.get("real_time_factor")}
-
-
-def _stats(vals: np.ndarray) -> dict[str, float]:
-    return {"mean": float(vals.mean()), "std": float(vals.std()), "min": float(vals.min()),
-            "max": float(vals.max()), "n": int(vals.size)}
+def _wilson(k: int, n: int) -> list[float] | None:
+    return list(wilson_interval(k, n)) if n else None
 
 
 def aggregate(summaries: list[dict[str, Any]]) -> dict[str, Any]:
-    """Success rate, outcome counts, item success per foreach loop, and mean/std/min/max of every
-    numeric final metric."""
+    """Success rate with its Wilson 95 % interval (``success_ci95``), outcome counts, item success per
+    foreach loop (with the Wilson interval over the items, which counts every item as an independent
+    trial), and mean (with the t 95 % interval of the mean, ``ci95``), std (population, ddof 0), min,
+    max of every numeric final metric and of ``sim_time_s``."""
     n = len(summaries)
     outcomes: dict[str, int] = {}
     for s in summaries:
         outcomes[s["outcome"]] = outcomes.get(s["outcome"], 0) + 1
-    stats: dict[str, dict[str, float]] = {}
+    stats: dict[str, dict[str, Any]] = {}
     keys = sorted({k for s in summaries for k, v in s.get("metrics", {}).items()
                    if isinstance(v, (int, float)) and not isinstance(v, bool)})
     for k in keys:
@@ -70,10 +68,10 @@ def aggregate(summaries: list[dict[str, Any]]) -> dict[str, Any]:
                          if isinstance(s.get("metrics", {}).get(k), (int, float)) and s["metrics"][k] is not None
                          and math.isfinite(s["metrics"][k])], dtype=float)
         if vals.size:
-            stats[k] = _stats(vals)
+            stats[k] = _metric_stats(vals)
     vals = np.array([s["sim_time_s"] for s in summaries], dtype=float)
     if vals.size:
-        stats["sim_time_s"] = _stats(vals)
+        stats["sim_time_s"] = _metric_stats(vals)
     items: dict[str, dict[str, Any]] = {}
     for s in summaries:
         for loop, c in s.get("items", {}).items():
@@ -83,84 +81,142 @@ def aggregate(summaries: list[dict[str, Any]]) -> dict[str, Any]:
     for agg in items.values():
         agg["failed"] = agg["attempted"] - agg["succeeded"]
         agg["success_rate"] = agg["succeeded"] / agg["attempted"] if agg["attempted"] else None
-    return {"trials": n, "success_rate": outcomes.get("succeeded", 0) / n if n else 0.0,
+        agg["success_ci95"] = _wilson(agg["succeeded"], agg["attempted"])
+    ok = outcomes.get("succeeded", 0)
+    return {"trials": n, "success_rate": ok / n if n else 0.0, "success_ci95": _wilson(ok, n),
             "outcomes": outcomes, "items": items, "metrics": stats}
 
 
 def run_batch(path: str, *, trials: int, workers: int | None = None, seed: int = 0,
               overrides: list[str] | None = None, out: str | Path | None = None,
-              max_time: float | None = None, keep_runs: bool = False) -> dict[str, Any]:
-    """Run the trials, write ``batch.json`` under ``out`` and return its content.  On Ctrl-C / SIGTERM
-    the partial ``batch.json`` is written and :class:`KeyboardInterrupt` is raised again."""
-    from .loader import load_mission
+              max_time: float | None = None, keep_runs: bool = False, sweep: list[str] | None = None,
+              backend: str = "pool", address: str | None = None) -> dict[str, Any]:
+    """Start a campaign in ``out`` (a new directory, or one without a campaign), run it, write
+    ``batch.json`` and return its content with the wall-clock ``timing`` and ``batch_file``.
 
+    ``sweep`` holds ``KEY=V1,V2,...`` items (:func:`taskflow.campaign.parse_sweep`); ``backend`` is
+    ``pool`` (``workers`` local processes) or ``ray`` (the cluster at ``address``, or a local one of
+    ``workers`` CPUs).  On Ctrl-C / SIGTERM the partial ``batch.json`` is written and
+    :class:`KeyboardInterrupt` is raised again, its message the ``batch.json`` path."""
     if trials < 1:
         raise ValueError(f"trials must be at least 1, got {trials}")
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
-    mission = load_mission(path, overrides)
-    out_dir = Path(out) if out is not None else Path("runs") / f"batch-{mission.name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    out_dir.mkdir(parents=True, exist_ok=True)
-    workers = max(1, min(workers or os.cpu_count() or 1, trials))
-    run_root = str(out_dir) if keep_runs else None
-    jobs = [(path, list(overrides or []), seed + i, run_root, max_time) for i in range(trials)]
-    done: dict[int, tuple[dict[str, Any], dict[str, Any]]] = {}
-    t0 = time.perf_counter()
-    interrupted: BaseException | None = None
-    old_term = _on_sigterm()
-    try:
-        if workers == 1:
-            from .runtime import INTERRUPTED, TERMINATED
+    spec = CampaignSpec(mission=str(Path(path).resolve()), trials=trials, first_seed=seed,
+                        overrides=list(overrides or []), sweep=parse_sweep(sweep or [], overrides),
+                        max_time=max_time, keep_runs=keep_runs)
+    name = check_conditions(spec)
+    out_dir = Path(out) if out is not None else Path("runs") / f"batch-{name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    return _run(Campaign.create(out_dir, spec), name, workers, backend, address)
 
-            for i, job in enumerate(jobs):
-                summary, timing = _trial(job)
-                if summary.get("reason") in (INTERRUPTED, TERMINATED):
-                    # the run in this process saw the signal and stopped itself: the batch ends here too,
-                    # without counting the cut trial (as a worker's trial cut by the pool is not counted)
-                    raise KeyboardInterrupt()
-                done[i] = (summary, timing)
-        else:
-            _run_pool(jobs, workers, done)
-    except (KeyboardInterrupt, BatchInterrupted) as exc:
+
+def resume_batch(directory: str | Path, *, workers: int | None = None, backend: str = "pool",
+                 address: str | None = None) -> dict[str, Any]:
+    """Run the trials of the campaign in ``directory`` that have no record yet and rewrite its
+    ``batch.json``: the same file an uninterrupted run writes."""
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
+    campaign = Campaign.open(directory)
+    return _run(campaign, check_conditions(campaign.spec), workers, backend, address)
+
+
+def check_conditions(spec: CampaignSpec) -> str:
+    """Load the mission under every condition of the sweep (a bad key or value fails here, with its
+    ``--set``/``--sweep`` named, before any trial starts) and return the mission's name."""
+    from dataclasses import replace
+
+    from .errors import MissionError
+    from .loader import load_mission
+
+    name = ""
+    for c in spec.conditions():
+        try:
+            name = load_mission(spec.mission, spec.overrides + c.overrides).name
+        except MissionError as exc:  # the loader names every override --set: say which came from --sweep
+            swept = [f"--set {o}" for o in c.overrides]
+            raise MissionError([replace(p, message=_as_sweep(p.message, swept)) for p in exc.problems]) from None
+    return name
+
+
+def _as_sweep(message: str, swept: list[str]) -> str:
+    for s in swept:
+        if s in message:
+            return message.replace(s, "--sweep " + s[len("--set "):])
+    return message
+
+
+def _run(campaign: Campaign, name: str, workers: int | None, backend: str, address: str | None) -> dict[str, Any]:
+    spec = campaign.spec
+    todo = campaign.missing()
+    n_workers = max(1, min(workers or os.cpu_count() or 1, max(1, len(todo))))
+    jobs = [TrialJob(spec.mission, tuple(spec.overrides + c.overrides), s, spec.max_time,
+                     str(campaign.run_dir(c.index, s)) if spec.keep_runs else None) for c, s in todo]
+
+    def on_result(i: int, result: tuple[dict[str, Any], dict[str, Any]]) -> None:
+        campaign.record(todo[i][0].index, todo[i][1], *result)
+
+    t0, started = time.perf_counter(), time.time()
+    interrupted: BaseException | None = None
+    lost: WorkerLost | None = None
+    runner = None
+    old_term = None
+    try:
+        if jobs:
+            try:
+                runner = make_backend(backend, n_workers, address)
+            except BackendError as exc:
+                raise BackendError(f"{exc} (the campaign waits in {campaign.root}: taskflow batch --resume "
+                                   f"{campaign.root} runs it)") from None
+            old_term = _on_sigterm()  # after the backend starts: Ray's own handler must not win
+            runner.run(jobs, on_result)
+    except (KeyboardInterrupt, BatchInterrupted, TrialInterrupted) as exc:
         interrupted = exc
+    except WorkerLost as exc:
+        lost = exc
     finally:
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
+        if runner is not None:
+            runner.close()
     wall = time.perf_counter() - t0
-    finished = [done[i] for i in sorted(done)]
-    summaries = [s for s, _ in finished]
-    result = {
-        "mission": mission.name, "file": path, "overrides": list(overrides or []), "first_seed": seed,
-        "trials_requested": trials, "interrupted": interrupted is not None,
-        "aggregate": aggregate(summaries), "trials": summaries,
-        "timing": {"workers": workers, "total_wall_s": wall, "per_trial_wall_s": wall / max(1, len(finished)),
-                   "trials": [t for _, t in finished]},
-    }
-    result = clean_floats(result)
-    batch_file = out_dir / "batch.json"
+    result, timing_trials = campaign_result(campaign, name)
+    batch_file = campaign.root / "batch.json"
     write_json(batch_file, result)
-    result["batch_file"] = str(batch_file)
+    timing = clean_floats({"backend": backend, "address": address,
+                           "workers": runner.workers if runner is not None else n_workers,
+                           "trials_run": len(jobs) - len(campaign.missing()) if jobs else 0,
+                           "started": started, "total_wall_s": wall, "trials": timing_trials})
+    timing["per_trial_wall_s"] = wall / max(1, timing["trials_run"])
+    write_json(campaign.root / "timing.json", timing)
     if interrupted is not None:
         raise KeyboardInterrupt(str(batch_file)) from None
-    return result
+    if lost is not None:
+        raise WorkerLost(f"{lost}: the trials that finished are recorded in {batch_file}; run the rest with "
+                         f"taskflow batch --resume {campaign.root}")
+    return dict(result, timing=timing, batch_file=str(batch_file))
 
 
-def _run_pool(jobs: list[tuple[Any, ...]], workers: int, done: dict[int, Any]) -> None:
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
-    futures: dict[Future[Any], int] = {pool.submit(_trial, job): i for i, job in enumerate(jobs)}
-    try:
-        pending = set(futures)
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for f in finished:
-                done[futures[f]] = f.result()
-    except BaseException:
-        # stop now: nothing new starts, and the running trials are ended (their workers terminated)
-        for proc in list(getattr(pool, "_processes", {}).values()):  # no public API before Python 3.14
-            proc.terminate()
-        pool.shutdown(wait=True, cancel_futures=True)
-        raise
-    pool.shutdown(wait=True)
+def campaign_result(campaign: Campaign, name: str) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """``batch.json`` of the campaign as its records stand (trials in condition, then seed order), and
+    the records' wall-clock figures in the same order."""
+    spec = campaign.spec
+    records = campaign.records()
+    conditions, trials, timing = [], [], []
+    for c in spec.conditions():
+        done = [records[(c.index, s)] for s in spec.seeds() if (c.index, s) in records]
+        summaries = [r["summary"] for r in done]
+        conditions.append({"index": c.index, "label": c.label, "values": c.parsed_values(),
+                           "overrides": c.overrides, "aggregate": aggregate(summaries)})
+        trials += [dict(s, condition=c.index) for s in summaries]
+        timing += [dict(r["timing"], condition=c.index) for r in done]
+    expected = spec.trials * len(conditions)
+    result = {
+        "mission": name, "file": spec.mission, "overrides": spec.overrides, "first_seed": spec.first_seed,
+        "trials_requested": spec.trials, "sweep": {k: [read_value(v) for v in vals] for k, vals in spec.sweep},
+        "interrupted": len(trials) < expected, "aggregate": aggregate(trials),
+        "conditions": conditions, "trials": trials,
+    }
+    return clean_floats(result), timing
 
 
 def _on_sigterm() -> Any:
@@ -173,19 +229,40 @@ def _on_sigterm() -> Any:
         return None
 
 
-def format_table(result: dict[str, Any]) -> str:
-    agg, timing = result["aggregate"], result.get("timing", {})
-    head = (f"{result['mission']}: {agg['trials']} trials, success {100 * agg['success_rate']:.1f} %  "
-            f"outcomes {json.dumps(agg['outcomes'])}  wall {timing.get('total_wall_s', 0):.1f} s "
-            f"({timing.get('workers', '?')} workers)")
-    if result.get("interrupted"):
-        head += f"  INTERRUPTED after {agg['trials']} of {result.get('trials_requested')}"
-    lines = [head]
+def _pct(x: float | None) -> str:
+    return "-" if x is None else f"{100 * x:.1f}"
+
+
+def _rate(k: int, n: int, rate: float | None, ci: list[float] | None) -> str:
+    return (f"{k}/{n}" + (f" = {_pct(rate)} %" if rate is not None else "")
+            + (f" [{_pct(ci[0])}, {_pct(ci[1])}]" if ci else ""))
+
+
+def _aggregate_lines(agg: dict[str, Any]) -> list[str]:
+    lines = [f"success {_rate(agg['outcomes'].get('succeeded', 0), agg['trials'], agg['success_rate'], agg.get('success_ci95'))}"
+             f" (95 % Wilson)  outcomes {json.dumps(agg['outcomes'])}"]
     for loop, c in agg.get("items", {}).items():
-        rate = c["success_rate"]
-        lines.append(f"items of {loop}: {c['succeeded']}/{c['attempted']} succeeded"
-                     + (f" ({100 * rate:.1f} %)" if rate is not None else "") + f", rule per run: {c['rule']}")
-    lines.append(f"{'metric':34s} {'mean':>12s} {'std':>12s} {'min':>12s} {'max':>12s}")
-    for k, s in agg["metrics"].items():
-        lines.append(f"{k:34s} {s['mean']:12.5g} {s['std']:12.5g} {s['min']:12.5g} {s['max']:12.5g}")
+        lines.append(f"items of {loop}: {_rate(c['succeeded'], c['attempted'], c['success_rate'], c.get('success_ci95'))}"
+                     f" succeeded, rule per run: {c['rule']}")
+    lines.append(f"{'metric':34s} {'mean':>11s} {'95 % interval of the mean':>25s} {'std':>11s} {'min':>11s} {'max':>11s}")
+    for k, m in agg["metrics"].items():
+        ci = m.get("ci95")
+        ci_text = "-" if not ci else f"[{ci[0]:.5g}, {ci[1]:.5g}]"
+        lines.append(f"{k:34s} {m['mean']:11.5g} {ci_text:>25s} {m['std']:11.5g} {m['min']:11.5g} {m['max']:11.5g}")
+    return lines
+
+
+def format_table(result: dict[str, Any]) -> str:
+    """The batch as text: the whole campaign, then, when sweeping, each condition."""
+    agg, timing = result["aggregate"], result.get("timing", {})
+    head = (f"{result['mission']}: {agg['trials']} trials  wall {timing.get('total_wall_s', 0):.1f} s "
+            f"({timing.get('workers', '?')} workers, {timing.get('backend', 'pool')})")
+    conditions = result.get("conditions", [])
+    if result.get("interrupted"):
+        head += f"  INTERRUPTED after {agg['trials']} of {result.get('trials_requested', 0) * max(1, len(conditions))}"
+    lines = [head, *_aggregate_lines(agg)]
+    if len(conditions) > 1:
+        for c in conditions:
+            lines += ["", f"condition {c['index']}: {c['label']}  ({c['aggregate']['trials']} trials)",
+                      *_aggregate_lines(c["aggregate"])]
     return "\n".join(lines)

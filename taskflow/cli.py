@@ -1,4 +1,5 @@
-"""``taskflow`` command line: run, view, ctl, validate, graph, schema, batch, teach, plot, export, check, list, describe.
+"""``taskflow`` command line: run, view, ctl, validate, graph, schema, batch, compare, teach, plot, export, check, list,
+describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
 130 interrupted.
@@ -228,22 +229,73 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 
 def cmd_batch(args: argparse.Namespace) -> int:
-    from .batch import format_table, run_batch
+    from .backends import BackendError
+    from .batch import format_table, resume_batch, run_batch
+    from .campaign import CampaignError
 
-    path = args.mission
-    _positive("--trials", args.trials)
     _positive("--workers", args.workers)
-    max_time = _max_time(args.max_time)
-    _load(path, args.set)  # fail fast, with file:line:col, before any worker starts
+    if args.address is not None and args.backend != "ray":
+        raise UsageError(f"--address {args.address}: a cluster address needs --backend ray")
+    if args.address is not None and args.workers is not None:
+        raise UsageError("--workers with --address: the cluster's CPUs set how many trials run at once; drop --workers")
     try:
-        result = run_batch(path, trials=args.trials, workers=args.workers, seed=args.seed, overrides=args.set,
-                           out=args.out, max_time=max_time, keep_runs=args.keep_runs)
+        if args.resume is not None:
+            given = [flag for flag, v in (("MISSION", args.mission), ("--trials", args.trials), ("--seed", args.seed),
+                                          ("--set", args.set), ("--sweep", args.sweep), ("--out", args.out),
+                                          ("--max-time", args.max_time), ("--keep-runs", args.keep_runs))
+                     if v is not None and v is not False and v != []]
+            if given:
+                raise UsageError(f"--resume {args.resume} runs the campaign as its campaign.json says: drop "
+                                 + ", ".join(given))
+            result = resume_batch(args.resume, workers=args.workers, backend=args.backend, address=args.address)
+        else:
+            if args.mission is None:
+                raise UsageError("name a mission file, or --resume DIR to finish a campaign")
+            if args.trials is None:
+                raise UsageError("--trials N is required (trials per condition)")
+            _positive("--trials", args.trials)
+            max_time = _max_time(args.max_time)
+            _load(args.mission, args.set)  # fail fast, with file:line:col, before any worker starts
+            result = run_batch(args.mission, trials=args.trials, workers=args.workers,
+                               seed=0 if args.seed is None else args.seed, overrides=args.set, out=args.out,
+                               max_time=max_time, keep_runs=args.keep_runs, sweep=args.sweep,
+                               backend=args.backend, address=args.address)
     except KeyboardInterrupt as exc:
-        print(f"interrupted: finished trials recorded in {exc}", file=sys.stderr)
+        print(f"interrupted: finished trials recorded in {exc}; finish with taskflow batch --resume "
+              f"{Path(str(exc)).parent}", file=sys.stderr)
         return 130
+    except (CampaignError, BackendError) as exc:
+        raise UsageError(str(exc)) from None
     print(format_table(result))
     print(f"batch record: {result['batch_file']}")
-    return 0 if result["aggregate"]["success_rate"] == 1.0 else 1
+    if args.plot:
+        from .campaign_plots import plot_campaign
+
+        for f in plot_campaign(Path(result["batch_file"]).parent):
+            print(f"figure: {f}")
+    return 0 if result["aggregate"]["success_rate"] == 1.0 and not result["interrupted"] else 1
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from .campaign import CampaignError
+    from .compare import compare, format_comparison, load_batch
+
+    try:
+        a, b = load_batch(args.a), load_batch(args.b)
+        results = compare(a, b, args.metric or None)
+        if args.plot is not None:
+            from .campaign_plots import plot_success_comparison
+
+            figure = plot_success_comparison([(a["mission"], a), (b["mission"], b)], args.plot)
+    except CampaignError as exc:
+        raise UsageError(str(exc)) from None
+    if args.json:
+        print(json.dumps(results, indent=2))
+    else:
+        print(format_comparison((args.a, args.b), results))
+    if args.plot is not None:
+        print(f"figure: {figure}")
+    return 0
 
 
 def cmd_teach(args: argparse.Namespace) -> int:
@@ -263,6 +315,13 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from .plots import plot_run
     from .recorded import RunDirError
 
+    run_dir = Path(args.run_dir)
+    if (run_dir / "campaign.json").is_file() and (run_dir / "batch.json").is_file():
+        from .campaign_plots import plot_campaign  # a batch directory: the campaign's figures
+
+        for f in plot_campaign(run_dir):
+            print(f)
+        return 0
     try:
         for f in plot_run(args.run_dir):
             print(f)
@@ -411,16 +470,34 @@ def build_parser() -> argparse.ArgumentParser:
                                       "parameters included, for editors)")
     s.set_defaults(fn=cmd_schema)
 
-    b = sub.add_parser("batch", help="N seeded runs in parallel processes; writes batch.json")
-    b.add_argument("mission")
-    b.add_argument("--trials", type=int, required=True)
-    b.add_argument("--workers", type=int, default=None)
-    b.add_argument("--seed", type=int, default=0, help="first seed; trial i uses seed+i")
+    b = sub.add_parser("batch", help="N seeded runs per condition on a process pool or a Ray cluster; writes batch.json")
+    b.add_argument("mission", nargs="?", help="mission file (omit with --resume)")
+    b.add_argument("--trials", type=int, default=None, help="trials per condition")
+    b.add_argument("--workers", type=int, default=None, help="local worker processes (or local Ray CPUs)")
+    b.add_argument("--seed", type=int, default=None, help="first seed (default 0); trial i uses seed+i")
     b.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    b.add_argument("--sweep", action="append", default=[], metavar="KEY=V1,V2,...",
+                   help="run every condition of the grid of the swept values (repeatable)")
     b.add_argument("--out", default=None, help="batch directory (default runs/batch-NAME-TIME)")
     b.add_argument("--max-time", default=None, help="as for run")
     b.add_argument("--keep-runs", action="store_true", help="also write every trial's run directory")
+    b.add_argument("--backend", choices=["pool", "ray"], default="pool",
+                   help="pool: local processes (default); ray: a Ray cluster (pip install 'taskflow[cluster]')")
+    b.add_argument("--address", default=None, help="with --backend ray: the cluster's head HOST:PORT "
+                   "(default: start a local cluster)")
+    b.add_argument("--resume", default=None, metavar="DIR", help="run the missing trials of the campaign in DIR")
+    b.add_argument("--plot", action="store_true", help="write the campaign's figures into its directory")
     b.set_defaults(fn=cmd_batch)
+
+    cm = sub.add_parser("compare", help="do two batches differ? success (Fisher, two-proportion z), "
+                        "metrics (Mann-Whitney)")
+    cm.add_argument("a", help="batch directory (or its batch.json)")
+    cm.add_argument("b", help="batch directory (or its batch.json)")
+    cm.add_argument("--metric", action="append", default=[], help="compare only this metric (repeatable)")
+    cm.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    cm.add_argument("--plot", default=None, metavar="FILE.png",
+                    help="both campaigns' success against the key they swept, on one figure")
+    cm.set_defaults(fn=cmd_compare)
 
     t = sub.add_parser("teach", help="render and store a visual path's keyframe images (teach by showing)")
     t.add_argument("mission")
@@ -429,7 +506,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     t.set_defaults(fn=cmd_teach)
 
-    p = sub.add_parser("plot", help="write the figures of a run directory as PNG")
+    p = sub.add_parser("plot", help="write the figures of a run directory (or of a batch directory) as PNG")
     p.add_argument("run_dir")
     p.set_defaults(fn=cmd_plot)
 

@@ -1,0 +1,145 @@
+"""``taskflow compare A B``: do two campaigns differ?
+
+For each pair of conditions (the one condition of each campaign; or conditions of equal label when both
+swept the same grid; or the single condition of one campaign against each of the other's):
+
+* mission success: both rates with their Wilson 95 % intervals, Fisher's exact test (two-sided p) and
+  the pooled two-proportion z test;
+* item success per foreach loop both campaigns have (screws, waypoints): the same, over items;
+* each numeric final metric both have (or the ones asked for): means with their t 95 % intervals and the
+  two-sided Mann–Whitney U test, which assumes nothing about the errors' distribution.
+
+``p < alpha`` (0.05) is reported as a difference.  With many metrics some will pass that by chance;
+the table says how many were tested.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .campaign import CampaignError
+from .stats import fisher_exact, mann_whitney, mean_interval, two_proportion_z, wilson_interval
+
+ALPHA = 0.05
+
+
+def load_batch(path: str | Path) -> dict[str, Any]:
+    """``batch.json`` of a batch directory (or the file itself)."""
+    p = Path(path)
+    f = p / "batch.json" if p.is_dir() else p
+    if not f.is_file():
+        raise CampaignError(f"{path}: {'no such file or directory' if not p.exists() else 'has no batch.json'}")
+    try:
+        data = json.loads(f.read_text())
+        data["trials"], data["aggregate"]  # noqa: B018 - the keys every batch.json has
+    except (ValueError, KeyError, TypeError):
+        raise CampaignError(f"{f}: not a batch.json written by taskflow batch") from None
+    if "conditions" not in data:  # written before sweeps: one condition
+        data["conditions"] = [{"index": 0, "label": "all", "aggregate": data["aggregate"]}]
+    return dict(data)
+
+
+def _pairs(a: dict[str, Any], b: dict[str, Any]) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+    ca, cb = a["conditions"], b["conditions"]
+    if len(ca) == 1 or len(cb) == 1:
+        return [(x, y) for x in ca for y in cb]
+    by_label = {c["label"]: c for c in cb}
+    if {c["label"] for c in ca} == set(by_label):
+        return [(c, by_label[c["label"]]) for c in ca]
+    raise CampaignError("the two campaigns swept different grids: compare campaigns with the same sweep, "
+                        "or one of them without a sweep")
+
+
+def _trials(batch: dict[str, Any], condition: dict[str, Any]) -> list[dict[str, Any]]:
+    return [t for t in batch["trials"] if t.get("condition", 0) == condition["index"]]
+
+
+def _values(trials: list[dict[str, Any]], metric: str) -> np.ndarray:
+    vals = [t.get("metrics", {}).get(metric) for t in trials]
+    return np.array([v for v in vals if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)],
+                    dtype=float)
+
+
+def _proportions(k1: int, n1: int, k2: int, n2: int) -> dict[str, Any]:
+    z, pz = two_proportion_z(k1, n1, k2, n2)
+    p = fisher_exact(k1, n1, k2, n2)
+    return {"a": [k1, n1], "b": [k2, n2], "rate_a": k1 / n1, "rate_b": k2 / n2,
+            "ci95_a": list(wilson_interval(k1, n1)), "ci95_b": list(wilson_interval(k2, n2)),
+            "fisher_p": p, "z": z, "z_p": pz, "differs": p < ALPHA}
+
+
+def _metric_names(trials: list[dict[str, Any]]) -> set[str]:
+    return {k for t in trials for k, v in t.get("metrics", {}).items()
+            if isinstance(v, (int, float)) and not isinstance(v, bool)}
+
+
+def compare(a: dict[str, Any], b: dict[str, Any], metrics: list[str] | None = None) -> list[dict[str, Any]]:
+    """One comparison per pair of conditions (see the module docstring)."""
+    out = []
+    for ca, cb in _pairs(a, b):
+        ta, tb = _trials(a, ca), _trials(b, cb)
+        if not ta or not tb:
+            raise CampaignError(f"condition {ca['label'] if not ta else cb['label']} has no finished trial")
+        common = sorted(_metric_names(ta) & _metric_names(tb))
+        if metrics:
+            unknown = [m for m in metrics if m not in common]
+            if unknown:
+                raise CampaignError(f"--metric {unknown[0]}: not a numeric metric of both campaigns; they have "
+                                    + (", ".join(common) or "none"))
+            common = list(metrics)
+        k = [sum(t["outcome"] == "succeeded" for t in ts) for ts in (ta, tb)]
+        entry: dict[str, Any] = {"a": ca["label"], "b": cb["label"],
+                                 "success": _proportions(k[0], len(ta), k[1], len(tb)), "items": {}, "metrics": {}}
+        items_a, items_b = ca["aggregate"].get("items", {}), cb["aggregate"].get("items", {})
+        for loop in sorted(set(items_a) & set(items_b)):
+            ia, ib = items_a[loop], items_b[loop]
+            if ia["attempted"] and ib["attempted"]:
+                entry["items"][loop] = _proportions(ia["succeeded"], ia["attempted"], ib["succeeded"], ib["attempted"])
+        for m in common:
+            va, vb = _values(ta, m), _values(tb, m)
+            if va.size == 0 or vb.size == 0:
+                continue
+            u, p = mann_whitney(va, vb)
+            ma, mb = mean_interval(va), mean_interval(vb)
+            entry["metrics"][m] = {"n_a": int(va.size), "n_b": int(vb.size), "mean_a": ma.mean, "mean_b": mb.mean,
+                                   "ci95_a": None if ma.low is None else [ma.low, ma.high],
+                                   "ci95_b": None if mb.low is None else [mb.low, mb.high],
+                                   "U": u, "p": p, "differs": p < ALPHA}
+        out.append(entry)
+    return out
+
+
+def _ci(ci: list[float] | None, scale: float = 1.0) -> str:
+    return "" if not ci else f" [{ci[0] * scale:.4g}, {ci[1] * scale:.4g}]"
+
+
+def format_comparison(names: tuple[str, str], results: list[dict[str, Any]]) -> str:
+    """The comparison as text, one block per pair of conditions."""
+    lines = []
+    for r in results:
+        if len(results) > 1 or r["a"] != "all" or r["b"] != "all":
+            lines.append(f"A: {r['a']}   B: {r['b']}")
+        rows = [("mission success", r["success"])] + [(f"items of {k}", v) for k, v in r["items"].items()]
+        for what, s in rows:
+            lines.append(f"{what}: A {s['a'][0]}/{s['a'][1]} = {100 * s['rate_a']:.1f} %{_ci(s['ci95_a'], 100)}   "
+                         f"B {s['b'][0]}/{s['b'][1]} = {100 * s['rate_b']:.1f} %{_ci(s['ci95_b'], 100)}   "
+                         f"Fisher p = {s['fisher_p']:.3g}, z = {s['z']:.2f} (p = {s['z_p']:.3g})"
+                         f"  -> {'DIFFERENT' if s['differs'] else 'no significant difference'}")
+        if r["metrics"]:
+            lines.append(f"{'metric':32s} {'mean A [95 %]':>30s} {'mean B [95 %]':>30s} {'Mann-Whitney p':>15s}")
+            for m, s in r["metrics"].items():
+                mean_a = f"{s['mean_a']:.4g}{_ci(s['ci95_a'])}"
+                mean_b = f"{s['mean_b']:.4g}{_ci(s['ci95_b'])}"
+                lines.append(f"{m:32s} {mean_a:>30s} {mean_b:>30s} {s['p']:15.3g}"
+                             + ("  DIFFERENT" if s["differs"] else ""))
+            n_diff = sum(s["differs"] for s in r["metrics"].values())
+            lines.append(f"{n_diff} of {len(r['metrics'])} metrics differ at p < {ALPHA} (expect about "
+                         f"{ALPHA * len(r['metrics']):.1f} by chance alone when they do not)")
+        lines.append("")
+    lines.append(f"A = {names[0]}, B = {names[1]}")
+    return "\n".join(lines)
