@@ -57,7 +57,8 @@ BoltLayout = tuple[tuple[float, float], ...]
 
 def bolt_layout_problem(bolts: BoltLayout) -> str | None:
     """What is wrong with a bolt layout (None: nothing): at least one bolt, every head wholly on the
-    part's top face, no two heads closer than two bolt radii (centre to centre: touching or overlapping)."""
+    part's top face and off the marker (a head on it would hide it from the camera), no two heads closer
+    than two bolt radii (centre to centre: touching or overlapping)."""
     if not bolts:
         return "the part needs at least one bolt"
     hx, hy = 0.5 * PART_SIZE[0] - BOLT_RADIUS, 0.5 * PART_SIZE[1] - BOLT_RADIUS
@@ -66,6 +67,13 @@ def bolt_layout_problem(bolts: BoltLayout) -> str | None:
             return (f"bolt {i} at ({x:g}, {y:g}) m is not on the part's top face: its centre must lie within "
                     f"|x| <= {hx:g} and |y| <= {hy:g} m of the face centre (a {PART_SIZE[0]:g} x {PART_SIZE[1]:g} m "
                     f"face, bolt radius {BOLT_RADIUS:g} m)")
+    mx, my, _ = MARKER_IN_P
+    reach = _texture_geometry()[2] + BOLT_RADIUS  # the marker quad's half side (with its quiet zone) + a head
+    for i, (x, y) in enumerate(bolts):
+        if abs(x - mx) < reach and abs(y - my) < reach:
+            return (f"bolt {i} at ({x:g}, {y:g}) m covers the ArUco marker: the marker (with its white margin) spans "
+                    f"x {mx - reach + BOLT_RADIUS:.3f}..{mx + reach - BOLT_RADIUS:.3f}, y {my - reach + BOLT_RADIUS:.3f}.."
+                    f"{my + reach - BOLT_RADIUS:.3f} m, and a head must stay {BOLT_RADIUS:g} m clear of it")
     for i, (xi, yi) in enumerate(bolts):
         for j in range(i):
             xj, yj = bolts[j]

@@ -1,8 +1,8 @@
 """``screw_conveyor``: the screw-fastening world of the paper (section 9) on PyBullet.
 
 A motor-cover part with bolts (the ``bolts`` layout in the part frame, four by default) and an ArUco
-marker moves on a conveyor (constant 50 mm/s) or on an irregularly pushed trolley (:mod:`taskflow_sim.screw_motion`); the mobile iiwa (:mod:`taskflow_sim.screw_robot`)
-follows it.  What the robot gets (:meth:`observe`):
+marker moves on a conveyor (constant 50 mm/s) or on an irregularly pushed trolley
+(:mod:`taskflow_sim.screw_motion`); the mobile iiwa (:mod:`taskflow_sim.screw_robot`) follows it.  What the robot gets (:meth:`observe`):
 
 * ``state``: ``q``/``qd`` (measured joints), ``q_ref`` (the joint reference the arm servo is
   heading to), ``base_twist`` (platform odometry twist ``v_x, v_y, ω_z``), ``odom`` (platform pose);
@@ -113,7 +113,7 @@ class ScrewWorldParams(StrictModel):
     bolts: tuple[tuple[float, float], ...] = Field(
         default=sc.BOLTS_XY,
         description="the part's bolt layout: [[x, y], ...] bolt centres in the part frame P (m; centre of the top face, "
-                    "x along the part); at least one, each head on the top face, no two closer than two bolt radii")
+                    "x along the part); at least one, each head on the top face and off the marker, no two closer than two bolt radii")
     robot_offset: tuple[float, float, float] = Field(
         default=(-0.30, 0.10, -0.30),
         description="platform start relative to its nominal pose beside the part: (along the conveyor, away from it, yaw) m, m, rad")

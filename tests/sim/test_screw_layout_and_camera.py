@@ -4,6 +4,7 @@ one parameter), and its camera's noise and dropout act in the rendered (ArUco) m
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -35,9 +36,10 @@ def _screws_in_marker(bolts: tuple[tuple[float, float], ...]) -> str:
     ([[0.195, 0.0]], "not on the part's top face"),
     ([[0.0, -0.115]], "not on the part's top face"),
     ([[0.0, 0.0], [0.01, 0.01]], "bolts 0 and 1 are 14.1 mm apart"),
+    ([[0.02, 0.06], [-0.06, 0.05]], "bolt 1 at (-0.06, 0.05) m covers the ArUco marker"),
 ])
 def test_an_invalid_bolt_layout_is_refused_at_load_with_what_is_wrong(bolts, words):
-    with pytest.raises(ValidationError, match=words):
+    with pytest.raises(ValidationError, match=re.escape(words)):
         ScrewConveyor.Params(bolts=bolts)
     override = f"world.params.bolts={bolts}"
     with pytest.raises(MissionError) as exc:
