@@ -6,6 +6,10 @@
   the lower reprojection error is taken unless the two are close, in which case the one nearer the
   previous estimate wins (the flip of SIMULATOR_NOTES.md).  Intrinsics: ``fx = fy = H / (2 tan(fovy/2))``,
   principal point ``(W/2, H/2 − 1)``.
+  The camera's sensor noise is added to every rendered image (:class:`ImageNoise`: white Gaussian
+  noise of ``image_noise`` grey levels per pixel from the world's seeded stream) before detection, so
+  the corner jitter comes out of the detector as on a real camera — larger for a small, blurred or
+  low-contrast marker, smaller for a large sharp one — instead of a fixed pixel error on the corners.
 * ``pose`` (default, tests and batches) — the true ``H_co`` with a noise, a latency and a dropout
   calibrated against the rendered mode (``benchmarks/screw_fastening.py --calibrate`` measures it):
   translation noise along the camera's x/y and, larger, along its viewing axis z, a rotation noise,
@@ -14,7 +18,8 @@
   camera, within range).
 
 Both modes report a :class:`MarkerDetection` with the capture time; it becomes visible to the robot
-``latency`` seconds later (image transfer + processing, as on the real system).
+``latency`` seconds later (image transfer + processing, as on the real system).  The world's
+``dropout`` (a frame that misses the marker) acts in both modes (:mod:`taskflow_sim.screw_world`).
 """
 
 from __future__ import annotations
@@ -119,6 +124,21 @@ class PoseNoise:
         return out
 
 
+@dataclass
+class ImageNoise:
+    """A camera's temporal pixel noise: white Gaussian, std ``sigma`` grey levels (8 bit), drawn from
+    ``rng`` for every pixel of every image, the result rounded and clipped to 0..255 as a sensor's ADC."""
+
+    rng: np.random.Generator
+    sigma: float
+
+    def apply(self, gray: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        if self.sigma <= 0.0:
+            return gray
+        noisy = gray + self.rng.normal(0.0, self.sigma, gray.shape)
+        return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+
+
 def window_projection(cam: CameraParams, u0: int, v0: int, w: int, h: int) -> list[float]:
     """OpenGL projection (column-major) rendering only the window ``[u0, u0+w) x [v0, v0+h)`` of the
     full ``cam`` image, with the full image's pinhole ``K`` (principal point ``(W/2, H/2 − 1)``).
@@ -144,9 +164,11 @@ class RenderedDetector:
     The camera is ``cam`` (e.g. 1280x960); each frame renders only a ``roi`` x ``roi`` window around
     where the marker is expected (the last detection moved by its last displacement), or, without a
     recent detection, the whole field of view at ``search_scale`` of the resolution to find it.
+    ``noise`` (None: a noiseless camera) is added to every rendered image before detection.
     """
 
-    def __init__(self, client: int, cam: CameraParams, roi: int = 320, search_scale: float = 0.25) -> None:
+    def __init__(self, client: int, cam: CameraParams, roi: int = 320, search_scale: float = 0.25,
+                 noise: ImageNoise | None = None) -> None:
         import cv2
 
         self.cv2 = cv2
@@ -161,6 +183,7 @@ class RenderedDetector:
         self.obj = marker_corners().astype(np.float64)
         self.roi = int(min(roi, cam.width, cam.height))
         self.search_scale = search_scale
+        self.noise = noise
         self.last: NDArray[np.float64] | None = None
         self.last_center: NDArray[np.float64] | None = None
         self.prev_center: NDArray[np.float64] | None = None
@@ -176,7 +199,8 @@ class RenderedDetector:
         img = p.getCameraImage(w, h, view, proj, renderer=p.ER_TINY_RENDERER, shadow=0,
                                flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=self.client)
         rgb = np.reshape(np.asarray(img[2], dtype=np.uint8), (h, w, 4))[:, :, :3]
-        return self.cv2.cvtColor(rgb, self.cv2.COLOR_RGB2GRAY)
+        gray = self.cv2.cvtColor(rgb, self.cv2.COLOR_RGB2GRAY)
+        return gray if self.noise is None else self.noise.apply(gray)
 
     def render_full(self, H_wc: NDArray[np.float64], scale: float = 1.0) -> NDArray[np.uint8]:
         """The whole field of view at ``scale`` of the camera's resolution."""

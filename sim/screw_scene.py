@@ -1,5 +1,6 @@
-"""The screw-fastening scene: a floor, a conveyor, the motor-cover part with four bolts and an ArUco
-marker, and the mobile iiwa.
+"""The screw-fastening scene: a floor, a conveyor, the motor-cover part with its bolts (a layout in
+``P``: the world's ``bolts`` parameter, :data:`BOLTS_XY` by default) and an ArUco marker, and the
+mobile iiwa.
 
 Part frame ``P``: centre of the part's top face, x along its length (the conveyor's direction at
 yaw 0), z up.  The object frame ``o`` of the paper is the **marker frame** (OpenCV/ArUco convention:
@@ -18,6 +19,7 @@ soft (``contactStiffness``/``contactDamping``).
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 from dataclasses import dataclass
@@ -35,7 +37,7 @@ CONVEYOR_WIDTH = 0.40
 CONVEYOR_LENGTH = 8.0
 BOLT_RADIUS = 0.008
 BOLT_HEIGHT = 0.008
-BOLTS_XY = ((0.02, 0.06), (0.02, -0.06), (0.12, 0.06), (0.12, -0.06))  # in P (m)
+BOLTS_XY = ((0.02, 0.06), (0.02, -0.06), (0.12, 0.06), (0.12, -0.06))  # the default layout, in P (m)
 MARKER_SIZE = 0.10  # black square side (m)
 MARKER_QUIET = 0.015  # white margin around it (m), rounded to whole texture pixels in marker_texture()
 MARKER_IN_P = (-0.12, 0.0, 0.0005)
@@ -49,10 +51,43 @@ def part_top_height() -> float:
     return CONVEYOR_TOP + PART_SIZE[2]
 
 
-def bolt_frames_in_P() -> list[NDArray[np.float64]]:
-    """Bolt operation frames ``H_Pt_i`` (head top centre, z into the part)."""
+BoltLayout = tuple[tuple[float, float], ...]
+"""Bolt centres ``(x, y)`` in the part frame ``P`` (m), one per bolt, in the world's bolt order."""
+
+
+def bolt_layout_problem(bolts: BoltLayout) -> str | None:
+    """What is wrong with a bolt layout (None: nothing): at least one bolt, every head wholly on the
+    part's top face and off the marker (a head on it would hide it from the camera), no two heads closer
+    than two bolt radii (centre to centre: touching or overlapping)."""
+    if not bolts:
+        return "the part needs at least one bolt"
+    hx, hy = 0.5 * PART_SIZE[0] - BOLT_RADIUS, 0.5 * PART_SIZE[1] - BOLT_RADIUS
+    for i, (x, y) in enumerate(bolts):
+        if abs(x) > hx or abs(y) > hy:
+            return (f"bolt {i} at ({x:g}, {y:g}) m is not on the part's top face: its centre must lie within "
+                    f"|x| <= {hx:g} and |y| <= {hy:g} m of the face centre (a {PART_SIZE[0]:g} x {PART_SIZE[1]:g} m "
+                    f"face, bolt radius {BOLT_RADIUS:g} m)")
+    mx, my, _ = MARKER_IN_P
+    reach = _texture_geometry()[2] + BOLT_RADIUS  # the marker quad's half side (with its quiet zone) + a head
+    for i, (x, y) in enumerate(bolts):
+        if abs(x - mx) < reach and abs(y - my) < reach:
+            return (f"bolt {i} at ({x:g}, {y:g}) m covers the ArUco marker: the marker (with its white margin) spans "
+                    f"x {mx - reach + BOLT_RADIUS:.3f}..{mx + reach - BOLT_RADIUS:.3f}, y {my - reach + BOLT_RADIUS:.3f}.."
+                    f"{my + reach - BOLT_RADIUS:.3f} m, and a head must stay {BOLT_RADIUS:g} m clear of it")
+    for i, (xi, yi) in enumerate(bolts):
+        for j in range(i):
+            xj, yj = bolts[j]
+            d = math.hypot(xi - xj, yi - yj)
+            if d < 2.0 * BOLT_RADIUS:
+                return (f"bolts {j} and {i} are {d * 1e3:.1f} mm apart (centre to centre); two heads need at least "
+                        f"{2e3 * BOLT_RADIUS:g} mm (two bolt radii)")
+    return None
+
+
+def bolt_frames_in_P(bolts: BoltLayout = BOLTS_XY) -> list[NDArray[np.float64]]:
+    """Bolt operation frames ``H_Pt_i`` (head top centre, z into the part) of the layout ``bolts``."""
     out = []
-    for x, y in BOLTS_XY:
+    for x, y in bolts:
         out.append(transform(R_PT, (x, y, BOLT_HEIGHT)))
     return out
 
@@ -62,10 +97,10 @@ def marker_in_P() -> NDArray[np.float64]:
     return transform(np.eye(3), MARKER_IN_P)
 
 
-def screw_poses_in_marker() -> list[NDArray[np.float64]]:
-    """The true ``H_ot_i`` (what a mission's ``screws`` parameter should hold)."""
+def screw_poses_in_marker(bolts: BoltLayout = BOLTS_XY) -> list[NDArray[np.float64]]:
+    """The true ``H_ot_i`` of the layout ``bolts`` (what a mission's ``screws`` parameter should hold)."""
     H_mP = inverse(marker_in_P())
-    return [H_mP @ H for H in bolt_frames_in_P()]
+    return [H_mP @ H for H in bolt_frames_in_P(bolts)]
 
 
 TEXTURE_PX_PER_CELL = 64
@@ -135,13 +170,13 @@ def add_floor_and_conveyor(client: int) -> tuple[int, int]:
     return floor, conveyor
 
 
-def add_part(client: int, contact_stiffness: float, contact_damping: float) -> PartBodies:
-    """The part: box + four bolt heads (one static compound body) with the marker quad as link 0."""
+def add_part(client: int, contact_stiffness: float, contact_damping: float, bolts: BoltLayout = BOLTS_XY) -> PartBodies:
+    """The part: box + the bolt heads of ``bolts`` (one static compound body) with the marker quad as link 0."""
     lx, ly, lz = PART_SIZE
     shapes_col = [dict(shapeType=p.GEOM_BOX, halfExtents=[0.5 * lx, 0.5 * ly, 0.5 * lz])]
     pos = [[0.0, 0.0, -0.5 * lz]]
     vis_kw = [dict(shapeType=p.GEOM_BOX, halfExtents=[0.5 * lx, 0.5 * ly, 0.5 * lz], rgbaColor=[0.55, 0.6, 0.65, 1.0])]
-    for x, y in BOLTS_XY:
+    for x, y in bolts:
         shapes_col.append(dict(shapeType=p.GEOM_CYLINDER, radius=BOLT_RADIUS, height=BOLT_HEIGHT))
         vis_kw.append(dict(shapeType=p.GEOM_CYLINDER, radius=BOLT_RADIUS, length=BOLT_HEIGHT, rgbaColor=[0.8, 0.7, 0.2, 1.0]))
         pos.append([x, y, 0.5 * BOLT_HEIGHT])

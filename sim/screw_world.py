@@ -1,8 +1,8 @@
 """``screw_conveyor``: the screw-fastening world of the paper (section 9) on PyBullet.
 
-A motor-cover part with four bolts and an ArUco marker moves on a conveyor (constant 50 mm/s) or on
-an irregularly pushed trolley (:mod:`taskflow_sim.screw_motion`); the mobile iiwa (:mod:`taskflow_sim.screw_robot`)
-follows it.  What the robot gets (:meth:`observe`):
+A motor-cover part with bolts (the ``bolts`` layout in the part frame, four by default) and an ArUco
+marker moves on a conveyor (constant 50 mm/s) or on an irregularly pushed trolley
+(:mod:`taskflow_sim.screw_motion`); the mobile iiwa (:mod:`taskflow_sim.screw_robot`) follows it.  What the robot gets (:meth:`observe`):
 
 * ``state``: ``q``/``qd`` (measured joints), ``q_ref`` (the joint reference the arm servo is
   heading to), ``base_twist`` (platform odometry twist ``v_x, v_y, ω_z``), ``odom`` (platform pose);
@@ -59,7 +59,9 @@ framework's to count):
 * ``final_base_speed_mps`` and ``final_arm_speed_radps`` (ground truth, as in :meth:`ground_truth`),
   ``final_part_x_m``; the marker pose error at capture against the truth (``perception_rms_xy_mm``
   across the view, ``perception_rms_z_mm`` along it, ``perception_rms_r_deg``) — measured in the
-  rendered mode, injected in the pose mode.
+  rendered mode, injected in the pose mode; in the rendered mode ``rendered_frames`` (images
+  processed), ``rendered_searches`` (full-view searches) and ``rendered_dropped`` (frames the dropout
+  skipped).
 
 :meth:`safe_stop` brakes the platform to rest at the robot's ``brake_decel`` (0.5 s from the 1 m/s
 speed limit with the default 2 m/s²), holds the arm's reference where it is, and stops the
@@ -75,14 +77,14 @@ from typing import Any, ClassVar, Literal, Mapping, cast
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
 from taskflow_sim import screw_scene as sc
 from taskflow_sim.car_scene import connect
 from taskflow_sim.faults import FaultIntervals, IntervalFault
 from taskflow_sim.screw_motion import PartMotion
-from taskflow_sim.screw_perception import MarkerDetection, PoseNoise, RenderedDetector, visible
+from taskflow_sim.screw_perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow_sim.screwdriver import BitErrors, Screwdriver
 from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
@@ -108,6 +110,10 @@ class ScrewWorldParams(StrictModel):
     trolley_tau: float = Field(default=1.5, gt=0.0, description="correlation time of the fluctuations (s)")
     trolley_yaw_gain: float = Field(default=0.5, ge=0.0, description="part yaw change per heading change")
     part_start: tuple[float, float, float] = (-0.60, 0.0, 0.0)
+    bolts: tuple[tuple[float, float], ...] = Field(
+        default=sc.BOLTS_XY,
+        description="the part's bolt layout: [[x, y], ...] bolt centres in the part frame P (m; centre of the top face, "
+                    "x along the part); at least one, each head on the top face and off the marker, no two closer than two bolt radii")
     robot_offset: tuple[float, float, float] = Field(
         default=(-0.30, 0.10, -0.30),
         description="platform start relative to its nominal pose beside the part: (along the conveyor, away from it, yaw) m, m, rad")
@@ -119,7 +125,9 @@ class ScrewWorldParams(StrictModel):
     noise_r: float = Field(default=math.radians(0.068), ge=0.0, description="pose mode: rotation std per axis (rad)")
     noise_tau: float = Field(default=0.1, ge=0.0, description="pose mode: noise correlation time (s)")
     latency: float = Field(default=0.025, ge=0.0, description="capture → available to the robot (s)")
-    dropout: float = Field(default=0.01, ge=0.0, lt=1.0, description="probability a frame misses the marker")
+    dropout: float = Field(default=0.01, ge=0.0, lt=1.0, description="probability a frame misses the marker (both modes)")
+    image_noise: float = Field(default=2.0, ge=0.0, le=64.0,
+                               description="rendered mode: std of the camera's pixel noise (8-bit grey levels), seeded")
     roi_px: int = Field(default=224, gt=32, description="rendered mode: region-of-interest side (px)")
     lost_after: float = Field(default=0.2, gt=0.0, description="no detection for this long → target_lost (s); longer than one camera period")
     occlusions: FaultIntervals = Field(default_factory=list, description="[t0, t1] intervals hiding the marker (s)")
@@ -128,6 +136,14 @@ class ScrewWorldParams(StrictModel):
     contact_damping: float = Field(default=200.0, ge=0.0)
     ft_noise: float = Field(default=0.05, ge=0.0, description="F/T sensor force noise std (N)")
     fasten_s: float = Field(default=3.0, gt=0.0, le=600.0, description="default fastening duration (s)")
+
+    @field_validator("bolts")
+    @classmethod
+    def _bolt_layout(cls, bolts: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
+        problem = sc.bolt_layout_problem(bolts)
+        if problem is not None:
+            raise ValueError(problem)
+        return bolts
 
 
 class ScrewdriverParams(StrictModel):
@@ -154,7 +170,8 @@ def nominal_platform(part: tuple[float, float, float]) -> tuple[float, float, fl
 @dataclass
 class MarkerStream:
     """The camera's marker detections: when frames are taken (``schedule``, at the camera's rate), the
-    occlusion fault, the pose-mode noise and dropout stream (``rng``) or the rendered ``detector``,
+    occlusion fault, the pose-mode noise and the dropout stream (``rng``, both modes), the rendered
+    ``detector`` (None in the pose mode), ``dropped``: rendered frames the dropout skipped,
     detections in flight (``queue``, delivered after the latency), the perception error of every
     detection against the truth (``errors``: m across the view, m along it, rad) and the lost/found
     bookkeeping (``last_seen``: capture time of the last delivered detection)."""
@@ -168,6 +185,7 @@ class MarkerStream:
     errors: list[tuple[float, float, float]] = field(default_factory=list)
     last_seen: float | None = None
     visible: bool = False
+    dropped: int = 0
 
 
 @dataclass
@@ -198,7 +216,7 @@ class WrenchSensor:
 
 @register_world("screw_conveyor")
 class ScrewConveyor(SteppedWorld):
-    """The mobile iiwa fastening four bolts on a part carried by a conveyor or a trolley."""
+    """The mobile iiwa fastening the bolts of a part carried by a conveyor or a trolley."""
 
     Params: ClassVar[type[ScrewWorldParams]] = ScrewWorldParams
     events: ClassVar[tuple[str, ...]] = ("target_lost", "target_found")
@@ -218,9 +236,14 @@ class ScrewConveyor(SteppedWorld):
 
     @classmethod
     def scene(cls, params: BaseModel) -> list[Marker]:
-        """Where the part starts (its path is the ``part`` pose of the trace)."""
-        x, y, yaw = cast(ScrewWorldParams, params).part_start
-        return [Marker.point("object", "part at start", x, y, yaw=yaw)]
+        """Where the part starts (its path is the ``part`` pose of the trace) and its bolts there (the
+        ``bolts`` layout placed with the part's start pose, each a circle of the bolt radius)."""
+        wp = cast(ScrewWorldParams, params)
+        x, y, yaw = wp.part_start
+        c, s = math.cos(yaw), math.sin(yaw)
+        return [Marker.point("object", "part at start", x, y, yaw=yaw),
+                *(Marker.point("object", f"bolt {i}", x + c * bx - s * by, y + s * bx + c * by, radius=sc.BOLT_RADIUS)
+                  for i, (bx, by) in enumerate(wp.bolts))]
     robot: MobileIiwa
 
     def __init__(self, robot: Robot, params: ScrewWorldParams, seed: int, gui: bool = False) -> None:
@@ -239,7 +262,7 @@ class ScrewConveyor(SteppedWorld):
         # those propagate into the screw missions' traces (they were recorded with this one)
         self._H_cb = np.linalg.inv(self.H_bc)
         self._H_Pm = sc.marker_in_P()
-        self._bolts_P = sc.bolt_frames_in_P()
+        self._bolts_P = sc.bolt_frames_in_P(params.bolts)
         self._cam_K = rp.camera.K()
 
     # -- lifecycle -----------------------------------------------------------------------------
@@ -248,9 +271,10 @@ class ScrewConveyor(SteppedWorld):
         wp, rp = self.params, self.robot.params
         self.client = c = connect(self.gui, self.physics_hz)
         sc.add_floor_and_conveyor(c)
-        self.part = sc.add_part(c, wp.contact_stiffness, wp.contact_damping)
+        self.part = sc.add_part(c, wp.contact_stiffness, wp.contact_damping, wp.bolts)
         root = np.random.SeedSequence(self.seed)
-        r_motion, r_sense, r_ft = (np.random.default_rng(s) for s in root.spawn(3))
+        # the fourth stream (the rendered camera's pixel noise) leaves the first three as they were
+        r_motion, r_sense, r_ft, r_image = (np.random.default_rng(s) for s in root.spawn(4))
         x0, y0, yaw0 = wp.part_start
         self.motion = PartMotion(wp.motion, x0, y0, yaw0, wp.speed, wp.direction, r_motion,
                                  wp.trolley_speed_sigma, wp.trolley_heading_sigma, wp.trolley_tau, wp.trolley_yaw_gain)
@@ -265,7 +289,8 @@ class ScrewConveyor(SteppedWorld):
                          contactDamping=wp.contact_damping, lateralFriction=0.3, physicsClientId=c)
         self.stream = MarkerStream(
             SensorSchedule(rp.camera.rate_hz), self.occlusions, PoseNoise(r_sense, wp.noise_xy, wp.noise_z, wp.noise_r, wp.noise_tau),
-            r_sense, RenderedDetector(c, rp.camera, roi=wp.roi_px) if wp.perception == "rendered" else None)
+            r_sense, RenderedDetector(c, rp.camera, roi=wp.roi_px, noise=ImageNoise(r_image, wp.image_noise))
+            if wp.perception == "rendered" else None)
         self.force = WrenchSensor.for_tool(rp.tool, r_ft, wp.ft_noise)
         self.screwdriver = Screwdriver(rp.tool)
         self.restart_clock()
@@ -412,7 +437,11 @@ class ScrewConveyor(SteppedWorld):
         if st.occlusions.active(t):
             det = MarkerDetection(t, None)
         elif st.detector is not None:
-            det = st.detector(self.body.camera_pose(), t)
+            if st.rng.random() < wp.dropout:  # the frame misses the marker: nothing to render or detect
+                st.dropped += 1
+                det = MarkerDetection(t, None)
+            else:
+                det = st.detector(self.body.camera_pose(), t)
         else:
             H = self.true_H_co()
             if not visible(self.robot.params.camera, H, K=self._cam_K) or st.rng.random() < wp.dropout:
@@ -556,4 +585,5 @@ class ScrewConveyor(SteppedWorld):
         if self.detector is not None:
             out["rendered_frames"] = self.detector.frames
             out["rendered_searches"] = self.detector.searches
+            out["rendered_dropped"] = self.stream.dropped
         return out

@@ -30,7 +30,10 @@ object's base centre in the robot frame), ``err_x, err_y`` (that minus the manip
 ``summary_metrics()``: ``final_error_x_m``, ``final_error_y_m``, ``final_error_m`` (object in the robot
 frame at the end minus ``goal``), detection counts (``frames``, ``detections``, ``detections_missed`` —
 frames the dropout model dropped while the object was in view, ``dropout_fraction``), motion statistics
-(``v_sign_changes``, ``v_sign_changes_last_5s``, ``path_length_m``) and the object's kind and placement.
+(``v_sign_changes``, ``v_sign_changes_last_5s``, ``path_length_m``), the object's kind and placement,
+and from the ground truth at every control tick (:mod:`taskflow_sim.viki_clearance`) ``min_clearance_m``
+— the smallest distance over the run between the car's body footprint and the object's footprint, 0
+when they touched — and ``contact`` (they ever touched: footprints overlapping or a PyBullet contact).
 The wall-clock cost of each frame's perception is reported as the observation's ``timings["perception"]``
 (``timing.json``: ``world.perception``), never in the summary.
 """
@@ -42,15 +45,18 @@ import time
 from typing import Any, ClassVar, Literal, cast
 
 import numpy as np
+import pybullet as p
 from pydantic import BaseModel, Field, model_validator
 
 from taskflow_robots.racecar import CameraMount
+from taskflow_sim.bodies import BodyOptions, make_body
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
 from taskflow.spatial import rotation_from_unit_quaternion, transform
 from taskflow_sim.perception_common import CameraModel, DropoutModel
 from taskflow_sim.perception_geometric import GeometricPerception
 from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
 from taskflow_sim.stepped import SensorSchedule
+from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
 from taskflow.api import Marker, ObsSpec, Observation, Robot, RobotNeeds, message, text
 from taskflow.messages import Detection
@@ -145,6 +151,9 @@ class VikiGround(FlatGround):
         self._v_trace: list[tuple[float, float]] = []
         self._path = 0.0
         self._last_xy: tuple[float, float] | None = None
+        self._footprint: Footprint | None = None
+        self.min_clearance = math.inf
+        self.contact = False
 
     # --- scene ---------------------------------------------------------------------------------
     @classmethod
@@ -162,6 +171,7 @@ class VikiGround(FlatGround):
         self.object = PlacedObject(SHAPES[wp.object_kind], float(ox), float(oy), float(wp.object_yaw))
         scene = self._require_scene()
         self.object_body = create_body(scene.client, self.object)
+        self._footprint = measure_footprint(make_body(self.robot, BodyOptions()))
         mounts: dict[str, CameraMount] = {"front": rp.front_camera, "rear": rp.rear_camera}
         for name in ("front", "rear"):
             m = mounts[name]
@@ -212,7 +222,8 @@ class VikiGround(FlatGround):
         obs = super().observe()
         v = float(obs.state["v"])  # FlatGround's measured speed is the simulator's (no noise on it)
         self._v_trace.append((self.t, v))
-        x, y, _ = self._require_scene().car.pose()
+        x, y, yaw = self._require_scene().car.pose()
+        self._track_clearance((float(x), float(y), float(yaw)))
         if self._last_xy is not None:
             self._path += math.hypot(x - self._last_xy[0], y - self._last_xy[1])
         self._last_xy = (float(x), float(y))
@@ -226,6 +237,18 @@ class VikiGround(FlatGround):
         obs.events = tuple(self._events)
         self._events = []
         return obs
+
+    def _track_clearance(self, pose: tuple[float, float, float]) -> None:
+        """Ground truth, once per control tick: the footprint clearance to the object, and whether the two
+        bodies touch (a PyBullet contact point between them counts even where the footprint misses it,
+        e.g. a steered front wheel: the clearance is then 0)."""
+        scene = self._require_scene()
+        assert self._footprint is not None
+        d = footprint_clearance(self._footprint, pose, self._require_object())
+        if p.getContactPoints(scene.car.body, self.object_body, physicsClientId=scene.client):
+            d = 0.0
+        self.min_clearance = min(self.min_clearance, d)
+        self.contact = self.contact or d == 0.0
 
     def _new_frame(self, name: str) -> float:
         """Capture and detect on camera ``name``; returns the wall-clock seconds perception took."""
@@ -319,6 +342,8 @@ class VikiGround(FlatGround):
             "v_sign_changes": _sign_changes(vs),
             "v_sign_changes_last_5s": _sign_changes(vs[ts >= ts[-1] - 5.0]) if ts.size else 0,
             "path_length_m": self._path,
+            "min_clearance_m": self.min_clearance if math.isfinite(self.min_clearance) else None,
+            "contact": self.contact,
         })
         return out
 
