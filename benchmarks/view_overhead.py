@@ -29,14 +29,9 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _browser() -> Any:
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
+    from taskflow.testing import headless_chromium
 
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = "/usr/bin/chromium"
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--window-size=1400,1000"):
-        opts.add_argument(arg)
-    return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=opts)
+    return headless_chromium()
 
 
 def one_run(mission: str, sets: list[str], out: Path, view: bool, browser: Any) -> dict[str, Any]:

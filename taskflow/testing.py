@@ -224,3 +224,39 @@ def load_mission() -> Callable[..., CompiledMission]:
         return _load(path, overrides)
 
     return _loader
+
+
+# -- a real browser for page tests ----------------------------------------------------------------
+
+
+def _on_path(*names: str) -> str | None:
+    import shutil
+
+    for n in names:
+        found = shutil.which(n) or (f"/usr/bin/{n}" if Path(f"/usr/bin/{n}").is_file() else None)
+        if found:
+            return found
+    return None
+
+
+def browser_paths() -> tuple[str | None, str | None]:
+    """The distribution's Chromium and chromedriver (None where missing)."""
+    return _on_path("chromium", "chromium-browser", "google-chrome"), _on_path("chromedriver")
+
+
+def headless_chromium(window: tuple[int, int] = (1400, 1000)) -> Any:
+    """A headless Chromium driven by selenium (a test dependency), for tests, benchmarks and screenshots of
+    the web view; the caller quits it.  Raises RuntimeError naming what is missing."""
+    chromium, driver = browser_paths()
+    if chromium is None or driver is None:
+        raise RuntimeError("a headless browser needs the distribution's chromium and chromedriver "
+                           "(apt-get install chromium chromium-driver)")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = chromium
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                f"--window-size={window[0]},{window[1]}"):
+        opts.add_argument(arg)
+    return webdriver.Chrome(service=Service(driver), options=opts)

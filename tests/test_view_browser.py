@@ -16,7 +16,6 @@ show the states and values of the record.
 from __future__ import annotations
 
 import json
-import shutil
 import threading
 import time
 from pathlib import Path
@@ -28,7 +27,7 @@ from taskflow.control_http import ControlClient, ControlServer
 from taskflow.loader import load_mission
 from taskflow.records import read_trace
 from taskflow.runtime import RunResult
-from taskflow.testing import Script, drive
+from taskflow.testing import Script, browser_paths, drive, headless_chromium
 from taskflow.view_http import serve_replay
 
 HERE = Path(__file__).resolve().parent
@@ -36,16 +35,7 @@ TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 DT = 1.0 / 20  # the toy mission's rate
 
 
-def _which(*names: str) -> str | None:
-    for n in names:
-        found = shutil.which(n) or (f"/usr/bin/{n}" if Path(f"/usr/bin/{n}").is_file() else None)
-        if found:
-            return found
-    return None
-
-
-CHROMIUM = _which("chromium", "chromium-browser", "google-chrome")
-DRIVER = _which("chromedriver")
+CHROMIUM, DRIVER = browser_paths()
 _MISSING = [name for name, path in (("chromium", CHROMIUM), ("chromedriver", DRIVER)) if path is None]
 pytestmark = pytest.mark.skipif(bool(_MISSING), reason=(
     f"no {' and no '.join(_MISSING)} on this machine: the browser test needs the distribution's chromium and "
@@ -66,15 +56,7 @@ def _script(slow: bool) -> Script:
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = CHROMIUM  # type: ignore[assignment]
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                "--window-size=1400,1000"):
-        opts.add_argument(arg)
-    driver = webdriver.Chrome(service=Service(DRIVER), options=opts)
+    driver = headless_chromium()
     yield driver
     driver.quit()
 
