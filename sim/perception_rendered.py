@@ -3,7 +3,8 @@
 Per frame of the active camera:
 
 * ``getCameraImage`` (TinyRenderer, DIRECT) at the camera's resolution with the camera model of
-  :mod:`taskflow_sim.perception_common` (vertical FOV, principal point ``(W/2, H/2 - 1)``);
+  :mod:`taskflow_sim.perception_common` (vertical FOV, principal point ``(W/2, H/2 - 1)``); its colour
+  image is kept as ``last_rgb`` (a read-only view, no copy) for the world to publish;
 * bounding box = extents of the object's pixels in the segmentation mask (a perfect detector; misses
   come from the shared dropout model), edges at ``.5`` (OpenCV convention); fewer than ``min_pixels``
   pixels → no detection;
@@ -99,6 +100,7 @@ class RenderedPerception:
         self.fusion_s = 0.0
         self.frames = 0
         self.last_depth: NDArray[np.float64] | None = None
+        self.last_rgb: NDArray[np.uint8] | None = None  # the last frame's colour image (H, W, 3), read-only
 
     def detect(self, T_world_camera: NDArray[np.float64], t: float, T_world_robot: NDArray[np.float64]) -> tuple[
             tuple[float, float, float, float] | None, float | None, Callable[[float, float], float | None],
@@ -108,11 +110,15 @@ class RenderedPerception:
         eye = T_world_camera[:3, 3]
         view = p.computeViewMatrix(eye.tolist(), (eye + T_world_camera[:3, 2]).tolist(), (-T_world_camera[:3, 1]).tolist())
         t0 = time.perf_counter()
-        _, _, _, zbuf, seg = p.getCameraImage(W, H, view, self._proj, shadow=0, renderer=p.ER_TINY_RENDERER,
+        _, _, rgba, zbuf, seg = p.getCameraImage(W, H, view, self._proj, shadow=0, renderer=p.ER_TINY_RENDERER,
                                               physicsClientId=self.client)
         t1 = time.perf_counter()
         self.render_s += t1 - t0
         self.frames += 1
+        # the colour image TinyRenderer drew anyway: a view of its RGBA buffer, no copy (published by the world)
+        rgb = np.reshape(np.asarray(rgba, dtype=np.uint8), (H, W, 4))[:, :, :3]
+        rgb.setflags(write=False)
+        self.last_rgb = rgb
         d = np.reshape(np.asarray(zbuf, dtype=np.float64), (H, W))
         depth = m.far * m.near / (m.far - (m.far - m.near) * d)
         depth = np.where((d < 1.0 - 1e-7) & (depth <= cam.depth_max), depth, 0.0)

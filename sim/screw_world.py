@@ -10,7 +10,11 @@ marker moves on a conveyor (constant 50 mm/s) or on an irregularly pushed trolle
   (``T_camera_object``, stamped with its capture time, ``seq`` = n) once its latency has passed (None
   before the first), ``wrench`` — the tool's contact :class:`taskflow.messages.Wrench` (force N, torque
   N·m about the tool joint) in the ``tool`` frame, from PyBullet's F/T sensor on the fixed
-  ``tool_joint`` minus the screwdriver's weight (a gravity-compensated sensor);
+  ``tool_joint`` minus the screwdriver's weight (a gravity-compensated sensor); in the rendered mode
+  ``image`` — the grey image the ArUco detector was given for the latest frame it processed, a
+  :class:`taskflow.messages.Image` in frame ``camera`` stamped with its capture time (no extra
+  rendering: the region of interest at full resolution, or the coarse full view of a search; None
+  before the first such frame, and frames that dropout or an occlusion skipped render none);
 * ``events``: ``target_found`` on the first detection after the marker was lost (or never seen),
   ``target_lost`` when no detection has been captured for ``lost_after`` seconds; the screwdriver's
   end events.
@@ -89,7 +93,7 @@ from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow_sim.screwdriver import BitErrors, Screwdriver
 from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
 from taskflow.api import Command, Marker, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message
-from taskflow.messages import MarkerPose, Wrench
+from taskflow.messages import Image, MarkerPose, Wrench
 from taskflow.registry import register_world
 from taskflow.spatial import rotation_angle
 
@@ -230,7 +234,8 @@ class ScrewConveyor(SteppedWorld):
     action_params: ClassVar[dict[str, type[BaseModel]]] = {"screwdriver": ScrewdriverParams}
     needs: ClassVar[RobotNeeds] = RobotNeeds(interfaces=("base_arm",), sensors={"camera": "rgb_camera"})
     observations: ClassVar[dict[str, ObsSpec]] = {"sensors.marker": message(MarkerPose),
-                                                  "sensors.wrench": message(Wrench, optional=False)}
+                                                  "sensors.wrench": message(Wrench, optional=False),
+                                                  "sensors.image": message(Image)}  # rendered mode only
 
     params: ScrewWorldParams
 
@@ -299,6 +304,7 @@ class ScrewConveyor(SteppedWorld):
         self._base_rate = (0.0, 0.0)  # ground truth: platform speed (m/s) and yaw rate (rad/s) over the last step
         # what the robot receives: the latest delivered marker detection (numbered) and the wrench
         self._marker: MarkerPose | None = None
+        self._image: Image | None = None  # rendered mode: the detector's latest image
         self._seq = 0
         self._wrench = np.zeros(6)
         if self.gui:
@@ -368,8 +374,11 @@ class ScrewConveyor(SteppedWorld):
         ps = self.body.platform
         state = {"q": q, "qd": qd, "q_ref": self.body.q_ref_target.copy(), "base_twist": ps.twist.copy(),
                  "odom": ps.pose.copy()}
-        sensors = {"marker": self._marker,
-                   "wrench": Wrench(stamp=self.t, frame="tool", force=self._wrench[:3].copy(), torque=self._wrench[3:].copy())}
+        sensors: dict[str, Any] = {
+            "marker": self._marker,
+            "wrench": Wrench(stamp=self.t, frame="tool", force=self._wrench[:3].copy(), torque=self._wrench[3:].copy())}
+        if self.stream.detector is not None:
+            sensors["image"] = self._image
         return Observation(t=self.t, state=state, sensors=sensors, events=tuple(self._events))
 
     def apply(self, command: Command) -> None:
@@ -442,6 +451,10 @@ class ScrewConveyor(SteppedWorld):
                 det = MarkerDetection(t, None)
             else:
                 det = st.detector(self.body.camera_pose(), t)
+                img = st.detector.last_image  # what this frame's detection was run on (set by every call)
+                if img is not None:
+                    img.setflags(write=False)
+                    self._image = Image(stamp=t, frame="camera", pixels=img)
         else:
             H = self.true_H_co()
             if not visible(self.robot.params.camera, H, K=self._cam_K) or st.rng.random() < wp.dropout:

@@ -9,7 +9,10 @@ so a batch is a Monte Carlo campaign.
 Perception (``perception: geometric | rendered``, :mod:`taskflow_sim.perception_geometric`,
 :mod:`taskflow_sim.perception_rendered`) fills ``obs.sensors["detection"]`` with a
 :class:`taskflow.messages.Detection` of the **active camera** at the camera's rate (15 Hz by default; the
-control runs at the mission's rate and sees the latest frame with ``fresh = False`` in between).
+control runs at the mission's rate and sees the latest frame with ``fresh = False`` in between).  In
+``rendered`` mode ``obs.sensors["image"]`` is that frame's colour image, the one the detector was given (a
+:class:`taskflow.messages.Image` stamped with its capture time, frame ``front_camera`` / ``rear_camera``;
+no extra rendering), under the same rule as the detection: only the active camera's, none before its first frame.
 
 Active camera: chosen by the running task, which names the mount it reads in its step result
 (``StepResult.sensors``, e.g. ``("rear_camera",)``; the runtime passes it to :meth:`VikiGround.select_sensors`);
@@ -59,7 +62,7 @@ from taskflow_sim.stepped import SensorSchedule
 from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
 from taskflow.api import Marker, ObsSpec, Observation, Robot, RobotNeeds, message, text
-from taskflow.messages import Detection
+from taskflow.messages import Detection, Image
 from taskflow.registry import register_world
 
 CAMERA_CODE = {None: 0.0, "front": 1.0, "rear": 2.0}
@@ -119,7 +122,8 @@ class VikiGround(FlatGround):
     needs: ClassVar[RobotNeeds] = RobotNeeds(
         sensors={"front_camera": "rgbd_camera", "rear_camera": "rgbd_camera", "lidar": "lidar"}, body=True)
     observations: ClassVar[dict[str, ObsSpec]] = {"sensors.detection": message(Detection),
-                                                  "sensors.camera": text(optional=True)}
+                                                  "sensors.camera": text(optional=True),
+                                                  "sensors.image": message(Image)}  # rendered mode only
 
     params: VikiGroundParams
 
@@ -142,6 +146,7 @@ class VikiGround(FlatGround):
         self._frame_schedule = SensorSchedule(1.0)
         self._frame = 0
         self._last: Detection | None = None
+        self._image: Image | None = None  # rendered mode: the colour image of the frame of ``_last``
         self._last_detected: bool | None = None
         self._events: list[str] = []
         self.frames = 0
@@ -233,6 +238,8 @@ class VikiGround(FlatGround):
             self._last = self._last.stale()
         if self._active is not None and self._last is not None and self._last.camera == self._active:
             obs.sensors["detection"] = self._last
+            if self._image is not None:
+                obs.sensors["image"] = self._image
         obs.sensors["camera"] = self._active
         obs.events = tuple(self._events)
         self._events = []
@@ -262,6 +269,8 @@ class VikiGround(FlatGround):
         else:
             bbox, depth, depth_at, depth_in = per.detect(T_world_camera, self.t, T_world_robot)
         perception_s = time.perf_counter() - t0
+        if self.params.perception == "rendered":  # the image the detector got (a view: nothing copied)
+            self._image = Image(stamp=self.t, frame=f"{name}_camera", pixels=per.last_rgb)
         dropped = self._dropout.frame(T_world_camera) if self._dropout is not None else False
         self.frames += 1
         if bbox is not None:
@@ -295,6 +304,7 @@ class VikiGround(FlatGround):
         if active != self._active:
             self._active = active
             self._last = None
+            self._image = None
             self._last_detected = None
             if active is not None:  # first frame of the new camera at the next observation
                 self._frame_schedule.restart(self.t, self.cameras[active].mount.rate_hz)

@@ -3,7 +3,8 @@
 ``RUN_DIR/``
   ``frames/SENSOR/TICK.png``  one PNG per recorded frame of the observation entry ``SENSOR`` (the key of
                               :attr:`Observation.sensors` that holds a :class:`taskflow.messages.Image`:
-                              ``image`` for ``quad_room`` in ``perception: rendered``), ``TICK`` the index
+                              ``image`` for ``quad_room``, ``viki_ground`` and ``screw_conveyor`` in their
+                              rendered perception modes), ``TICK`` the index
                               of the control tick that saw it (six digits)
   ``frames.jsonl``            one JSON object per frame written (:class:`FrameRecord`): ``t`` (the tick's
                               sim time), ``tick``, ``sensor``, ``stamp`` (the image's capture time),
