@@ -436,7 +436,8 @@ class Executor:
                 for k, v in command.items()}
 
     def check(self, t: float, metrics: dict[str, float], events: Collection[str]) -> Transition | None:
-        """Evaluate the active leaf's table; fire the first transition that holds."""
+        """Evaluate the active leaf's table (every active leaf's, with parallel regions); fire the first
+        transition that holds."""
         if self.outcome is not None:
             return None
         state = self.engine.mission_model.state
