@@ -175,7 +175,7 @@ class RunRecorder:
         self.command_layout = dict(command_layout)
         self.gt_names = list(gt_names)
         self.flush_every = flush_every
-        self._rows: list[tuple[float, str, str, dict[str, float], dict[str, Any], dict[str, float]]] = []
+        self._rows: list[tuple[float, str, str, list[float]]] = []  # t, state, events, the values in column order
         cmd_cols = [f"cmd.{k}" if n == 1 else f"cmd.{k}.{i}" for k, n in self.command_layout.items() for i in range(n)]
         self.columns = ["t", "state", "events", *[f"m.{m}" for m in self.metric_names], *cmd_cols,
                         *[f"gt.{g}" for g in self.gt_names]]
@@ -195,7 +195,14 @@ class RunRecorder:
 
     def tick(self, t: float, state: str, events: Iterable[str], metrics: dict[str, float],
              command: dict[str, Any], gt: dict[str, float]) -> None:
-        self._rows.append((t, state, "|".join(sorted(events)) if events else "", metrics, command, gt))
+        # the values are read now: a task or world may reuse (and later change) the dicts and arrays it returned
+        nan = math.nan
+        vals = [metrics.get(m, nan) for m in self.metric_names]
+        for k, n in self.command_layout.items():
+            v = command.get(k)
+            vals += [nan] * n if v is None else np.ravel(v)[:n].tolist()
+        vals += [gt.get(g, nan) for g in self.gt_names]
+        self._rows.append((t, state, "|".join(sorted(events)) if events else "", vals))
         self.ticks += 1
         if len(self._rows) >= self.flush_every:
             self.flush()
@@ -204,16 +211,7 @@ class RunRecorder:
         if not self._rows:
             self._transitions.flush()
             return
-        out = []
-        nan = math.nan
-        mnames, gnames, layout = self.metric_names, self.gt_names, list(self.command_layout.items())
-        for t, state, events, metrics, command, gt in self._rows:
-            vals = [metrics.get(m, nan) for m in mnames]
-            for k, n in layout:
-                v = command.get(k)
-                vals += [nan] * n if v is None else np.ravel(v)[:n].tolist()
-            vals += [gt.get(g, nan) for g in gnames]
-            out.append(f"{t!r},{state},{events}," + ",".join(map(repr, map(float, vals))))
+        out = [f"{t!r},{state},{events}," + ",".join(map(repr, map(float, vals))) for t, state, events, vals in self._rows]
         self._trace.write("\n".join(out) + "\n")
         self._trace.flush()
         self._transitions.flush()
