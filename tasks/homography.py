@@ -50,6 +50,7 @@ __all__ = [
     "sort_points",
     "task_error",
     "virtual_plane_homography",
+    "yaw_decoupled_error",
 ]
 
 SELECT_4DOF: Array = np.array(
@@ -243,6 +244,39 @@ def task_error(H: ArrayLike, m_star: ArrayLike) -> Array:
     e_v = (h - np.eye(3)) @ ms
     e_w = vee(h - h.T)
     return np.concatenate((e_v, e_w))
+
+
+def yaw_decoupled_error(e: ArrayLike, m_star: ArrayLike, yaw_axis: ArrayLike) -> Array:
+    """Eq. (2)'s error with the robot's own rotation taken out of ``e_v``:
+    ``e_v' = e_v − [θ_z]x m*`` with ``θ_z = ½ (e_w · a) a``, ``a`` the unit yaw axis in the camera
+    frame; ``e_w`` is returned unchanged (6,).
+
+    Not in the paper.  With ``H = R + t n^T / d``, ``e_v = (R − I) m* + t (n^T m*) / d`` carries the
+    rotation as well as the translation (``(R − I) m* ≈ [θ]x m*``, and ``e_w ≈ 2 θ``), so law (3)
+    answers a pure yaw error with a sideways translation ``λ_v θ`` as large as the rotation itself.
+    At each keyframe of a curve (a 16° yaw step on the shipped oval) the drone therefore slides
+    toward the inside of the curve while it turns, ε (7) reaches ``T_ε`` with a sideways offset that
+    the yaw hides in the image (the slow mode of (3), a time constant of seconds facing a wall
+    metres away), and the offsets add up from keyframe to keyframe: the curve is cut.  Removing the
+    yaw's share, estimated from ``e_w`` (only the yaw component: the robot cannot roll or pitch, and
+    those components of a homography from few points are noise), leaves in ``e_v`` the translation
+    alone (for a lateral ``t``, ``e_w`` holds ``(n × t) / d`` too, so half of it stays: same sign,
+    half the gain).  ``e`` is the 6-vector of :func:`task_error`, ``m_star`` ``(x, y)`` or
+    ``(x, y, 1)`` normalised, ``yaw_axis`` the body's z axis in camera coordinates (3,).
+    """
+    ev = np.asarray(e, dtype=np.float64).reshape(6)
+    ms = np.asarray(m_star, dtype=np.float64).reshape(-1)
+    if ms.shape == (2,):
+        ms = np.array([ms[0], ms[1], 1.0])
+    if ms.shape != (3,):
+        raise ValueError(f"m_star must be (x, y) or (x, y, 1), got shape {ms.shape}")
+    a = np.asarray(yaw_axis, dtype=np.float64).reshape(3)
+    n = float(np.linalg.norm(a))
+    if n == 0.0:
+        raise ValueError("yaw_axis must be a non-zero 3-vector")
+    a = a / n
+    theta = 0.5 * float(ev[3:] @ a) * a
+    return np.concatenate((ev[:3] - np.cross(theta, ms), ev[3:]))
 
 
 def adaptive_gain(norm_e: float | Array, lambda_0: float, lambda_inf: float, slope_0: float) -> float | Array:

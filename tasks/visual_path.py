@@ -69,6 +69,11 @@ Choices where the paper is silent or its reading would not work (each marked in 
   again and the new matches are added (:meth:`VisualPathServo._track`); ε is a mean over the set, so
   its history is rescaled to the new set on that frame (:meth:`ServoLaw.rebase`) and the rising
   count and the progress do not read the change of set as motion.
+* **Yaw decoupling** (``VisualGains.yaw_decoupling``, off by default).  ``e_v`` of eq. (2) holds the
+  rotation as well as the translation, so law (3) answers a keyframe's yaw step with a sideways
+  slide; on a curve ε (7) then passes ``T_ε`` with a sideways offset the yaw hides, and the offsets
+  add up over the keyframes (the shipped oval was cut by 45–55 cm).  With it on, the translation is
+  driven by ``e_v`` minus the yaw's share (:func:`~taskflow_tasks.homography.yaw_decoupled_error`).
 * ``sigma`` may be set per keyframe (§5.2 uses 0.13 then 0.06 for its two obstacles).
 """
 
@@ -109,6 +114,7 @@ from taskflow_tasks.homography import (
     robot_velocity,
     sort_points,
     task_error,
+    yaw_decoupled_error,
 )
 from taskflow_tasks.visual_path_perception import (
     Features,
@@ -144,6 +150,9 @@ class VisualGains(StrictModel):
     v_offset: Vec3 = (0.0, 2.5, 0.0)
     w_scale: float = Field(default=0.5, gt=0.0, le=100.0)
     w_offset: float = Field(default=0.0, ge=0.0, le=100.0)
+    yaw_decoupling: bool = Field(default=False, description="drive the translation with e_v minus the yaw's share "
+                                 "(homography.yaw_decoupled_error), so turning toward a keyframe does not slide the drone "
+                                 "sideways; off: the paper's law (3)")
 
     @model_validator(mode="after")
     def _valid(self) -> VisualGains:
@@ -474,7 +483,8 @@ class ServoLaw:
         kf_in = (kf_px[:, 0] >= u0) & (kf_px[:, 0] <= u1) & (kf_px[:, 1] >= v0) & (kf_px[:, 1] <= v1)
         h_m = self.act_m.update(hier.visibility and points_outside(cur_px[kf_in], self.rect), t)
         # hierarchy (13)-(19), transition (28)-(29), robot velocities (6), feed-forward (31)
-        res = hierarchical_control(J_a, [e_a], J_m, e_m, np.eye(6), e, hier.lambda_a, hier.lambda_m, lam_v, h_a, h_m)
+        e_c = yaw_decoupled_error(e, m_star, self.Ad_body_camera[2, :3]) if self.visual.yaw_decoupling else e
+        res = hierarchical_control(J_a, [e_a], J_m, e_m, np.eye(6), e_c, hier.lambda_a, hier.lambda_m, lam_v, h_a, h_m)
         h_t = transition_weight(t - self.t_enter, self.path_gains.transition_s, self.path_gains.h0) if self.transition else 1.0
         nu_e = robot_velocity(h_t * res.nu, self.Ad_body_camera)
         if p.feedforward and not p.is_last:

@@ -27,6 +27,7 @@ from taskflow_tasks.homography import (
     sort_points,
     task_error,
     virtual_plane_homography,
+    yaw_decoupled_error,
 )
 
 K = intrinsic_matrix(260.0, 260.0, 160.0, 119.0)
@@ -249,3 +250,43 @@ def test_feedforward_equals_the_scaled_law_between_consecutive_keyframes():
         feedforward_velocity(e, g, 1.5, AD_BODY_CAMERA)
     with pytest.raises(ValueError):
         feedforward_blend(nu_e, nu_p, -0.1)
+
+
+YAW_AXIS = np.array([0.0, -1.0, 0.0])  # body z (up) in the optical camera frame (y down)
+
+
+def test_yaw_decoupled_error_removes_a_pure_yaw_from_e_v():
+    """H = R_y(0.2) (a yaw seen by the optical camera), m* on the axis: e_v = (sin 0.2, 0, cos 0.2 − 1),
+    e_w = (0, 2 sin 0.2, 0); the yaw's share ½(e_w·a)a × m* = (sin 0.2, 0, 0) leaves (0, 0, cos 0.2 − 1)."""
+    c, s = math.cos(0.2), math.sin(0.2)
+    H = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    e = task_error(H, (0.0, 0.0))
+    assert e == pytest.approx([s, 0.0, c - 1.0, 0.0, 2.0 * s, 0.0], abs=1e-12)
+    assert yaw_decoupled_error(e, (0.0, 0.0), YAW_AXIS) == pytest.approx([0.0, 0.0, c - 1.0, 0.0, 2.0 * s, 0.0], abs=1e-12)
+
+
+def test_yaw_decoupled_error_keeps_half_of_a_lateral_translation():
+    """H = I + t n^T / d with t = (0.3, 0, 0), n = (0, 0, 1), d = 3: e_v = (0.1, 0, 0), e_w = n × t / d =
+    (0, 0.1, 0); the yaw estimate ½(e_w·a)a = (0, 0.05, 0) takes (0.05, 0, 0) off e_v: (0.05, 0, 0) remains."""
+    H = np.eye(3) + np.outer([0.3, 0.0, 0.0], [0.0, 0.0, 1.0]) / 3.0
+    e = task_error(H, (0.0, 0.0, 1.0))
+    assert e == pytest.approx([0.1, 0.0, 0.0, 0.0, 0.1, 0.0], abs=1e-12)
+    assert yaw_decoupled_error(e, (0.0, 0.0, 1.0), 2.0 * YAW_AXIS) == pytest.approx([0.05, 0, 0, 0, 0.1, 0], abs=1e-12)
+    with pytest.raises(ValueError, match="non-zero"):
+        yaw_decoupled_error(e, (0.0, 0.0), np.zeros(3))
+
+
+def test_yaw_decoupled_law_turns_toward_a_yawed_keyframe_without_sliding_sideways():
+    """At the keyframe's position but 16° short of its heading (one step of the shipped oval's curve),
+    the paper's law (3) commands a sideways velocity about as large as the yaw rate; the decoupled
+    error leaves the yaw rate and (almost) no sideways velocity."""
+    X = wall_points()
+    e, _, H = error_at(X, (0.0, 0.0, 1.0, -0.28), (0.0, 0.0, 1.0, 0.0))
+    kf = project(X, *camera_pose(0.0, 0.0, 1.0, 0.0))
+    m_star = normalize_pixels(kf[list(largest_triangle(kf))], K).mean(axis=0)
+    ad = twist_adjoint(transform(R_FLU_OPTICAL, [0.0, 0.0, 0.0]))
+    paper = robot_velocity(homography_control(e, 1.0), ad)
+    decoupled = robot_velocity(homography_control(yaw_decoupled_error(e, m_star, ad[2, :3]), 1.0), ad)
+    assert paper[3] > 0.2 and decoupled[3] == pytest.approx(paper[3])  # turns left toward the keyframe
+    assert abs(paper[1]) > 0.2  # the paper's law slides sideways as fast
+    assert abs(decoupled[1]) < 0.1 * abs(paper[1])
