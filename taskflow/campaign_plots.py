@@ -77,10 +77,17 @@ def plot_success_comparison(batches: list[tuple[str, dict[str, Any]]], path: str
     for name, b in batches:
         _success_lines(ax, b, key, f"{name} ({b.get('trials_requested', '?')} trials per point)")
     ax.set_title(f"success vs {key.rsplit('.', 1)[-1]}", fontsize=10)
+    return _save(fig, Path(path))
+
+
+def _save(fig: Any, path: Path) -> Path:
+    """Lay ``fig`` out, write it to ``path`` and close it."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return Path(path)
+    return path
 
 
 def plot_campaign(batch_dir: str | Path, metrics: list[str] | None = None) -> list[Path]:
@@ -100,11 +107,7 @@ def plot_campaign(batch_dir: str | Path, metrics: list[str] | None = None) -> li
         fig, ax = plt.subplots(figsize=(6.4, 4.2))
         _success_lines(ax, batch, key, "")
         ax.set_title(f"{batch['mission']}: success vs {key.rsplit('.', 1)[-1]} ({n_per} trials per point)", fontsize=10)
-        fig.tight_layout()
-        path = root / f"success_vs_{key.replace('.', '_')}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        out.append(path)
+        out.append(_save(fig, root / f"success_vs_{key.replace('.', '_')}.png"))
     for metric in metrics or _error_metrics(batch):
         groups = []
         for c in conditions:
@@ -126,9 +129,5 @@ def plot_campaign(batch_dir: str | Path, metrics: list[str] | None = None) -> li
         ax.set_ylabel(metric)
         ax.grid(alpha=0.3, axis="y")
         ax.set_title(f"{batch['mission']}: {metric} per condition ({n_per} trials each)", fontsize=10)
-        fig.tight_layout()
-        path = root / f"distribution_{metric}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        out.append(path)
+        out.append(_save(fig, root / f"distribution_{metric}.png"))
     return out

@@ -40,7 +40,7 @@ from pydantic_core import PydanticUndefined, to_jsonable_python
 from .api import ObsSpec, Robot, Task, World
 from .contracts import hosts, robot_params_problem, task_problem
 from .registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError, describe_choices
-from .units import UNITS
+from .units import UNITS, suffix_unit
 
 Kind = Literal["task", "robot", "world", "sensor"]
 KINDS: tuple[Kind, ...] = ("task", "robot", "world", "sensor")
@@ -189,7 +189,6 @@ _UNIT_LIST = rf"(?:{_UNIT})(?:,\s*(?:{_UNIT}))*"
 _PAREN_UNIT = re.compile(rf"\(({_UNIT_LIST})(?:[);,]|\s*$)")
 _LEADING_UNIT = re.compile(rf"^({_UNIT})(?=[\s:,])")
 _TRAILING_UNIT = re.compile(rf"\)\s+({_UNIT_LIST})\s*$")
-_SUFFIX_UNIT = {"_px": "px", "_s": "s", "_hz": "Hz", "_m": "m", "_rad": "rad", "_deg": "deg"}
 
 
 def param_unit(name: str, info: FieldInfo, model_doc: str = "") -> str:
@@ -206,7 +205,7 @@ def param_unit(name: str, info: FieldInfo, model_doc: str = "") -> str:
     m = re.search(rf"``{re.escape(name)}``\s*\(({_UNIT_LIST})[);,]", model_doc)
     if m:
         return m.group(1)
-    return next((u for suffix, u in _SUFFIX_UNIT.items() if name.endswith(suffix)), "")
+    return suffix_unit(name) or ""
 
 
 def type_label(t: Any) -> str:

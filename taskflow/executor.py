@@ -422,7 +422,8 @@ class Executor:
         if self._blend is not None:
             command = self._blended(command, t)
         self.last_command = command
-        self.check(t, metrics, events)
+        if self.outcome is None:
+            self._check_regions(t, metrics, events)
         return command, metrics, events
 
     def _blended(self, command: Command, t: float) -> Command:
@@ -453,14 +454,19 @@ class Executor:
         every table), at most one firing per leaf; a leaf a firing has left is not checked."""
         seen: set[int] = set()
         fired = None
-        for path in self.engine.active_leaves():
+        leaves = self.engine.active_leaves()
+        active = leaves  # re-read only after a firing changed the configuration
+        for path in leaves:
             if self.outcome is not None:
                 break
-            if path not in self.engine.active_leaves():
+            if path not in active:
                 continue
             table = self._tables.get(path)
             if table is not None:
-                fired = self._check_table(t, table, metrics, events, seen) or fired
+                tr = self._check_table(t, table, metrics, events, seen)
+                if tr is not None:
+                    fired = tr
+                    active = self.engine.active_leaves()
         return fired
 
     def _check_table(self, t: float, table: list[tuple[Transition, MissionState | None]], metrics: dict[str, float],

@@ -14,7 +14,7 @@ count, a ratio or a label whose name declares none):
   from before the stop).
 
 Units of task and world-observation metrics are the declared ones; a world summary metric's unit is
-read from its name's suffix (:data:`SUFFIX_UNITS`: ``final_error_m`` is in m, ``gt_speed_mps`` in m/s).
+read from its name's suffix (:data:`taskflow.units.SUFFIX_UNITS`: ``final_error_m`` is in m, ``gt_speed_mps`` in m/s).
 """
 
 from __future__ import annotations
@@ -26,22 +26,10 @@ import numpy as np
 
 from .recorded import RecordedRun
 from .records import TransitionRecord
-
-SUFFIX_UNITS: dict[str, str] = {"_mps": "m/s", "_radps": "rad/s", "_mm": "mm", "_m": "m", "_deg": "deg",
-                                "_rad": "rad", "_px": "px", "_s": "s", "_n": "N"}
-"""Name suffix → unit of a world summary metric (longest suffix first)."""
+from .units import suffix_unit
 
 CHAIN_SHOWN = 12
 """Longest transition chain printed whole; a longer one prints its last entries and says how many it left out."""
-
-
-def suffix_unit(name: str) -> str | None:
-    """The unit a summary metric's name declares by its suffix; None when it declares none (a count, a
-    ratio, a label)."""
-    for suffix, unit in SUFFIX_UNITS.items():
-        if name.endswith(suffix):
-            return unit
-    return None
 
 
 def _value(v: Any) -> str:

@@ -140,3 +140,15 @@ def parse_max_time(text: str | float | int) -> float:
 def parse_rate(text: str | float | int) -> float:
     """``rate_hz``: ``20``, ``"20 Hz"`` or ``"1 kHz"``; finite, > 0, ≤ 10 kHz."""
     return parse_bounded(text, "frequency", "rate_hz", 0.0, MAX_RATE_HZ)
+
+
+SUFFIX_UNITS: dict[str, str] = {"_mps": "m/s", "_radps": "rad/s", "_mm": "mm", "_hz": "Hz", "_m": "m", "_deg": "deg",
+                                "_rad": "rad", "_px": "px", "_s": "s", "_n": "N"}
+"""Name suffix → the unit a name ending in it is in (``final_error_m``: m, ``gt_speed_mps``: m/s); longest
+suffix first, so ``_mps`` wins over ``_s``."""
+
+
+def suffix_unit(name: str) -> str | None:
+    """The unit ``name`` declares by its suffix (:data:`SUFFIX_UNITS`); None when it declares none (a count,
+    a ratio, a label)."""
+    return next((unit for suffix, unit in SUFFIX_UNITS.items() if name.endswith(suffix)), None)

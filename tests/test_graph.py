@@ -11,35 +11,11 @@ from pathlib import Path
 import pytest
 
 from taskflow.graph import WRAP, mermaid_text, start_id, to_dot, to_mermaid
-from taskflow.loader import load_mission, load_mission_text
+from taskflow.loader import load_mission
 
 ROOT = Path(__file__).resolve().parents[1]
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
-PARALLEL = """
-mission: par
-robot: toy_point
-world: {name: toy_line, params: {start: 0.0}}
-rate_hz: 20
-max_time: 30 s
-machine:
-  initial: both
-  states:
-    both:
-      regions:
-        a:
-          initial: a1
-          states:
-            a1: {transitions: [{to: a_end, when: "visible > 0.5"}]}
-            a_end: {final: succeeded}
-        b:
-          initial: b1
-          states:
-            b1: {transitions: [{to: b_end, after: 1 s}]}
-            b_end: {final: succeeded}
-      transitions:
-        - {to: ok, done: succeeded}
-    ok: {final: succeeded}
-"""
+REGIONS = Path(__file__).parent / "machine" / "missions" / "toy_regions.yaml"  # drive (owns v), watch
 
 
 def _nodes(dot: str) -> dict[str, str]:
@@ -123,15 +99,16 @@ def test_the_screw_graph_is_at_most_2000_px_wide() -> None:
 
 
 def test_parallel_states_get_an_invisible_anchor_and_each_region_its_start() -> None:
-    m = load_mission_text(PARALLEL, "par.yaml")
+    m = load_mission(REGIONS)
     dot = to_dot(m)
     nodes = _nodes(dot)
-    assert "style=invis" in nodes["__start__both"]
-    for region in ("both__a", "both__b"):
+    assert "style=invis" in nodes["__start__work"]
+    for region in ("work__drive", "work__watch"):
         assert "fillcolor=black" in nodes[f"__start__{region}"]
-    assert 'label="a (region: commands nothing)";' in dot.replace(" labeljust=l;", "")
+    assert 'label="watch (region: commands\\nnothing)";' in dot.replace(" labeljust=l;", "")  # wrapped
+    assert 'label="drive (region: v)";' in dot.replace(" labeljust=l;", "")
     mer = to_mermaid(m)
-    assert "state both__a {" not in mer and "\n        --\n" in mer
+    assert "state work__drive {" not in mer and "\n        --\n" in mer
 
 
 def _decode(text: str) -> str:

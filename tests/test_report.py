@@ -10,7 +10,8 @@ import pytest
 from taskflow.cli import main
 from taskflow.loader import load_mission
 from taskflow.recorded import RecordedRun, load_run
-from taskflow.report import format_report, suffix_unit
+from taskflow.report import format_report
+from taskflow.units import suffix_unit
 from taskflow.runtime import run_mission
 
 FULL = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"

@@ -204,50 +204,14 @@ def test_replay_steps_transition_by_transition_and_scrubs_to_the_record(browser,
         server.stop()
 
 
-PARALLEL = """
-mission: par
-robot: toy_point
-world: {name: toy_line, params: {start: 0.0}}
-rate_hz: 20
-max_time: 30 s
-parameters: {tol: 1 cm}
-profiles:
-  gains: {slow: {kp: 1.0}}
-machine:
-  initial: work
-  states:
-    work:
-      regions:
-        drive:
-          owns: [v]
-          initial: go
-          states:
-            go:
-              task: {name: toy_goto, params: {target: 1.0}}
-              bind: {gains: slow}
-              transitions: [{to: there, when: "pos_error < $tol"}]
-            there: {final: succeeded}
-        watch:
-          initial: look
-          states:
-            look:
-              task: toy_watch
-              transitions: [{to: too_far, when: "x_abs > 5 m"}]
-            too_far: {final: failed}
-      transitions:
-        - {to: done, done: succeeded}
-        - {to: stopped, done: failed}
-    done: {final: succeeded}
-    stopped: {final: failed}
-"""
+REGIONS = HERE / "machine" / "missions" / "toy_regions.yaml"  # two regions: drive (owns v) and watch
 
 
 def test_parallel_regions_are_drawn_side_by_side_with_a_lit_leaf_each(browser, tmp_path):
-    from taskflow.loader import load_mission_text
     from taskflow.runtime import run_mission
 
     out = tmp_path / "par"
-    run_mission(load_mission_text(PARALLEL, "par.yaml"), out_dir=out, max_time=3.0)
+    run_mission(load_mission(REGIONS), out_dir=out, max_time=3.0)
     trace = read_trace(out)
     server = serve_replay(out, "127.0.0.1:0")
     try:

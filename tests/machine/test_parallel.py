@@ -3,6 +3,8 @@ errors that keep regions apart — through the real loader, engine and executor 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from taskflow.errors import MissionError
@@ -115,40 +117,16 @@ def test_both_regions_can_fire_in_the_same_tick():
     assert [(t, tgt) for t, _, tgt, _ in fired(r)[1:]] == [(1.0, "both.a.a_end"), (1.0, "both.b.b_end"), (1.0, "ok")]
 
 
-OWNED = """
-machine:
-  initial: work
-  states:
-    work:
-      regions:
-        drive:
-          owns: [v]
-          initial: go
-          states:
-            go:
-              task: {name: toy_goto, params: {target: 1.0}}
-              bind: {gains: slow}
-              transitions: [{to: there, when: "pos_error < $tol"}]
-            there: {final: succeeded}
-        watch:
-          initial: look
-          states:
-            look:
-              task: toy_watch
-              transitions: [{to: too_far, when: "x_abs > LIMIT"}]
-            too_far: {final: failed}
-      transitions:
-        - {to: done, done: succeeded}
-        - {to: stopped, done: failed}
-    done: {final: succeeded}
-    stopped:
-      transitions: [{to: halted, after: 1 s}]
-    halted: {final: failed}
-"""
+REGIONS = (Path(__file__).parent / "missions" / "toy_regions.yaml").read_text()
+
+
+def regions(limit: str = "5 m") -> str:
+    """The toy_regions mission, its watch region tripping at ``x_abs > limit``."""
+    return REGIONS.replace('"x_abs > 5 m"', f'"x_abs > {limit}"')
 
 
 def test_each_region_drives_only_the_parts_it_owns_on_the_real_loop():
-    m = mission(OWNED.replace("LIMIT", "5 m"))
+    m = load_mission_text(regions(), "par.yaml")
     r = run_mission(m, record=False, max_time=20.0)
     # the monitor commands full reverse (v = -9) but owns nothing: the robot follows the drive region
     assert r.outcome == "timeout"  # the monitor never finishes and no outcome_map lets the drive's success end it
@@ -157,7 +135,7 @@ def test_each_region_drives_only_the_parts_it_owns_on_the_real_loop():
 
 
 def test_a_monitor_region_preempts_the_driving_region_and_the_robot_stops():
-    m = mission(OWNED.replace("LIMIT", "0.5 m"))
+    m = load_mission_text(regions("0.5 m"), "par.yaml")
     r = run_mission(m, record=False, max_time=20.0)
     assert_outcome(r, "failed")
     trip = next(rec for rec in r.executor.transitions_fired if rec.target == "work.watch.too_far")
@@ -172,31 +150,32 @@ def test_a_monitor_region_preempts_the_driving_region_and_the_robot_stops():
 
 
 def load_error(text: str) -> str:
+    """The load error of a whole mission, or of a machine under the common head."""
     with pytest.raises(MissionError) as exc:
-        mission(text)
+        load_mission_text(text, "par.yaml") if text.lstrip().startswith(("#", "mission:")) else mission(text)
     return str(exc.value)
 
 
 def test_two_regions_driving_the_same_part_are_refused_at_load():
-    msg = load_error(OWNED.replace("LIMIT", "5 m").replace("task: toy_watch", "task: toy_watch\n              ")
+    msg = load_error(regions().replace("task: toy_watch", "task: toy_watch\n              ")
                      .replace("watch:\n          initial: look", "watch:\n          owns: [v]\n          initial: look"))
     assert "par.yaml:" in msg and "regions 'drive' and 'watch' both drive 'v'" in msg
 
 
 def test_an_unknown_command_part_is_refused_with_the_robots_parts():
-    msg = load_error(OWNED.replace("LIMIT", "5 m").replace("owns: [v]", "owns: [base_twist]"))
+    msg = load_error(regions().replace("owns: [v]", "owns: [base_twist]"))
     assert "the robot's command has no part 'base_twist'" in msg and "v" in msg
 
 
 def test_entering_a_region_state_from_outside_is_refused():
-    text = OWNED.replace("LIMIT", "5 m").replace("transitions: [{to: halted, after: 1 s}]",
+    text = regions().replace("transitions: [{to: halted, after: 1 s}]",
                                                   "transitions: [{to: work.watch.look, after: 1 s}]")
     msg = load_error(text)
     assert "'work.watch.look' is inside region 'work.watch'" in msg and "target 'work'" in msg
 
 
 def test_same_metric_from_two_regions_is_refused():
-    msg = load_error(OWNED.replace("LIMIT", "5 m").replace("task: toy_watch", "task: {name: toy_goto, params: {target: 2}}"
+    msg = load_error(regions().replace("task: toy_watch", "task: {name: toy_goto, params: {target: 2}}"
                                                            ).replace('"x_abs > 5 m"', '"pos_error > 5 m"')
                      .replace("          initial: look", "          initial: look\n          bind: {gains: slow}"))
     assert "both run tasks that publish the metric 'pos_error'" in msg
