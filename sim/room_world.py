@@ -44,6 +44,7 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.faults import FaultIntervals, IntervalFault
+from taskflow_sim.fidelity import Fidelity
 from taskflow_sim.quad_scene import Column, QuadScene, Room
 from taskflow_sim.room_landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
 from taskflow_sim.stepped import SensorSchedule, SteppedWorld, check_command
@@ -111,7 +112,7 @@ def load_keyframe_dir(path: str | Path) -> tuple[list[NDArray[np.uint8]], dict[s
     return images, meta
 
 
-class QuadRoomParams(StrictModel):
+class QuadRoomParams(Fidelity):
     """Room, obstacles, start pose, visual path and sensor faults of the ``quad_room`` world."""
 
     room: RoomSpec = RoomSpec()

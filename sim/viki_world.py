@@ -53,6 +53,7 @@ from pydantic import BaseModel, Field, model_validator
 
 from taskflow_robots.racecar import CameraMount
 from taskflow_sim.bodies import BodyOptions, make_body
+from taskflow_sim.fidelity import Fidelity
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
 from taskflow.spatial import rotation_from_unit_quaternion, transform
 from taskflow_sim.perception_common import CameraModel, DropoutModel
@@ -68,7 +69,7 @@ from taskflow.registry import register_world
 CAMERA_CODE = {None: 0.0, "front": 1.0, "rear": 2.0}
 
 
-class VikiGroundParams(FlatGroundParams):
+class VikiGroundParams(Fidelity, FlatGroundParams):
     """Object placement, manipulation-zone goal, perception mode and detector model (see module doc)."""
 
     object_kind: Literal["can", "bottle", "carton"] = "can"
