@@ -44,7 +44,7 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.faults import FaultIntervals, IntervalFault
-from taskflow_sim.fidelity import Fidelity
+from taskflow.fidelity import Fidelity
 from taskflow_sim.quad_scene import Column, QuadScene, Room
 from taskflow_sim.room_landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
 from taskflow_sim.stepped import SensorSchedule, SteppedWorld, check_command

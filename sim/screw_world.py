@@ -87,7 +87,7 @@ from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
 from taskflow_sim import screw_scene as sc
 from taskflow_sim.car_scene import connect
 from taskflow_sim.faults import FaultIntervals, IntervalFault
-from taskflow_sim.fidelity import Fidelity
+from taskflow.fidelity import Fidelity
 from taskflow_sim.screw_motion import PartMotion
 from taskflow_sim.screw_perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody

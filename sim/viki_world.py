@@ -53,7 +53,7 @@ from pydantic import BaseModel, Field, model_validator
 
 from taskflow_robots.racecar import CameraMount
 from taskflow_sim.bodies import BodyOptions, make_body
-from taskflow_sim.fidelity import Fidelity
+from taskflow.fidelity import Fidelity
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
 from taskflow.spatial import rotation_from_unit_quaternion, transform
 from taskflow_sim.perception_common import CameraModel, DropoutModel

@@ -39,6 +39,7 @@ from pydantic_core import PydanticUndefined, to_jsonable_python
 
 from .api import ObsSpec, Robot, Task, World
 from .contracts import hosts, robot_params_problem, task_problem
+from .fidelity import Fidelity
 from .registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError, describe_choices
 from .units import UNITS, suffix_unit
 
@@ -104,6 +105,23 @@ class Action:
 
 
 @dataclass(frozen=True)
+class FidelityValue:
+    """One parameter a world's fidelity level sets (``world.params.fidelity: LEVEL``) and its source."""
+
+    param: str
+    value: Any
+    source: str
+
+
+@dataclass(frozen=True)
+class FidelityLevel:
+    """A named fidelity level of a world (:mod:`taskflow.fidelity`): the parameters it sets."""
+
+    name: str
+    values: tuple[FidelityValue, ...]
+
+
+@dataclass(frozen=True)
 class Stream:
     """An observation entry as one component declares it (``type``: the :class:`ObsSpec`, ``?`` when
     optional); ``by``: the other side — the providers of a requirement, the readers of a provision, as
@@ -150,6 +168,7 @@ class Entry:
     sensors: tuple[Param, ...] = ()
     needs_body: bool = False
     ground_truth_keys: tuple[str, ...] = ()
+    fidelity: tuple[FidelityLevel, ...] = ()
     works_with: tuple[str, ...] = ()
     types: tuple[Model, ...] = ()
 
@@ -419,9 +438,17 @@ def world_entry(world: type[World], tasks: dict[str, type], robots: dict[str, ty
         provides=tuple(Stream(k, str(s), _readers(k, s, tasks)) for k, s in world.observations.items()),
         command_interface=" | ".join(needs.interfaces),
         sensors=tuple(Param(m, k, True) for m, k in needs.sensors.items()), needs_body=needs.body,
-        ground_truth_keys=tuple(world.ground_truth_keys),
+        ground_truth_keys=tuple(world.ground_truth_keys), fidelity=fidelity_levels(world.Params),
         works_with=tuple(f"robot {n}" for n, r in robots.items() if hosts(world, r)),
         types=_nested_models([world.Params, *action_models]))
+
+
+def fidelity_levels(params: type) -> tuple[FidelityLevel, ...]:
+    """The named fidelity levels of a world parameter model (none unless it derives from :class:`Fidelity`)."""
+    if not (isinstance(params, type) and issubclass(params, Fidelity)):
+        return ()
+    return tuple(FidelityLevel(name, tuple(FidelityValue(k, v.value, v.source) for k, v in level.items()))
+                 for name, level in params.FIDELITY.items())
 
 
 def _message_model(cls: type | None) -> tuple[Model, ...]:

@@ -93,6 +93,9 @@ def sections(e: Entry) -> list[Section]:
                 [f"{st.key}: {st.type}" + (f" ({', '.join(st.by)})" if st.by else "") for st in e.provides])
     if e.ground_truth_keys:
         add("ground-truth keys (trace columns and summary; never in observations)", [", ".join(e.ground_truth_keys)])
+    for lv in e.fidelity:
+        add(f"fidelity {lv.name} (`world.params.fidelity: {lv.name}`; keys the mission sets win)",
+            [f"{v.param}: {_value(v.value)} — {v.source}" for v in lv.values] or ["(sets nothing)"])
     if e.kind != "sensor":
         title = {"task": "runs with (robot on world)", "robot": "hosted by, driven by", "world": "hosts"}[e.kind]
         add(title, list(e.works_with) or ["(nothing registered)"])

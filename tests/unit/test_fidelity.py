@@ -9,7 +9,7 @@ import pytest
 from pydantic import Field, ValidationError
 
 from taskflow.registry import WORLDS
-from taskflow_sim.fidelity import Fidelity, Level, Sourced, check_fidelity
+from taskflow.fidelity import Fidelity, Level, Sourced, check_fidelity
 
 
 class Toy(Fidelity):
@@ -62,3 +62,12 @@ def test_every_world_level_names_real_parameters_with_sources(name: str) -> None
     check_fidelity(params)
     for level in params.FIDELITY.values():
         assert all(s.source.strip() for s in level.values())
+
+
+def test_the_catalogue_lists_each_level_with_its_sources() -> None:
+    from taskflow.catalogue import Entry, fidelity_levels
+    from taskflow.catalogue_render import describe_text
+
+    text = describe_text(Entry(kind="world", name="toy", summary="", fidelity=fidelity_levels(Toy)))
+    assert "fidelity paper (`world.params.fidelity: paper`" in text
+    assert "latency: 0.044 — paper §5: 12 + 30 ms" in text and "noise: 2.0 — paper §4" in text

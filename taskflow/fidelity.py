@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from taskflow.api import StrictModel
 
@@ -54,14 +54,19 @@ class Fidelity(StrictModel):
         if not isinstance(data, dict):
             return data
         name = data.get("fidelity", IDEAL)
-        if name == IDEAL:
-            return data
-        if name not in cls.FIDELITY:
-            raise ValueError(f"unknown fidelity {name!r} — valid: {', '.join(cls.fidelity_names())}")
+        if not isinstance(name, str) or name not in cls.FIDELITY:
+            return data  # ideal, or unknown: refused by _known_level with the key's own location
         filled = dict(data)
         for key, sourced in cls.FIDELITY[name].items():
             filled.setdefault(key, sourced.value)
         return filled
+
+    @field_validator("fidelity")
+    @classmethod
+    def _known_level(cls, name: str) -> str:
+        if name not in cls.fidelity_names():
+            raise ValueError(f"unknown fidelity {name!r} — valid: {', '.join(cls.fidelity_names())}")
+        return name
 
     @classmethod
     def fidelity_names(cls) -> tuple[str, ...]:
