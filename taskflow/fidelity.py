@@ -4,8 +4,8 @@ A world whose parameter model derives from :class:`Fidelity` takes ``fidelity: N
 ``world.params`` (or ``--set world.params.fidelity=paper``).  ``ideal`` is the model's own defaults.
 Any other level fills in the parameters it names *unless the mission sets them itself*: an explicit
 ``world.params`` key always wins, so ``fidelity: paper`` with ``dropout: 0.3`` is the paper-like world
-with a worse detector.  A level's values are ordinary parameter values, so the run's summary (which
-records the resolved world parameters) shows what it set, and the catalogue (``taskflow describe
+with a worse detector.  A level's values are ordinary parameter values, so the run's ``mission.yaml`` (the
+mission as run, every parameter resolved) records what it set, and the catalogue (``taskflow describe
 WORLD``) lists every level with the source of each number.
 
 ("Fidelity", not "profile": a mission's profiles are the gain, PID and impedance sets its states bind.)
