@@ -67,6 +67,10 @@ framework's to count):
   processed), ``rendered_searches`` (full-view searches) and ``rendered_dropped`` (frames the dropout
   skipped).
 
+Fidelity: ``fidelity: paper`` sets the marker ``latency`` and the platform's command delay
+``base_delay`` from the paper's stated rates (``ScrewWorldParams.FIDELITY``, with sources); the
+platform's velocity lag is ``base_tau``.
+
 :meth:`safe_stop` brakes the platform to rest at the robot's ``brake_decel`` (0.5 s from the 1 m/s
 speed limit with the default 2 m/s²), holds the arm's reference where it is, and stops the
 screwdriver.

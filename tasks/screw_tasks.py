@@ -31,8 +31,9 @@ Profile slots: ``platform`` and ``arm`` take ``pid`` profiles (:class:`taskflow_
 ``prediction`` takes a ``prediction`` profile (:class:`Prediction`, default: off — the paper's plain
 PID).  With prediction on, the part's velocity is estimated by a least-squares fit of its pose in the
 odometry frame over a short window, the stale marker pose is propagated to the current time (the
-latency), and the estimated motion is fed forward into both twists — the fix the paper names for its
-irregular-motion failures.
+latency), the estimated motion is fed forward into both twists, and eq. 35 compensates the platform's
+motion relative to the target's (``Prediction.relative``; the paper's ``E − V_be dt`` leaves the tool
+``v·dt`` behind a moving bolt) — the fix the paper names for its irregular-motion failures.
 """
 
 from __future__ import annotations
