@@ -1,12 +1,24 @@
-"""Screw fastening on a moving part: the paper's Tables 1 and 2 beside ours.
+"""Screw fastening on a moving part: the paper's Tables 1 and 2 beside ours, and a robustness table.
 
 Runs ``missions/screw_fastening.yaml`` (conveyor, 50 mm/s) and ``missions/screw_fastening_trolley.yaml``
 (irregular trolley) for N sequences of four screws each (seeds 0..N-1), in the pose perception mode,
-without and with the velocity feed-forward; then R sequences in the rendered mode (pixels → ArUco →
-solvePnP) on the conveyor.  Everything is measured from the simulator's ground truth.
+without and with the velocity feed-forward (the ``prediction`` profile), under each world fidelity
+level asked (``ideal``: the world's defaults; ``paper``: ``world.params.fidelity=paper``, the paper's
+latency and platform delay, :class:`taskflow_sim.screw_world.ScrewWorldParams`); then R sequences in the
+rendered mode (pixels → ArUco → solvePnP) on the conveyor.  Everything is measured from the simulator's
+ground truth.
 
-    python benchmarks/screw_fastening.py                 # 10 x 4 screws per scenario, 2 rendered
-    python benchmarks/screw_fastening.py --sequences 3 --rendered 0 --workers 2
+    python benchmarks/screw_fastening.py                 # 10 x 4 screws per scenario and fidelity, 2 rendered
+    python benchmarks/screw_fastening.py --sequences 3 --rendered 0 --workers 2 --fidelity ideal
+
+``--robustness`` instead runs the conveyor mission over part speeds (30, 50, 65, 80 mm/s) and bolt
+layouts (``world.params.bolts`` with the matching operation poses ``parameters.screws``) with
+:func:`taskflow.batch.run_batch` (one campaign per layout and arm, the speeds swept; seeds 0..N-1 in
+every condition), with the prediction profile on and, on the default layout, off (the paper's law):
+bolts fastened with their Wilson 95 % interval, sequences that met the mission's rule with theirs, and
+the ground-truth translation error while the screwdriver ran (mean over every sample at a bolt, max).
+
+    python benchmarks/screw_fastening.py --robustness --sequences 5 --workers 2
 
 Columns (paper, Table 1): time per screw (one ``foreach`` iteration — one of the mission's
 screws — approach, activation, fastening, retract; failed ones included) mean ± std; screwing time
@@ -55,15 +67,15 @@ def _register() -> None:
     import taskflow_tasks.screw_tasks  # noqa: F401
 
 
-def run_one(job: tuple[str, int, bool, str]) -> dict[str, Any]:
-    """One sequence: (mission file, seed, feed-forward, perception) → its numbers."""
-    mission_file, seed, ff, perception = job
+def run_one(job: tuple[str, int, bool, str, str]) -> dict[str, Any]:
+    """One sequence: (mission file, seed, feed-forward, perception, fidelity) → its numbers."""
+    mission_file, seed, ff, perception, fidelity = job
     _register()
     from taskflow.loader import load_mission
     from taskflow.runtime import run_mission
 
     overrides = [f"profiles.prediction.feedforward.enabled={'true' if ff else 'false'}",
-                 f"world.params.perception={perception}"]
+                 f"world.params.perception={perception}", f"world.params.fidelity={fidelity}"]
     m = load_mission(ROOT / mission_file, overrides)
     t0, c0 = time.perf_counter(), time.process_time()
     r = run_mission(m, seed=seed, record=False)
@@ -74,7 +86,7 @@ def run_one(job: tuple[str, int, bool, str]) -> dict[str, Any]:
     log = met.get("operation_log") or []
     n_items = len(m.spec.parameters["screws"])
     out = {
-        "mission": mission_file, "seed": seed, "ff": ff, "perception": perception, "outcome": r.outcome,
+        "mission": mission_file, "seed": seed, "ff": ff, "perception": perception, "fidelity": fidelity, "outcome": r.outcome,
         "sim_s": s["sim_time_s"], "wall_s": wall, "cpu_s": cpu,
         # the mission's screws: an item not reached (the run ended first) counts as not fastened
         "items": n_items, "items_succeeded": sum(it["outcome"] == "succeeded" for it in its),
@@ -201,7 +213,7 @@ def table(rows: list[tuple[str, dict[str, Any]]]) -> str:
                 f"operation), ground truth, {title}" + ("; paper: all its attempts" if not key else ""),
                 f"{'scenario':38s} {'translation min / max / mean (mm)':>36s} {'rotation min / max / mean (deg)':>36s}"]
         for name, a in rows:
-            if key and "paper" in name:
+            if key and "real robot" in name:
                 continue
             et, er = a[key + "err_t"] or (None,) * 3, a[key + "err_r"] or (None,) * 3
             out.append(f"{name:38s} {fmt(et[0]):>10s} / {fmt(et[1]):>6s} / {fmt(et[2]):<6s}       "
@@ -209,17 +221,90 @@ def table(rows: list[tuple[str, dict[str, Any]]]) -> str:
     return "\n".join(out)
 
 
+# --robustness: conveyor speeds and bolt layouts (in the part frame P; the marker frame, in which the mission
+# gives its operation poses, lies 0.12 m behind P's origin, and a bolt's head top 7.5 mm above the face)
+SPEEDS = (0.03, 0.05, 0.065, 0.08)  # m/s
+LAYOUTS = {
+    "square (default)": ((0.02, 0.06), (0.02, -0.06), (0.12, 0.06), (0.12, -0.06)),
+    "two, offset": ((0.06, 0.08), (0.10, -0.07)),
+    "wide corners": ((-0.02, 0.10), (-0.02, -0.10), (0.17, 0.10), (0.17, -0.10)),
+}
+
+
+def layout_overrides(bolts: tuple[tuple[float, float], ...]) -> list[str]:
+    """The world's ``bolts`` and the mission's matching operation poses ``screws`` (marker frame)."""
+    screws = ", ".join(f"{{xyz: [{x + 0.12:.4f}, {y:.4f}, 0.0075], rpy_deg: [180, 0, -90]}}" for x, y in bolts)
+    return [f"world.params.bolts={[list(b) for b in bolts]}", f"parameters.screws=[{screws}]"]
+
+
+def robustness_row(trials: list[dict[str, Any]]) -> dict[str, Any]:
+    """Bolts fastened and sequences ok (with Wilson 95 % intervals) and the ground-truth translation error
+    at the bolts (sample-weighted mean, max) over a condition's trials (batch summaries)."""
+    mets = [t["metrics"] for t in trials]
+    bolts = sum(int(m.get("bolts_on_part") or 0) for m in mets)
+    done = sum(int(m.get("bolts_fastened") or 0) for m in mets)
+    ok = sum(t["outcome"] == "succeeded" for t in trials)
+    withs = [m for m in mets if m.get("at_bolt_err_samples")]
+    n = sum(m["at_bolt_err_samples"] for m in withs)
+    return {"sequences": len(trials), "sequences_ok": ok, "sequences_ci95": [100 * x for x in wilson_interval(ok, len(trials))],
+            "bolts": bolts, "bolts_fastened": done, "bolts_ci95": [100 * x for x in wilson_interval(done, bolts)] if bolts else None,
+            "err_t_mean_mm": sum(m["at_bolt_err_t_mean_mm"] * m["at_bolt_err_samples"] for m in withs) / n if n else None,
+            "err_t_max_mm": max(m["at_bolt_err_t_max_mm"] for m in withs) if withs else None,
+            "outcomes": [t["outcome"] for t in trials]}
+
+
+def robustness(sequences: int, workers: int, out: Path | None) -> dict[str, Any]:
+    """The robustness table (see the module docstring): one :func:`taskflow.batch.run_batch` campaign per
+    layout and arm, sweeping ``world.params.speed``."""
+    import tempfile
+
+    from taskflow.batch import run_batch
+
+    root = Path(tempfile.mkdtemp(prefix="screw-robustness-")) if out is None else out
+    sweep = ["world.params.speed=" + ",".join(f"{v:g}" for v in SPEEDS)]
+    arms = [(name, bolts, True) for name, bolts in LAYOUTS.items()] + [("square (default)", LAYOUTS["square (default)"], False)]
+    rows = []
+    for k, (name, bolts, ff) in enumerate(arms):
+        res = run_batch(str(ROOT / "missions/screw_fastening.yaml"), trials=sequences, workers=workers, seed=0,
+                        overrides=[f"profiles.prediction.feedforward.enabled={'true' if ff else 'false'}", *layout_overrides(bolts)],
+                        sweep=sweep, out=root / f"arm{k}")
+        for c in res["conditions"]:
+            row = robustness_row([t for t in res["trials"] if t["condition"] == c["index"]])
+            rows.append({"layout": name, "bolts_per_part": len(bolts), "prediction": ff,
+                         "speed_mm_s": round(1e3 * float(c["values"]["world.params.speed"]), 1), **row})
+    print(f"\nRobustness — missions/screw_fastening.yaml, pose mode, {sequences} sequences per condition (seeds 0..{sequences - 1}); "
+          "error: ground truth while the screwdriver ran, over every operation at a bolt (mm)")
+    print(f"{'layout':18s} {'prediction':>10s} {'speed mm/s':>10s} {'bolts fastened':>15s} {'95 % Wilson':>13s} "
+          f"{'sequences ok':>12s} {'95 % Wilson':>13s} {'mean / max err mm':>18s}")
+    for r in rows:
+        ci, sci = r["bolts_ci95"], r["sequences_ci95"]
+        print(f"{r['layout']:18s} {'on' if r['prediction'] else 'off':>10s} {r['speed_mm_s']:10g} "
+              f"{r['bolts_fastened']:>7d} / {r['bolts']:<5d} {fmt(ci[0], 0) + '-' + fmt(ci[1], 0) + ' %':>13s} "
+              f"{r['sequences_ok']:>5d} / {r['sequences']:<4d} {fmt(sci[0], 0) + '-' + fmt(sci[1], 0) + ' %':>13s} "
+              f"{fmt(r['err_t_mean_mm']):>8s} / {fmt(r['err_t_max_mm']):<6s}")
+    summary = {"benchmark": "screw_fastening_robustness", "sequences": sequences, "records": str(root), "rows": rows}
+    print(json.dumps(summary))
+    return summary
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sequences", type=int, default=10, help="sequences of 4 screws per scenario (pose mode)")
     ap.add_argument("--rendered", type=int, default=2, help="sequences in the rendered mode (conveyor, feed-forward on)")
+    ap.add_argument("--fidelity", nargs="+", default=["ideal", "paper"], choices=["ideal", "paper"],
+                    help="world fidelity levels to tabulate (world.params.fidelity)")
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--robustness", action="store_true", help="the robustness table over speeds and bolt layouts instead")
+    ap.add_argument("--out", type=Path, default=None, help="--robustness: the campaigns' directory (default: a temporary one)")
     args = ap.parse_args(argv)
+    if args.robustness:
+        robustness(args.sequences, args.workers, args.out)
+        return 0
 
     scenarios = [("conveyor", "missions/screw_fastening.yaml"), ("trolley", "missions/screw_fastening_trolley.yaml")]
-    jobs: list[tuple[str, int, bool, str]] = [(f, s, ff, "pose") for _, f in scenarios for ff in (False, True)
-                                               for s in range(args.sequences)]
-    jobs += [("missions/screw_fastening.yaml", s, True, "rendered") for s in range(args.rendered)]
+    jobs: list[tuple[str, int, bool, str, str]] = [(f, s, ff, "pose", fid) for fid in args.fidelity for _, f in scenarios
+                                                   for ff in (False, True) for s in range(args.sequences)]
+    jobs += [("missions/screw_fastening.yaml", s, True, "rendered", "ideal") for s in range(args.rendered)]
     t0 = time.perf_counter()
     if args.workers > 1:
         with ProcessPoolExecutor(args.workers) as pool:
@@ -229,7 +314,7 @@ def main(argv: list[str] | None = None) -> int:
         for j in jobs:
             results.append(run_one(j))
             r = results[-1]
-            print(f"  {Path(r['mission']).stem:26s} seed {r['seed']:2d} ff={int(r['ff'])} {r['perception']:8s} "
+            print(f"  {Path(r['mission']).stem:26s} seed {r['seed']:2d} ff={int(r['ff'])} {r['perception']:8s} {r['fidelity']:5s} "
                   f"{r['outcome']:9s} {r['items_succeeded']}/{r['items']} err_t mean {fmt(r['fastened_err_t'][2])} mm (fastened) "
                   f"sim {r['sim_s']:.1f} s wall {r['wall_s']:.1f} s", flush=True)
     wall = time.perf_counter() - t0
@@ -238,17 +323,18 @@ def main(argv: list[str] | None = None) -> int:
     agg: dict[str, Any] = {}
     for name, f in scenarios:
         rows.append((f"{name} — paper (real robot)", {**PAPER[name], "sequences": 10}))
-        for ff in (False, True):
-            sel = [r for r in results if r["mission"] == f and r["ff"] == ff and r["perception"] == "pose"]
-            a = aggregate(sel)
-            key = f"{name}{'_ff' if ff else ''}"
-            agg[key] = a
-            rows.append((f"{name} — ours, pose{' + feed-forward' if ff else ''}", a))
+        for fid in args.fidelity:
+            for ff in (False, True):
+                sel = [r for r in results if r["mission"] == f and r["ff"] == ff and r["perception"] == "pose" and r["fidelity"] == fid]
+                a = aggregate(sel)
+                key = f"{name}{'_ff' if ff else ''}{'' if fid == 'ideal' else '_' + fid}"
+                agg[key] = a
+                rows.append((f"{name} — {fid}, pose{' + prediction' if ff else ''}", a))
     rend = [r for r in results if r["perception"] == "rendered"]
     if rend:
         a = aggregate(rend)
         agg["conveyor_rendered_ff"] = a
-        rows.append(("conveyor — ours, rendered + ff", a))
+        rows.append(("conveyor — ideal, rendered + prediction", a))
     print()
     print(table(rows))
     tick = control_tick_us()
@@ -268,13 +354,15 @@ def main(argv: list[str] | None = None) -> int:
                   f"{statistics.fmean(p[0] for p in pr):.2f} mm across, {statistics.fmean(p[1] for p in pr):.2f} mm along the view, "
                   f"{statistics.fmean(p[2] for p in pr):.3f} deg")
     checks = {}
-    for name in ("conveyor", "trolley"):
-        succ, err = TARGETS[name]
-        for suffix in ("", "_ff"):
-            a = agg.get(name + suffix)
-            if a and a["at_bolt_err_t"]:  # the error target over every attempt at a bolt, as the paper's Table 2
-                checks[name + suffix] = bool(a["success"] >= succ and a["at_bolt_err_t"][2] <= err and a["time_per_screw"][0] <= 9.45)
-    summary = {"benchmark": "screw_fastening", "sequences": args.sequences, "rendered": args.rendered,
+    for key, a in agg.items():
+        name = key.split("_")[0]
+        if name in TARGETS and a and a["at_bolt_err_t"]:
+            if key.endswith("_paper"):  # under the paper-like world: better than the paper's own figures
+                checks[key] = bool(a["success"] > PAPER[name]["success"] and a["at_bolt_err_t"][2] < PAPER[name]["err_t"][2])
+            elif "rendered" not in key:  # the error target over every attempt at a bolt, as the paper's Table 2
+                succ, err = TARGETS[name]
+                checks[key] = bool(a["success"] >= succ and a["at_bolt_err_t"][2] <= err and a["time_per_screw"][0] <= 9.45)
+    summary = {"benchmark": "screw_fastening", "sequences": args.sequences, "rendered": args.rendered, "fidelity": args.fidelity,
                "control_tick_us": round(tick_plain, 1), "control_tick_ff_us": round(tick, 1), "pose_rtf": round(rtf, 2), "pose_rtf_cpu": round(rtf_cpu, 2), "wall_s": round(wall, 1),
                "targets_met": checks,
                "results": {k: {"success_pct": round(a["success"], 1), "success_ci95_pct": a.get("success_ci95"),

@@ -1,7 +1,8 @@
 """The mobile iiwa in PyBullet: the run-time URDF loaded with a fixed base that is moved kinematically.
 
-The platform is holonomic and velocity-commanded: its twist follows the command through a first-order
-lag with an acceleration limit, and its pose is integrated exactly for a constant twist over each physics
+The platform is holonomic and velocity-commanded: a command takes effect after the platform's
+transport delay (:class:`CommandDelay`, ``base_delay``; none by default), then its twist follows it through a
+first-order lag (``platform_tau``, 0.1 s by default) with an acceleration limit, and its pose is integrated exactly for a constant twist over each physics
 step, then written with ``resetBasePositionAndOrientation`` (the base link ``platform`` has its
 inertial frame at its link frame, so no inertial offset to correct).  The arm joints are servoed by
 ``POSITION_CONTROL`` (gain 0.3, SIMULATOR_NOTES.md) to a reference that is ramped over each control
@@ -17,6 +18,7 @@ Joints and links are found by name, never by index.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -52,11 +54,43 @@ def integrate_planar(pose: "tuple[float, float, float] | NDArray[np.float64]", t
     return (x + ct * dx - st * dy, y + st * dx + ct * dy, th + dth)
 
 
+class CommandDelay:
+    """A pure transport delay: a value given at time ``t`` takes effect at ``t + delay`` (s).
+
+    :meth:`at` returns the latest value due by ``t`` (the initial value before any is due); values
+    due within ``eps`` s of ``t`` count as due (times are sums of float steps)."""
+
+    def __init__(self, delay: float, initial: tuple[float, ...], eps: float = 1e-9) -> None:
+        if not (math.isfinite(delay) and delay >= 0.0):
+            raise ValueError(f"CommandDelay needs a finite delay >= 0 s, got {delay!r}")
+        self.delay = delay
+        self.eps = eps
+        self.value = initial
+        self._queue: deque[tuple[float, tuple[float, ...]]] = deque()
+
+    def push(self, t: float, value: tuple[float, ...]) -> None:
+        """Give ``value`` at time ``t`` (s; not earlier than the last one given)."""
+        self._queue.append((t + self.delay, value))
+
+    def at(self, t: float) -> tuple[float, ...]:
+        """The value in effect at time ``t``: the latest one given at or before ``t − delay``."""
+        q = self._queue
+        while q and q[0][0] <= t + self.eps:
+            self.value = q.popleft()[1]
+        return self.value
+
+    def clear(self, value: tuple[float, ...]) -> None:
+        """Drop every pending value; ``value`` is in effect from now on."""
+        self._queue.clear()
+        self.value = value
+
+
 class MobileIiwaBody:
     """The robot's PyBullet multibody, the platform's kinematic motion and the arm's position servo."""
 
     def __init__(self, client: int, robot: MobileIiwa, start: tuple[float, float, float], q0: NDArray[np.float64],
-                 *, platform_tau: float = 0.1, position_gain: float = 0.3, max_force: float = 300.0) -> None:
+                 *, platform_tau: float = 0.1, base_delay: float = 0.0, position_gain: float = 0.3,
+                 max_force: float = 300.0) -> None:
         self.client = client
         self.robot = robot
         rp = robot.params
@@ -80,6 +114,8 @@ class MobileIiwaBody:
         self._cmd = (0.0, 0.0, 0.0)
         self._braking = False
         self.tau = platform_tau
+        # the command's transport delay (None: a command acts from the next physics step, as without one)
+        self._delay = CommandDelay(base_delay, (0.0, 0.0, 0.0)) if base_delay > 0.0 else None
         self.v_max, self.w_max, self.a_max = rp.v_max, rp.w_max, rp.accel_max
         self.brake_decel = rp.brake_decel
         self.gain = position_gain
@@ -97,13 +133,19 @@ class MobileIiwaBody:
         self._servo()
 
     # -- platform -------------------------------------------------------------------------------
-    def command_base(self, twist: NDArray[np.float64]) -> None:
+    def command_base(self, twist: NDArray[np.float64], t: float = 0.0) -> None:
+        """Command the platform's twist ``(v_x, v_y, ω_z)`` (clipped to the speed limits) at time ``t``
+        (s); it takes effect after the transport delay."""
         self._braking = False
         vx, vy, wz = (float(v) for v in twist)
         s = math.hypot(vx, vy)
         if s > self.v_max:
             vx, vy = vx * self.v_max / s, vy * self.v_max / s
-        self._cmd = (vx, vy, max(-self.w_max, min(self.w_max, wz)))
+        cmd = (vx, vy, max(-self.w_max, min(self.w_max, wz)))
+        if self._delay is None:
+            self._cmd = cmd
+        else:
+            self._delay.push(t, cmd)
 
     def brake(self) -> None:
         """Safe stop of the platform: decelerate to rest at the robot's ``brake_decel`` and stay there.
@@ -116,6 +158,8 @@ class MobileIiwaBody:
         """
         self._braking = True
         self._cmd = (0.0, 0.0, 0.0)
+        if self._delay is not None:
+            self._delay.clear(self._cmd)
 
     def _brake_twist(self, h: float) -> tuple[float, float, float]:
         tw = self._tw
@@ -125,8 +169,10 @@ class MobileIiwaBody:
         k = 1.0 - h / t_stop
         return (tw[0] * k, tw[1] * k, tw[2] * k)
 
-    def _step_platform(self, h: float) -> None:
+    def _step_platform(self, h: float, t: float) -> None:
         tw = self._tw
+        if self._delay is not None and not self._braking:
+            self._cmd = self._delay.at(t)  # type: ignore[assignment]
         if self._braking:
             new = self._brake_twist(h)
         else:
@@ -165,9 +211,10 @@ class MobileIiwaBody:
         p.setJointMotorControlArray(self.id, self.arm, p.POSITION_CONTROL, targetPositions=self.q_ref.tolist(),
                                     positionGains=self._gains, forces=self._forces, physicsClientId=self.client)
 
-    def before_step(self, h: float) -> None:
-        """Advance the platform and the arm reference by one physics step (call before stepSimulation)."""
-        self._step_platform(h)
+    def before_step(self, h: float, t: float = 0.0) -> None:
+        """Advance the platform and the arm reference by one physics step of ``h`` s starting at time
+        ``t`` (s; call before stepSimulation)."""
+        self._step_platform(h, t)
         if self._left > 0:
             self._left -= 1
             self.q_ref = self.q_ref_target.copy() if self._left == 0 else self.q_ref + self._ramp

@@ -26,7 +26,11 @@ Equations and how they are read where the paper is ambiguous or misprinted (REFE
 * (34) ``V_be = [ω_b; v_b + r × ω_b]``: the velocity the platform twist gives the tool point, with
   ``r`` pointing from the tool to the base (``r = −p_be``), i.e. ``v_b + ω_b × p_be``
   (:func:`platform_induced_twist`; checked against a finite difference in the tests).
-* (35) ``E' = E − V_be dt`` in vector form (:func:`compensate_error`).
+* (35) ``E' = E − V_be dt`` in vector form (:func:`compensate_error`).  It assumes the target stands
+  still in the world: on a part moving at ``v`` the arm's PI settles where ``E − V_be dt = 0``, i.e.
+  with the tool ``v dt`` behind the bolt (0.8 mm at 80 mm/s and 100 Hz, 2 mm at the paper's 40 Hz).
+  With the part's motion estimated (prediction), the compensation subtracts the platform's motion
+  *relative to the target*, ``E' = E − (V_be − V_t) dt`` (``V_t`` from :func:`target_twist`).
 * (37), (40): ``J⁺`` is a damped least-squares inverse ``Jᵀ (J Jᵀ + λ² I)⁻¹`` (:func:`dls_solve`),
   cheaper than ``numpy.linalg.pinv`` and bounded near singularities.
 """
@@ -131,9 +135,15 @@ def platform_induced_twist(V_b: Array, p_be: Array) -> Array:
     return out
 
 
-def compensate_error(L_E: Array, V_be: Array, dt: float) -> Array:
-    """Eq. (35): ``E' = E − V_be dt`` — the part of the tool error the platform removes this tick."""
-    return L_E - V_be * dt
+def compensate_error(L_E: Array, V_be: Array, dt: float, V_t: Array | None = None) -> Array:
+    """Eq. (35): ``E' = E − V_be dt`` — the part of the tool error the platform removes this tick.
+
+    ``V_t`` (beyond the paper): the target point's own twist (base-frame axes, world motion), when
+    the part's motion is estimated; the platform then removes only ``(V_be − V_t) dt`` of the error,
+    and a target moving with the platform leaves no steady ``V_be dt`` offset."""
+    if V_t is None:
+        return L_E - V_be * dt
+    return L_E - (V_be - V_t) * dt
 
 
 def dls_solve(J: Array, V: Array, damping: float) -> Array:
@@ -188,14 +198,19 @@ def platform_feedforward(v_o: Array, w_o: Array, p_bo: Array) -> Array:
     return ff
 
 
-def arm_feedforward(v_o: Array, w_o: Array, p_bo: Array, p_bt: Array, V_b: Array) -> Array:
-    """The extra arm twist for the target's motion relative to the moving base: the target point
-    ``p_bt`` moves with the part, ``[w_o; v_o + w_o × (p_bt − p_bo)]``, minus what the platform twist
-    ``V_b`` already gives it (eq. 34)."""
+def target_twist(v_o: Array, w_o: Array, p_bo: Array, p_bt: Array) -> Array:
+    """The world twist of the target point ``p_bt`` riding on the part (part origin ``p_bo`` moving at
+    ``v_o``, turning at ``w_o``; base-frame axes): ``[w_o; v_o + w_o × (p_bt − p_bo)]``."""
     v_t = np.empty(6)
     v_t[:3] = w_o
     v_t[3:] = v_o + cross(w_o, p_bt - p_bo)
-    return v_t - platform_induced_twist(V_b, p_bt)
+    return v_t
+
+
+def arm_feedforward(v_o: Array, w_o: Array, p_bo: Array, p_bt: Array, V_b: Array) -> Array:
+    """The extra arm twist for the target's motion relative to the moving base: the target point's
+    twist (:func:`target_twist`) minus what the platform twist ``V_b`` already gives it (eq. 34)."""
+    return target_twist(v_o, w_o, p_bo, p_bt) - platform_induced_twist(V_b, p_bt)
 
 
 def object_feedforward(v_o: Array, w_o: Array, p_bo: Array, p_bt: Array, V_b: Array) -> tuple[Array, Array]:

@@ -31,8 +31,9 @@ Profile slots: ``platform`` and ``arm`` take ``pid`` profiles (:class:`taskflow_
 ``prediction`` takes a ``prediction`` profile (:class:`Prediction`, default: off — the paper's plain
 PID).  With prediction on, the part's velocity is estimated by a least-squares fit of its pose in the
 odometry frame over a short window, the stale marker pose is propagated to the current time (the
-latency), and the estimated motion is fed forward into both twists — the fix the paper names for its
-irregular-motion failures.
+latency), the estimated motion is fed forward into both twists, and eq. 35 compensates the platform's
+motion relative to the target's (``Prediction.relative``; the paper's ``E − V_be dt`` leaves the tool
+``v·dt`` behind a moving bolt) — the fix the paper names for its irregular-motion failures.
 """
 
 from __future__ import annotations
@@ -82,7 +83,8 @@ _ZERO3 = np.zeros(3)
 
 class Prediction(StrictModel):
     """Velocity feed-forward (beyond the paper): ``enabled``, fit ``window`` (s), ``gain`` on the
-    fed-forward twists, and ``max_age`` (s) beyond which a marker pose is not propagated."""
+    fed-forward twists, ``max_age`` (s) beyond which a marker pose is not propagated, and ``relative``:
+    the compensation of eq. 35 subtracts the platform's motion relative to the target's estimated motion."""
 
     kind: ClassVar[str] = "prediction"
 
@@ -90,6 +92,8 @@ class Prediction(StrictModel):
     window: float = Field(default=0.4, gt=0.0, le=5.0)
     gain: float = Field(default=1.0, ge=0.0, le=2.0)
     max_age: float = Field(default=0.3, gt=0.0)
+    relative: bool = Field(default=True, description="eq. 35 compensates the platform's motion relative to the "
+                           "target's estimated motion (false: the paper's E − V_be dt, which leaves the tool v·dt behind)")
 
 
 class PlatformParams(StrictModel):
@@ -297,7 +301,9 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
             metrics["ee_error.t"], metrics["ee_error.r"] = pbvs.error_norms(pbvs.ee_error_vector(H_meas, H_be_star))
             if not self.arm_gains_zero:
                 V_be = pbvs.platform_induced_twist(V_b_eff, p_be)
-                L_c = pbvs.compensate_error(L_Ee, V_be, dt)
+                # with the part's motion estimated, eq. 35 compensates the platform's motion relative to the target
+                V_t = pbvs.target_twist(v_o, w_o, H_bo[:3, 3], H_be_star[:3, 3]) if predicting and self.pred.relative else None
+                L_c = pbvs.compensate_error(L_Ee, V_be, dt, V_t)
                 st_a = PID_A.get(m) or PidState()
                 V_a, st_a = pid_step(L_c, st_a, self.g_a, dt)
                 PID_A.set(m, st_a)

@@ -191,3 +191,24 @@ def test_fit_velocity_recovers_a_line_and_object_feedforward_is_a_rigid_motion()
     # with that platform twist the target does not move relative to the base: no arm feed-forward
     _, ff_a2 = pbvs.object_feedforward(v_o, w_o, p_bo, p_bt, ff_b)
     np.testing.assert_allclose(ff_a2, 0.0, atol=1e-12)
+
+
+def test_eq_35_against_a_moving_target_leaves_no_v_dt_offset_with_the_target_twist():
+    """Hand-computed: the platform and the target both move at 0.08 m/s along x (base axes), dt = 0.01 s,
+    the tool sits exactly on the target (E = 0).  The paper's E − V_be dt reads −0.8 mm along x, so an
+    integrating arm law settles with the tool 0.8 mm behind; relative to the target nothing moves."""
+    V_be = np.array([0.0, 0.0, 0.0, 0.08, 0.0, 0.0])
+    E = np.zeros(6)
+    np.testing.assert_allclose(pbvs.compensate_error(E, V_be, 0.01), [0, 0, 0, -0.0008, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(pbvs.compensate_error(E, V_be, 0.01, V_be.copy()), 0.0, atol=1e-15)
+    # a target moving at half the platform's speed: the platform removes only the other half of its motion
+    V_t = np.array([0.0, 0.0, 0.0, 0.04, 0.0, 0.0])
+    np.testing.assert_allclose(pbvs.compensate_error(E, V_be, 0.01, V_t), [0, 0, 0, -0.0004, 0, 0], atol=1e-15)
+
+
+def test_target_twist_is_the_rigid_motion_of_a_point_on_the_part():
+    """Hand-computed: part origin at (1, 0, 0) moving at (0.05, 0, 0) and turning at 0.2 rad/s about z; a
+    point 0.1 m further along y moves at 0.05 − 0.2 · 0.1 = 0.03 m/s along x."""
+    V = pbvs.target_twist(np.array([0.05, 0.0, 0.0]), np.array([0.0, 0.0, 0.2]), np.array([1.0, 0.0, 0.0]),
+                          np.array([1.0, 0.1, 0.3]))
+    np.testing.assert_allclose(V, [0.0, 0.0, 0.2, 0.03, 0.0, 0.0], atol=1e-15)
