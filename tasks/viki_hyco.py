@@ -46,6 +46,9 @@ plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`
 No detection yet and no object in memory: the robot holds still and, after ``search_timeout``, the task
 raises ``no_target`` every tick (declare ``on: no_target`` to an error state).
 
+Keep-out (:mod:`taskflow_tasks.keep_out`): with ``keep_out_body`` (the car's footprint, robot frame) a
+command moving the body toward the object (memory) once within ``keep_out_margin`` is turned around.
+
 Evidence for the settle rule (a completion a car can meet, docs/missions.md): ``goal_error`` (m) is the
 distance from ``desired`` to the mean object position of the last ``evidence_frames`` whole detections
 taken within ``evidence_window`` of view shift of the current pose (:func:`taskflow_tasks.viki_evidence.view_shift`),
@@ -64,6 +67,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 from typing import Any, ClassVar, Literal, Mapping, cast
 
 import numpy as np
@@ -78,6 +82,7 @@ from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry
 from taskflow.spatial import twist_adjoint_inverse
 from taskflow_tasks.car_visual_servo import car_jacobian_r
+from taskflow_tasks.keep_out import keep_out_speed
 from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shift
 from taskflow_tasks.viki_laws import (
     ServoInputs,
@@ -148,6 +153,10 @@ class ViKiHyCoParams(StrictModel):
                                  "this many latest whole detections (15: 1 s of frames)...")
     evidence_window: float = Field(default=0.02, gt=0.0, description="m: ...taken while the view has shifted less "
                                    "than this since (view_shift)")
+    keep_out_body: tuple[float, float, float, float] | None = Field(
+        default=None, description="m: the car's body (x_min, x_max, y_min, y_max) in the robot frame; with it the "
+        "car never drives toward the object once within keep_out_margin (taskflow_tasks.keep_out)")
+    keep_out_margin: float = Field(default=0.3, ge=0.0, description="m: body-object gap that triggers the keep-out")
     border_px: float = Field(default=2.0, ge=0.0, description="px: a box this close to the image border is cut by "
                              "it: it does not re-anchor the target nor count as evidence (goal_error)")
     zd: Literal["window", "pixel"] = "window"
@@ -208,6 +217,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         self.last_detection_t: float | None = None
         # the whole detections' evidence, newest last: (odometry pose at the detection, object (x, y) in odometry)
         self.evidence: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=params.evidence_frames)
+        self.object_radius = 0.0  # m, the object's half-width by the last whole detection (keep-out)
         self.target: np.ndarray | None = None
         self.theta_f: float | None = None
         self._sensors = (f"{self.camera}_camera",)
@@ -252,6 +262,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             O, r, z_c = self._object_from(det, pose)
             if whole:
                 self.evidence.append((pose.copy(), O))
+                self.object_radius = r
             if not MEM_OBJECT.present(self.memory) or (self.p.target_update == "latest" and whole):
                 if not MEM_OBJECT.present(self.memory):
                     MEM_FIRST.set(self.memory, {"t": obs.t, "camera": self.camera})
@@ -289,6 +300,11 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             T_robot_camera=self.T_robot_camera, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
             psi_max=self.psi_max, mode=self.p.mode, object_size=self.p.object_size, smoothing=self.p.smoothing,
             direction=self.direction)
+        if self.p.keep_out_body is not None and MEM_OBJECT.present(self.memory):
+            v_safe = keep_out_speed(out.v_cmd, self.p.keep_out_body, in_robot_frame(pose, MEM_OBJECT(self.memory)),
+                                    self.object_radius, self.p.keep_out_margin)
+            if v_safe != out.v_cmd:  # backing away: the applied twist is the reversed one (eq. 26's memory)
+                out = replace(out, v_cmd=v_safe, V=-out.V)
         self.last = out
         self.v_prev = out.V
         if out.v_cmd != 0.0:

@@ -283,3 +283,18 @@ def test_goal_error_averages_the_whole_detections_near_the_current_view():
     r = task.step(obs(0.15, None, pose=(0.0, 0.0, 0.03)))
     assert r.metrics["view_shift"] == pytest.approx(2 * 0.9 * math.sin(0.015))
     assert "goal_error" not in r.metrics  # the detections no longer describe this view
+
+
+def test_keep_out_turns_the_fallback_around_within_the_margin():
+    """Front camera, goal 1 m ahead, object 2 m ahead in memory, no detection: eq. 4 drives forward. With
+    the car's body given and a margin wider than the 1.59 m gap, the same command is turned around."""
+    front = dict(camera="front", desired=(1.0, 0.0), gains=dict(lam=(0.85, 0.3, 1, 1, 1), k1=(2.0, 1.0)))
+    free = make_task({MEM_OBJECT.name: np.array([2.0, 0.0])}, **front)
+    r_free = free.step(obs(0.0, None))
+    body = (-0.05, 0.41, -0.15, 0.15)
+    near = make_task({MEM_OBJECT.name: np.array([2.0, 0.0])}, keep_out_body=body, keep_out_margin=1.6, **front)
+    r = near.step(obs(0.0, None))
+    assert r_free.command["v"][0] > 0.0 and r.command["v"][0] == pytest.approx(-r_free.command["v"][0])
+    assert r.command["steer"][0] == pytest.approx(r_free.command["steer"][0])
+    far = make_task({MEM_OBJECT.name: np.array([2.0, 0.0])}, keep_out_body=body, keep_out_margin=1.5, **front)
+    assert far.step(obs(0.0, None)).command["v"][0] == pytest.approx(r_free.command["v"][0])
