@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from typing import Any, ClassVar, Literal, cast
 
 import numpy as np
@@ -53,8 +54,8 @@ from pydantic import BaseModel, Field, model_validator
 
 from taskflow_robots.racecar import CameraMount
 from taskflow_sim.bodies import BodyOptions, make_body
-from taskflow.fidelity import Fidelity
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
+from taskflow_sim.odometry_slip import SlipOdometry
 from taskflow.spatial import rotation_from_unit_quaternion, transform
 from taskflow_sim.perception_common import CameraModel, DropoutModel
 from taskflow_sim.perception_geometric import GeometricPerception
@@ -63,6 +64,7 @@ from taskflow_sim.stepped import SensorSchedule
 from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
 from taskflow.api import Marker, ObsSpec, Observation, Robot, RobotNeeds, message, text
+from taskflow.fidelity import Fidelity, Level, Sourced
 from taskflow.messages import Detection, Image
 from taskflow.registry import register_world
 
@@ -94,6 +96,35 @@ class VikiGroundParams(Fidelity, FlatGroundParams):
     static_flip: float = Field(default=0.01, ge=0.0, le=1.0,
                                description="chance per frame that a still image changes outcome (sensor noise)")
     lidar_fusion: bool = Field(default=True, description="rendered front camera: fuse the LiDAR (eq. 11-15)")
+    latency: float = Field(default=0.0, ge=0.0, le=1.0,
+                           description="s from a frame's capture until its detection is delivered (stamped at capture)")
+    box_bias: tuple[float, float, float, float] = Field(
+        default=(0.0, 0.0, 0.0, 0.0), description="px added to every detected box's (u0, v0, u2, v2): a systematic "
+        "detector offset (negative u0/v0 and positive u2/v2 make boxes larger)")
+    odom_scale_error: float = Field(default=0.0, gt=-1.0, lt=1.0,
+                                    description="fraction: odometry distance = true distance x (1 + this)")
+    odom_slip: float = Field(default=0.0, ge=0.0, lt=1.0,
+                             description="std of the per-tick relative error of the odometry's travel (fraction)")
+
+    FIDELITY: ClassVar[Mapping[str, Level]] = {"paper": {
+        "image_size": Sourced((1280, 720), "paper section III-A: both RealSense D435i cameras at 1280x720"),
+        "camera_rate_hz": Sourced(15.0, "paper section III-A: both cameras at 15 fps"),
+        "latency": Sourced(0.044, "paper Table 1 / section III-G: one iteration takes 44 ms (YOLOv5 detection 12 "
+                           "ms + interpolated point cloud and LiDAR-camera fusion 30 ms + control law 2 ms), so a "
+                           "frame's box reaches the control law 44 ms after its capture"),
+        "pixel_noise": Sourced(2.0, "derived: YOLOv5 boxes of [38] (section II-D) reach mAP@.5:.95 ~0.84, i.e. an "
+                               "IoU ~0.9 with the true box; on the paper's 1280x720 images a 60-160 px box at 1-2.6 m "
+                               "then has edges off by ~2-3 % of its size: std 2 px per edge"),
+        "box_bias": Sourced((-1.0, -1.0, 1.0, 1.0), "assumption (the paper does not evaluate the detector: section "
+                            "III-A): YOLO boxes drawn 1 px loose on each side at 1280x720; bounded by [38]'s "
+                            "localisation error < 0.25 m (section II-D), which it meets by two orders of magnitude"),
+        "depth_noise": Sourced(0.02, "Intel RealSense D435i datasheet: depth RMS error <= 2 % at 2 m (the paper's "
+                               "cameras, section III-A)"),
+        "odom_scale_error": Sourced(0.01, "paper section II-A: LiDAR odometry by F-LOAM [32]; F-LOAM's KITTI relative "
+                                    "translation error 0.51-1.25 % (sequences 00/02/05, the F-LOAM repository's "
+                                    "README): 1 % scale error"),
+        "odom_slip": Sourced(0.005, "same F-LOAM figures: their spread (0.51-1.25 %) as a random per-tick part"),
+    }}
 
     @model_validator(mode="after")
     def _check(self) -> "VikiGroundParams":
@@ -158,6 +189,8 @@ class VikiGround(FlatGround):
         self._path = 0.0
         self._last_xy: tuple[float, float] | None = None
         self._footprint: Footprint | None = None
+        self._pending: list[tuple[Detection, Image | None]] = []  # latency > 0: frames not delivered yet
+        self._slip: SlipOdometry | None = None
         self.min_clearance = math.inf
         self.contact = False
 
@@ -193,6 +226,9 @@ class VikiGround(FlatGround):
                                      wp.static_motion_rad, wp.static_flip)
         self._active = None if wp.initial_camera == "none" else wp.initial_camera
         self._frame_schedule.restart(0.0, self.cameras[self._active or "front"].mount.rate_hz)
+        if wp.odom_scale_error != 0.0 or wp.odom_slip > 0.0:  # its own stream: the ideal runs draw nothing
+            self._slip = SlipOdometry(np.random.default_rng([self.seed, 0x511]), wp.odom_scale_error, wp.odom_slip)
+            self._slip.reset(np.asarray(scene.car.pose(), dtype=float))
 
     def _perceptor(self, name: str) -> Any:
         per = self._perceptors.get(name)
@@ -226,6 +262,10 @@ class VikiGround(FlatGround):
     # --- the loop --------------------------------------------------------------------------------
     def observe(self) -> Observation:
         obs = super().observe()
+        if self._slip is not None:  # drifting odometry; FlatGround's white noise (if any) stays on top
+            true = np.asarray(self._require_scene().car.pose(), dtype=float)
+            pose = np.asarray(obs.state["pose"], dtype=float)
+            obs.state["pose"] = self._slip.update(true) + (pose - true)
         v = float(obs.state["v"])  # FlatGround's measured speed is the simulator's (no noise on it)
         self._v_trace.append((self.t, v))
         x, y, yaw = self._require_scene().car.pose()
@@ -235,6 +275,10 @@ class VikiGround(FlatGround):
         self._last_xy = (float(x), float(y))
         if self._active is not None and self._frame_schedule.due(self.t):
             obs.timings = {"perception": self._new_frame(self._active)}
+            if self.params.latency > 0.0:
+                self._deliver()
+        elif self.params.latency > 0.0:
+            self._deliver()
         elif self._last is not None and self._last.fresh:
             self._last = self._last.stale()
         if self._active is not None and self._last is not None and self._last.camera == self._active:
@@ -270,8 +314,13 @@ class VikiGround(FlatGround):
         else:
             bbox, depth, depth_at, depth_in = per.detect(T_world_camera, self.t, T_world_robot)
         perception_s = time.perf_counter() - t0
+        image = None
         if self.params.perception == "rendered":  # the image the detector got (a view: nothing copied)
-            self._image = Image(stamp=self.t, frame=f"{name}_camera", pixels=per.last_rgb)
+            image = Image(stamp=self.t, frame=f"{name}_camera", pixels=per.last_rgb)
+            if self.params.latency <= 0.0:
+                self._image = image
+        if bbox is not None and any(self.params.box_bias):
+            bbox = biased_box(bbox, self.params.box_bias, cam.width, cam.height)
         dropped = self._dropout.frame(T_world_camera) if self._dropout is not None else False
         self.frames += 1
         if bbox is not None:
@@ -284,14 +333,36 @@ class VikiGround(FlatGround):
                     self.first_detection_t = self.t
         self._frame_schedule.fire(self.t)
         self._frame += 1
-        self._last = Detection(stamp=self.t, frame=f"{name}_camera", camera=name, seq=self._frame, bbox=bbox, depth=depth,
-                               intrinsics=cam.intrinsics, width=cam.width, height=cam.height, depth_at=depth_at,
-                               depth_in=depth_in)
-        detected = self._last.detected
+        det = Detection(stamp=self.t, frame=f"{name}_camera", camera=name, seq=self._frame, bbox=bbox, depth=depth,
+                        intrinsics=cam.intrinsics, width=cam.width, height=cam.height, depth_at=depth_at,
+                        depth_in=depth_in)
+        if self.params.latency > 0.0:
+            self._pending.append((det, image))
+        else:
+            self._publish(det)
+        return perception_s
+
+    def _publish(self, det: Detection) -> None:
+        """``det`` becomes the detection the task sees (events on a change of outcome)."""
+        self._last = det
+        detected = det.detected
         if detected != self._last_detected and (self._last_detected is not None or detected):
             self._events.append("target_found" if detected else "target_lost")
         self._last_detected = detected
-        return perception_s
+
+    def _deliver(self) -> None:
+        """Latency: publish the newest pending frame captured at least ``latency`` ago (older ones are
+        superseded, as a detector's queue of one); otherwise the last delivered one goes stale."""
+        due = [i for i, (d, _) in enumerate(self._pending) if d.stamp + self.params.latency <= self.t + 1e-9]
+        if not due:
+            if self._last is not None and self._last.fresh:
+                self._last = self._last.stale()
+            return
+        det, image = self._pending[due[-1]]
+        del self._pending[:due[-1] + 1]
+        self._publish(det)
+        if image is not None:
+            self._image = image
 
     def select_sensors(self, names: tuple[str, ...]) -> None:
         """The active state's task names the camera mount it reads (``("front_camera",)``); ``()``: none.
@@ -306,6 +377,7 @@ class VikiGround(FlatGround):
             self._active = active
             self._last = None
             self._image = None
+            self._pending = []
             self._last_detected = None
             if active is not None:  # first frame of the new camera at the next observation
                 self._frame_schedule.restart(self.t, self.cameras[active].mount.rate_hz)
@@ -357,6 +429,20 @@ class VikiGround(FlatGround):
             "contact": self.contact,
         })
         return out
+
+
+def biased_box(bbox: tuple[float, float, float, float], bias: tuple[float, float, float, float], width: int,
+               height: int) -> tuple[float, float, float, float]:
+    """``bbox + bias`` (px, per edge) kept inside the image (edges ``-0.5 .. W - 0.5``) and ordered
+    (an edge pushed past its opposite meets it)."""
+    u0, v0, u2, v2 = (b + d for b, d in zip(bbox, bias))
+    u0, u2 = min(max(u0, -0.5), width - 0.5), min(max(u2, -0.5), width - 0.5)
+    v0, v2 = min(max(v0, -0.5), height - 0.5), min(max(v2, -0.5), height - 0.5)
+    if u2 < u0:
+        u0 = u2 = 0.5 * (u0 + u2)
+    if v2 < v0:
+        v0 = v2 = 0.5 * (v0 + v2)
+    return (u0, v0, u2, v2)
 
 
 def _sign_changes(v: np.ndarray, deadband: float = 0.01) -> int:

@@ -447,7 +447,10 @@ def fidelity_levels(params: type) -> tuple[FidelityLevel, ...]:
     """The named fidelity levels of a world parameter model (none unless it derives from :class:`Fidelity`)."""
     if not (isinstance(params, type) and issubclass(params, Fidelity)):
         return ()
-    return tuple(FidelityLevel(name, tuple(FidelityValue(k, v.value, v.source) for k, v in level.items()))
+    def value(v: Any) -> Any:
+        return _strict_json(to_jsonable_python(v, fallback=repr))
+
+    return tuple(FidelityLevel(name, tuple(FidelityValue(k, value(v.value), v.source) for k, v in level.items()))
                  for name, level in params.FIDELITY.items())
 
 

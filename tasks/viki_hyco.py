@@ -27,13 +27,18 @@ pixel on a slanted face (a carton seen corner-on) differs from the box mean by a
 leaves the corners 2–3 px off on a 100 px box — outside the paper's ±2 px band, so the state never ends.
 If ``Z_d`` cannot be read (desired centre outside the image) the tick falls back as if undetected.
 
-Kinematic target (eq. 25's fallback, eq. 4's ``h_d``): the object's position in the odometry frame is
-fixed by the **first** usable detection of the mission (eq. 18 + base-centre estimate) and stored in the
-mission data (key ``viki.object``) so later states — the rotation, the backward positioning —
-use it.  A state turns it into its control-point target once (on entry if the memory has the object,
-else at its first detection): the pose with the object at ``desired`` and the heading of
-:func:`taskflow_tasks.viki_laws.goal_heading` (stored as ``viki.target``).  ``target_update: latest``
-re-anchors the object on every detection instead (not the paper's rule).  For a goal behind the robot
+Kinematic target (eq. 25's fallback, eq. 4's ``h_d``): the object's position in the odometry frame
+(eq. 18 + base-centre estimate) is stored in the mission data (key ``viki.object``) so later states —
+the rotation, the backward positioning — use it.  With ``target_update: latest`` (the default) every
+*whole* detection re-anchors it — one whose box is not within ``border_px`` of the image border
+(:func:`taskflow_tasks.viki_evidence.box_cut_by_border`: a cut box's centre and width are the visible
+part's, and trusting it drove the car onto the object at large bearings); a cut box still drives the
+visual servo, and fixes the object only when nothing else has.  A target frozen at the first detection
+(``target_update: first``, the paper's rule) lies 5–9 cm from where the visual servo converges, so
+each burst of missed detections dragged the car off by 20–30 cm.  A state turns the object into its
+control-point target on entry (if the memory has it) and after every re-anchoring: the pose with the
+object at ``desired`` and the heading of :func:`taskflow_tasks.viki_laws.goal_heading` (stored as
+``viki.target``).  For a goal behind the robot
 (``desired[0] < 0``, the rear camera) the fallback is the paper's *backward* kinematic controller: eq. 4 on
 the car seen backwards, servoing the point ``d`` behind the rear axle (:func:`taskflow_tasks.viki_laws.reverse_control`;
 plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`` forces either.
@@ -41,15 +46,28 @@ plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`
 No detection yet and no object in memory: the robot holds still and, after ``search_timeout``, the task
 raises ``no_target`` every tick (declare ``on: no_target`` to an error state).
 
+Keep-out (:mod:`taskflow_tasks.keep_out`): with ``keep_out_body`` (the car's footprint, robot frame) a
+command moving the body toward the object (memory) once within ``keep_out_margin`` is turned around.
+
+Evidence for the settle rule (a completion a car can meet, docs/missions.md): ``goal_error`` (m) is the
+distance from ``desired`` to the mean object position of the last ``evidence_frames`` whole detections
+taken within ``evidence_window`` of view shift of the current pose (:func:`taskflow_tasks.viki_evidence.view_shift`),
+seen from the current odometry pose; ``view_shift`` (m) is how far the goal point has moved in odometry
+since the last whole detection (a still camera gives the same image: that detection still holds).
+
 Metrics: ``feature_error`` (px, max |f - f_d| of the latest detection, absent before the first),
 ``pos_error`` (m, control point to the kinematic target, from odometry), ``detected`` (``c`` of eq. 25),
 ``detection_age`` (s), ``object_x`` / ``object_y`` (m, object in the robot frame from odometry and the
-memory), ``v_cmd`` (m/s, signed command) and ``speed`` (m/s, measured).
+memory), ``v_cmd`` (m/s, signed command), ``speed`` (m/s, measured), ``goal_error`` and ``view_shift``
+(m, above; absent before the first whole detection, ``goal_error`` also once the view has moved more than
+``evidence_window``).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
+from dataclasses import replace
 from typing import Any, ClassVar, Literal, Mapping, cast
 
 import numpy as np
@@ -64,6 +82,8 @@ from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry
 from taskflow.spatial import twist_adjoint_inverse
 from taskflow_tasks.car_visual_servo import car_jacobian_r
+from taskflow_tasks.keep_out import keep_out_speed
+from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shift
 from taskflow_tasks.viki_laws import (
     ServoInputs,
     desired_centre,
@@ -75,7 +95,8 @@ from taskflow_tasks.viki_laws import (
 
 # the mission data the ViKi-HyCo tasks keep across states (one definition each)
 MEM_OBJECT: MemoryKey[NDArray[np.float64]] = MemoryKey(
-    "viki.object", array(2), unit="m", doc="odometry (x, y) of the object's base centre, fixed by the first detection")
+    "viki.object", array(2), unit="m",
+    doc="odometry (x, y) of the object's base centre, from the latest whole detection (or the first)")
 MEM_TARGET: MemoryKey[NDArray[np.float64]] = MemoryKey(
     "viki.target", array(2), unit="m", doc="the active state's control-point target (x, y) in odometry")
 MEM_FIRST: MemoryKey[dict[str, Any]] = MemoryKey(
@@ -125,7 +146,19 @@ class ViKiHyCoParams(StrictModel):
     object_size: tuple[float, float] | None = Field(default=None, description="mgbm: known (W, H) of the object (m)")
     search_timeout: float = Field(default=2.0, gt=0.0, description="s without any detection → event no_target")
     max_age: float = Field(default=0.2, gt=0.0, description="s: an older frame counts as no detection")
-    target_update: Literal["first", "latest"] = "first"
+    target_update: Literal["first", "latest"] = Field(
+        default="latest", description="the fallback target follows every usable detection (latest) or the "
+        "first one only (first: the paper's rule)")
+    evidence_frames: int = Field(default=15, ge=1, description="goal_error averages the object positions of up to "
+                                 "this many latest whole detections (15: 1 s of frames)...")
+    evidence_window: float = Field(default=0.02, gt=0.0, description="m: ...taken while the view has shifted less "
+                                   "than this since (view_shift)")
+    keep_out_body: tuple[float, float, float, float] | None = Field(
+        default=None, description="m: the car's body (x_min, x_max, y_min, y_max) in the robot frame; with it the "
+        "car never drives toward the object once within keep_out_margin (taskflow_tasks.keep_out)")
+    keep_out_margin: float = Field(default=0.3, ge=0.0, description="m: body-object gap that triggers the keep-out")
+    border_px: float = Field(default=2.0, ge=0.0, description="px: a box this close to the image border is cut by "
+                             "it: it does not re-anchor the target nor count as evidence (goal_error)")
     zd: Literal["window", "pixel"] = "window"
     fallback: Literal["auto", "forward", "reverse"] = "auto"
     smoothing: bool = True
@@ -150,7 +183,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": ViKiGains}
     metrics: ClassVar[dict[str, str]] = {
         "feature_error": "px", "pos_error": "m", "detected": "", "detection_age": "s",
-        "object_x": "m", "object_y": "m", "v_cmd": "m/s", "speed": "m/s",
+        "object_x": "m", "object_y": "m", "v_cmd": "m/s", "speed": "m/s", "goal_error": "m", "view_shift": "m",
         "cam_vx": "m/s", "cam_vy": "m/s", "cam_vz": "m/s", "cam_wx": "rad/s", "cam_wy": "rad/s", "cam_wz": "rad/s",
     }
     events: ClassVar[tuple[str, ...]] = ("no_target",)
@@ -182,6 +215,9 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         self.direction = 0.0
         self.last_feature_error: float | None = None
         self.last_detection_t: float | None = None
+        # the whole detections' evidence, newest last: (odometry pose at the detection, object (x, y) in odometry)
+        self.evidence: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=params.evidence_frames)
+        self.object_radius = 0.0  # m, the object's half-width by the last whole detection (keep-out)
         self.target: np.ndarray | None = None
         self.theta_f: float | None = None
         self._sensors = (f"{self.camera}_camera",)
@@ -217,11 +253,17 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         raw = obs.sensors.get("detection")
         det = raw if isinstance(raw, Detection) and raw.camera == self.camera else None
         usable = det is not None and det.detected and obs.t - det.stamp <= self.p.max_age + 1e-9
+        # a box cut by the image border still steers the visual servo (toward bringing the object into view)
+        # but is no evidence of where the object is: it anchors the target only when nothing else has
+        whole = usable and det is not None and not box_cut_by_border(det.bbox, det.width, det.height, self.p.border_px)
         events: tuple[str, ...] = ()
         bbox = Z_o = Z_d = centre = None
         if det is not None and usable:
             O, r, z_c = self._object_from(det, pose)
-            if not MEM_OBJECT.present(self.memory) or self.p.target_update == "latest":
+            if whole:
+                self.evidence.append((pose.copy(), O))
+                self.object_radius = r
+            if not MEM_OBJECT.present(self.memory) or (self.p.target_update == "latest" and whole):
                 if not MEM_OBJECT.present(self.memory):
                     MEM_FIRST.set(self.memory, {"t": obs.t, "camera": self.camera})
                 MEM_OBJECT.set(self.memory, O)
@@ -258,6 +300,11 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             T_robot_camera=self.T_robot_camera, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
             psi_max=self.psi_max, mode=self.p.mode, object_size=self.p.object_size, smoothing=self.p.smoothing,
             direction=self.direction)
+        if self.p.keep_out_body is not None and MEM_OBJECT.present(self.memory):
+            v_safe = keep_out_speed(out.v_cmd, self.p.keep_out_body, in_robot_frame(pose, MEM_OBJECT(self.memory)),
+                                    self.object_radius, self.p.keep_out_margin)
+            if v_safe != out.v_cmd:  # backing away: the applied twist is the reversed one (eq. 26's memory)
+                out = replace(out, v_cmd=v_safe, V=-out.V)
         self.last = out
         self.v_prev = out.V
         if out.v_cmd != 0.0:
@@ -275,11 +322,13 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             c, s = math.cos(pose[2]), math.sin(pose[2])
             h = pose[:2] + self.d_point * np.array([c, s])  # the controlled point, eq. 1
             metrics["pos_error"] = float(np.hypot(*(self.target - h)))
+        if self.evidence:
+            metrics["view_shift"] = view_shift(self.evidence[-1][0], pose, self.goal)
+            near = [O for P, O in self.evidence if view_shift(P, pose, self.goal) < self.p.evidence_window]
+            if near:
+                metrics["goal_error"] = float(np.hypot(*goal_offset(pose, np.mean(near, axis=0), self.goal)))
         if MEM_OBJECT.present(self.memory):
-            O = np.asarray(MEM_OBJECT(self.memory), dtype=float)
-            c, s = math.cos(pose[2]), math.sin(pose[2])
-            dx, dy = O[0] - pose[0], O[1] - pose[1]
-            metrics["object_x"], metrics["object_y"] = c * dx + s * dy, -s * dx + c * dy
+            metrics["object_x"], metrics["object_y"] = in_robot_frame(pose, MEM_OBJECT(self.memory)).tolist()
         elif obs.t - self.t0 >= self.p.search_timeout - 1e-9:
             events = ("no_target",)
         command = {"v": np.array([out.v_cmd]), "steer": np.array([out.psi])}

@@ -88,8 +88,14 @@ def test_a_normal_run_keeps_clear_of_the_object_and_a_run_into_it_reports_the_co
     # the car ends with the object 1 m ahead of its rear axle: the front of its footprint is 0.41 m ahead
     radius = SHAPES[m["object_kind"]].footprint_radius()
     assert 0.4 < m["min_clearance_m"] <= m["object_x_m"] - 0.4065 - radius + 1e-3
-    # the mission's goal 0.3 m ahead of the rear axle lies inside the car: it drives into the object
-    into = run_on_world(load_mission(FORWARD, ["parameters.goal=[0.3, 0.0]"]), seed=0, max_time=12.0)
+    # the mission's goal 0.3 m ahead of the rear axle lies inside the car: without the keep-out it drives
+    # into the object (what the clearance must report)...
+    bad_goal = ["parameters.goal=[0.3, 0.0]"]
+    into = run_on_world(load_mission(FORWARD, [*bad_goal, "machine.states.forward.task.params.keep_out_body=null"]),
+                        seed=0, max_time=12.0)
     m = into.summary["metrics"]
     assert m["contact"] is True and m["min_clearance_m"] == 0.0
     assert m["object_x_m"] < 0.4065 + SHAPES[m["object_kind"]].footprint_radius() + 0.005  # pinned at the car's front
+    # ...and with the mission's keep-out (the car's footprint, 0.3 m margin) the same bad goal keeps clear
+    kept = run_on_world(load_mission(FORWARD, bad_goal), seed=0, max_time=12.0).summary["metrics"]
+    assert kept["contact"] is False and kept["min_clearance_m"] > 0.1

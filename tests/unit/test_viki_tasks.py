@@ -86,7 +86,7 @@ def test_eq25_switches_between_visual_and_kinematic_laws(camera):
 
 def test_first_detection_fixes_the_object_and_later_states_use_it():
     memory: dict = {}
-    task = make_task(memory)
+    task = make_task(memory, target_update="first")  # the paper's rule (the default follows the evidence)
     task.step(obs(0.0, det(0.0)))
     O1 = MEM_OBJECT(memory).copy()
     target1 = task.target.copy()
@@ -237,3 +237,64 @@ def test_the_reported_camera_twist_is_the_derivative_of_the_camera_pose(camera):
     numeric = np.r_[X[:3, 3], spatial.vee(X[:3, :3])]
     np.testing.assert_allclose(task._cam_twist @ V, numeric, atol=1e-6)
     assert not np.allclose(spatial.twist_adjoint(T_robot_camera)[:, [0, 5]] @ V, numeric, atol=1e-3)
+
+
+def test_a_box_cut_by_the_border_steers_the_servo_but_does_not_move_the_target():
+    memory: dict = {}
+    task = make_task(memory)
+    task.step(obs(0.0, det(0.0)))
+    O1, target1 = MEM_OBJECT(memory).copy(), task.target.copy()
+    # the object half out of view at the left border: biased box, not evidence of where the object is
+    r = task.step(obs(0.05, det(0.05, bbox=(-0.5, 100.0, 12.0, 190.0), depth=1.0)))
+    assert r.metrics["detected"] == 1.0 and task.last.used_vs  # the servo still turns toward it
+    np.testing.assert_array_equal(MEM_OBJECT(memory), O1)
+    np.testing.assert_array_equal(task.target, target1)
+    # 1 px from the border is cut too (border_px = 2); 3 px is not and re-anchors
+    task.step(obs(0.1, det(0.1, bbox=(0.5, 100.0, 40.0, 190.0), depth=1.0)))
+    np.testing.assert_array_equal(MEM_OBJECT(memory), O1)
+    task.step(obs(0.15, det(0.15, bbox=(2.5, 100.0, 40.0, 190.0), depth=1.0)))
+    assert not np.allclose(MEM_OBJECT(memory), O1)
+
+
+def test_only_a_cut_box_still_gives_a_first_target():
+    memory: dict = {}
+    task = make_task(memory)
+    r = task.step(obs(0.0, det(0.0, bbox=(-0.5, 100.0, 12.0, 190.0), depth=1.0)))
+    assert MEM_OBJECT.present(memory) and task.target is not None  # better than no target at all
+    assert "goal_error" not in r.metrics and "view_shift" not in r.metrics  # but it is no evidence
+
+
+def test_goal_error_averages_the_whole_detections_near_the_current_view():
+    task = make_task()
+    T = RP.rear_camera.T_robot_camera()
+    d1, d2 = det(0.0), det(0.05, bbox=(302.0, 110.0, 342.0, 190.0))
+    B1, B2 = (object_base(d.bbox, d.depth, K, T)[0] for d in (d1, d2))
+    r = task.step(obs(0.0, d1))
+    assert r.metrics["goal_error"] == pytest.approx(float(np.hypot(*(B1 - (-0.9, 0.0)))))
+    assert r.metrics["view_shift"] == 0.0
+    r = task.step(obs(0.05, d2))  # the mean of both frames' object positions
+    assert r.metrics["goal_error"] == pytest.approx(float(np.hypot(*(0.5 * (B1 + B2) - (-0.9, 0.0)))))
+    # no detection, the car moved 1 cm straight back: the object is 1 cm nearer the goal point...
+    r = task.step(obs(0.1, None, pose=(-0.01, 0.0, 0.0)))
+    B = 0.5 * (B1 + B2)
+    assert r.metrics["goal_error"] == pytest.approx(float(np.hypot(B[0] + 0.01 + 0.9, B[1])))
+    assert r.metrics["view_shift"] == pytest.approx(0.01)  # ...and the view has shifted by 1 cm
+    # turning by 0.03 rad swings the goal point 0.9 m behind by 2.7 cm: beyond the 2 cm evidence window
+    r = task.step(obs(0.15, None, pose=(0.0, 0.0, 0.03)))
+    assert r.metrics["view_shift"] == pytest.approx(2 * 0.9 * math.sin(0.015))
+    assert "goal_error" not in r.metrics  # the detections no longer describe this view
+
+
+def test_keep_out_turns_the_fallback_around_within_the_margin():
+    """Front camera, goal 1 m ahead, object 2 m ahead in memory, no detection: eq. 4 drives forward. With
+    the car's body given and a margin wider than the 1.59 m gap, the same command is turned around."""
+    front = dict(camera="front", desired=(1.0, 0.0), gains=dict(lam=(0.85, 0.3, 1, 1, 1), k1=(2.0, 1.0)))
+    free = make_task({MEM_OBJECT.name: np.array([2.0, 0.0])}, **front)
+    r_free = free.step(obs(0.0, None))
+    body = (-0.05, 0.41, -0.15, 0.15)
+    near = make_task({MEM_OBJECT.name: np.array([2.0, 0.0])}, keep_out_body=body, keep_out_margin=1.6, **front)
+    r = near.step(obs(0.0, None))
+    assert r_free.command["v"][0] > 0.0 and r.command["v"][0] == pytest.approx(-r_free.command["v"][0])
+    assert r.command["steer"][0] == pytest.approx(r_free.command["steer"][0])
+    far = make_task({MEM_OBJECT.name: np.array([2.0, 0.0])}, keep_out_body=body, keep_out_margin=1.5, **front)
+    assert far.step(obs(0.0, None)).command["v"][0] == pytest.approx(r_free.command["v"][0])

@@ -1,0 +1,64 @@
+"""What a ViKi-HyCo detection is worth as evidence: border-cut boxes, how far the view has moved since it.
+
+Pure functions (numbers in, numbers out) used by :mod:`taskflow_tasks.viki_hyco`:
+
+* :func:`box_cut_by_border` — a box that touches the image border (or comes within ``margin_px`` of it)
+  is the visible part of an object the image cuts: its centre, width and eq. 18's position estimate are
+  all biased toward the image's inside (a can half out of view looks half as wide and sits at the edge).
+  Such a box neither drives the visual servo nor re-anchors the kinematic target;
+* :func:`view_shift` — how far (m) a point fixed in the robot frame (the goal position of the object) has
+  moved in the odometry frame between two poses: the change of the camera's view of the goal since a
+  detection.  While it is below a few millimetres the image is the same (``viki_ground``'s still-camera
+  model), so the last detection still describes the scene;
+* :func:`goal_offset` — the object's position (odometry) seen from a pose, minus the desired position in
+  the robot frame (m): the metric form of the visual servo's goal, for the settle rule.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["box_cut_by_border", "view_shift", "goal_offset", "in_robot_frame"]
+
+
+def box_cut_by_border(bbox: ArrayLike, width: int, height: int, margin_px: float) -> bool:
+    """True if the box ``(u0, v0, u2, v2)`` (edges, OpenCV convention: the image spans ``-0.5 .. W - 0.5``)
+    lies within ``margin_px`` of any border of a ``width`` x ``height`` image (touching it: margin 0)."""
+    if width <= 0 or height <= 0:
+        raise ValueError(f"image size must be positive, got {width}x{height}")
+    if not margin_px >= 0.0:
+        raise ValueError(f"margin_px must be >= 0, got {margin_px}")
+    u0, v0, u2, v2 = (float(x) for x in np.asarray(bbox, dtype=float).reshape(4))
+    lo_u, lo_v, hi_u, hi_v = -0.5 + margin_px, -0.5 + margin_px, width - 0.5 - margin_px, height - 0.5 - margin_px
+    eps = 1e-9
+    return u0 <= lo_u + eps or v0 <= lo_v + eps or u2 >= hi_u - eps or v2 >= hi_v - eps
+
+
+def in_robot_frame(pose: ArrayLike, xy: ArrayLike) -> NDArray[np.float64]:
+    """An odometry point ``xy`` in the robot frame of ``pose = (x, y, theta)``."""
+    x, y, th = (float(v) for v in np.asarray(pose, dtype=float).reshape(3))
+    px, py = (float(v) for v in np.asarray(xy, dtype=float).reshape(2))
+    c, s = math.cos(th), math.sin(th)
+    dx, dy = px - x, py - y
+    return np.array([c * dx + s * dy, -s * dx + c * dy])
+
+
+def view_shift(pose_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> float:
+    """Distance (m) in odometry between where the robot-frame ``point`` was at ``pose_then`` and where it
+    is at ``pose_now`` (both ``(x, y, theta)``): translation plus rotation times the point's lever arm."""
+    g = np.asarray(point, dtype=float).reshape(2)
+
+    def world(pose: ArrayLike) -> NDArray[np.float64]:
+        x, y, th = (float(v) for v in np.asarray(pose, dtype=float).reshape(3))
+        c, s = math.cos(th), math.sin(th)
+        return np.array([x + c * g[0] - s * g[1], y + s * g[0] + c * g[1]])
+
+    return float(np.hypot(*(world(pose_now) - world(pose_then))))
+
+
+def goal_offset(pose: ArrayLike, object_xy: ArrayLike, desired: ArrayLike) -> NDArray[np.float64]:
+    """Object (odometry ``object_xy``) in the robot frame of ``pose`` minus ``desired`` (robot frame), m."""
+    return in_robot_frame(pose, object_xy) - np.asarray(desired, dtype=float).reshape(2)
