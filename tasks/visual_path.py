@@ -72,8 +72,12 @@ Choices where the paper is silent or its reading would not work (each marked in 
 * **Yaw decoupling** (``VisualGains.yaw_decoupling``, off by default).  ``e_v`` of eq. (2) holds the
   rotation as well as the translation, so law (3) answers a keyframe's yaw step with a sideways
   slide; on a curve ε (7) then passes ``T_ε`` with a sideways offset the yaw hides, and the offsets
-  add up over the keyframes (the shipped oval was cut by 45–55 cm).  With it on, the translation is
-  driven by ``e_v`` minus the yaw's share (:func:`~taskflow_tasks.homography.yaw_decoupled_error`).
+  add up over the keyframes (the shipped oval was cut by 45–55 cm).  With it on, the yaw is estimated
+  from H (:func:`~taskflow_tasks.homography.homography_yaw`) and the translation and the yaw are driven
+  separately (:func:`~taskflow_tasks.homography.yaw_decoupled_error`), in the feedback and in ``nu_p``.
+* **Feed-forward segment** (``PathGains.segment``).  Alg. 2 applies ``nu_p`` of segment ``k → k+1``
+  while servoing to keyframe ``k`` (``next``), so the drone turns one keyframe early on a curve;
+  ``current`` applies the segment being flown, ``k−1 → k`` (keyframe 0: ``0 → 1``).
 * ``sigma`` may be set per keyframe (§5.2 uses 0.13 then 0.06 for its two obstacles).
 """
 
@@ -151,9 +155,9 @@ class VisualGains(StrictModel):
     v_offset: Vec3 = (0.0, 2.5, 0.0)
     w_scale: float = Field(default=0.5, gt=0.0, le=100.0)
     w_offset: float = Field(default=0.0, ge=0.0, le=100.0)
-    yaw_decoupling: bool = Field(default=False, description="drive the translation with e_v minus the yaw's share "
-                                 "(homography.yaw_decoupled_error), so turning toward a keyframe does not slide the drone "
-                                 "sideways; off: the paper's law (3)")
+    yaw_decoupling: bool = Field(default=False, description="estimate the yaw from H (homography.homography_yaw) and "
+                                 "drive translation and yaw separately (homography.yaw_decoupled_error), so turning toward "
+                                 "a keyframe does not slide the drone sideways; off: the paper's law (3)")
 
     @model_validator(mode="after")
     def _valid(self) -> VisualGains:
