@@ -6,7 +6,10 @@ keyframe images of the visual path; no pose ever enters an observation.
 
 * **Dynamics.**  The body ``[x, y, z, yaw]`` tracks the commanded body-frame ``[vx, vy, vz, wz]``
   through a first-order lag (robot ``tau``), integrated at ``physics_hz`` and moved kinematically
-  (``resetBasePositionAndOrientation``); no rigid-body dynamics, no gravity.
+  (``resetBasePositionAndOrientation``); no rigid-body dynamics, no gravity.  ``command_response:
+  relative_move`` executes each command as the Bebop 2 under ViSP does, a relative move of ``nu·Δt``
+  (:mod:`taskflow_sim.quad_response`); ``command_delay_s`` and ``frame_latency_s`` make commands and
+  frames late; ``fidelity: paper`` sets these from the paper and ViSP (``docs/missions.md``).
 * **Keyframes (teach-by-showing).**  ``keyframes`` lists the taught poses ``{id, pose: [x, y, z,
   yaw]}``; on :meth:`reset` the world renders the camera image at each pose, or loads the images
   :func:`teach` stored in ``keyframe_dir``.  The poses serve only the ground-truth summary.
@@ -121,7 +124,8 @@ MOVE_TAU_SOURCE = ("fitted to the paper's §5.3 'about 205 s' for the oval witho
 
 
 class QuadRoomParams(Fidelity):
-    """Room, obstacles, start pose, visual path and sensor faults of the ``quad_room`` world."""
+    """Room, obstacles, start pose, visual path, sensor faults, and the drone's response and latencies
+    (fidelity ``paper``: the Bebop 2 of the paper) of the ``quad_room`` world."""
 
     room: RoomSpec = RoomSpec()
     obstacles: list[ObstacleSpec] = Field(default_factory=list)
