@@ -287,7 +287,7 @@ def homography_yaw(H: ArrayLike, yaw_axis: ArrayLike, m: ArrayLike, max_angle: f
     residual.  The visibility test rejects the other decomposition when the translation is mostly
     sideways (its normal then lies nearly in the image plane, with points on both sides); when it is
     mostly along the optical axis both may pass and the choice is the residual's (with noise, either):
-    the two then differ by little (they coincide as the translation vanishes).  Tracking the plane's
+    the two yaws then differ by up to about ‖t‖/d (they coincide as the translation vanishes).  Tracking the plane's
     normal from frame to frame to choose instead was tried and is worse (it can lock on the other
     branch: geometric oval seed 1, 40 cm off).  ``H`` must map the current image to the keyframe
     (``m* ∝ H m``) and be scaled as :func:`normalize_homography` does.
