@@ -5,6 +5,8 @@
     python benchmarks/visual_path.py --plots figures/   # also the figures of each run
     python benchmarks/visual_path.py --perception geometric --seeds 10   # success rates, fast camera
     python benchmarks/visual_path.py --only oval oval_feedforward --set profiles.visual.paper.w_scale=1.0
+    python benchmarks/visual_path.py --perception geometric --seeds 5 --fidelity paper   # the Bebop-like drone
+    python benchmarks/visual_path.py --shapes --seeds 10   # robustness over the taught path's shape (geometric)
 
 Each mission runs with the rendered pipeline (320x240 TinyRenderer frames → ORB/LK/RANSAC →
 hierarchical homography servoing).  Printed per experiment: completion, final ε (task and ground
@@ -17,6 +19,16 @@ projected with pixel noise, no rendering) over ``--seeds`` seeds (RANSAC draws a
 differ), as :func:`taskflow.batch.run_batch` trials on every core, and prints success rates (with their
 Wilson 95 % intervals; the t interval of the mean final error) with the
 mean time and final error of the successes.
+
+``--fidelity paper`` runs every mission with ``world.params.fidelity=paper`` (quad_room's Bebop 2 level:
+commands as ViSP's relative moves, 30 fps camera, one cycle of frame latency; ``docs/missions.md``) and
+prints the same table; ``ideal`` (default) is the simulation as the missions ship.
+
+``--shapes`` flies the shipped oval's mission (``visual_path_oval.yaml``, no feed-forward) over other
+taught paths built by :func:`path_shapes` (a tighter oval, an S-bend, a rounded rectangle), seeds 0 …
+``--seeds`` − 1 with the geometric camera, as :func:`taskflow.batch.run_batch` trials, and prints success
+[Wilson 95 %], the maximum deviation from the taught path (mean and worst over the seeds) and the final
+error.
 """
 
 from __future__ import annotations
@@ -24,6 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 import tempfile
 import time
@@ -254,6 +267,94 @@ def batch(names: list[str], out: Path, perception: str, seeds: int, overrides: l
     return rows
 
 
+def _arc(x: float, y: float, yaw: float, radius: float, angle: float, n: int) -> list[tuple[float, float, float]]:
+    """``n`` poses along a circular arc of ``radius`` turning by ``angle`` (rad, + = left) from ``(x, y, yaw)``."""
+    cx, cy = x - math.copysign(radius, angle) * math.sin(yaw), y + math.copysign(radius, angle) * math.cos(yaw)
+    out = []
+    for i in range(1, n + 1):
+        a = yaw + angle * i / n
+        out.append((cx + math.copysign(radius, angle) * math.sin(a), cy - math.copysign(radius, angle) * math.cos(a), a))
+    return out
+
+
+def _straight(x: float, y: float, yaw: float, length: float, n: int) -> list[tuple[float, float, float]]:
+    return [(x + length * i / n * math.cos(yaw), y + length * i / n * math.sin(yaw), yaw) for i in range(1, n + 1)]
+
+
+def path_shapes() -> dict[str, list[tuple[float, float, float]]]:
+    """Taught paths ``(x, y, yaw)`` from the start ``(0, 0, 0)`` inside the oval's room (x in (-1.4, 3.4),
+    y in (-0.8, 2.0)), keyframes ~16° and ≤ 0.5 m apart like the shipped oval's:
+
+    * ``oval`` — the shipped one (2 m straights, semicircles of radius 0.59 m, 11 keyframes each);
+    * ``oval_tight`` — semicircles of radius 0.45 m (8 keyframes of 22.5° each, 0.18 m apart);
+    * ``s_bend`` — 1 m straight, a left and a right quarter circle of radius 0.6 m (6 keyframes each), 0.5 m;
+    * ``rounded_rectangle`` — 1.5 m and 0.6 m sides joined by quarter circles of radius 0.4 m, closed.
+    """
+
+    def build(*parts: tuple[str, float, float, int]) -> list[tuple[float, float, float]]:
+        pose, out = (0.0, 0.0, 0.0), []
+        for kind, a, b, n in parts:
+            seg = _straight(*pose, a, n) if kind == "line" else _arc(*pose, a, b, n)
+            out += seg
+            pose = seg[-1]
+        return out
+
+    half = math.pi
+    return {
+        "oval": build(("line", 2.0, 0, 4), ("arc", 0.59, half, 11), ("line", 2.0, 0, 4), ("arc", 0.59, half, 11)),
+        "oval_tight": build(("line", 2.0, 0, 4), ("arc", 0.45, half, 8), ("line", 2.0, 0, 4), ("arc", 0.45, half, 8)),
+        "s_bend": build(("line", 1.0, 0, 2), ("arc", 0.6, half / 2, 6), ("arc", 0.6, -half / 2, 6), ("line", 0.5, 0, 1)),
+        "rounded_rectangle": build(("line", 1.5, 0, 3), ("arc", 0.4, half / 2, 5), ("line", 0.6, 0, 2),
+                                   ("arc", 0.4, half / 2, 5), ("line", 1.5, 0, 3), ("arc", 0.4, half / 2, 5),
+                                   ("line", 0.6, 0, 2), ("arc", 0.4, half / 2, 5)),
+    }
+
+
+def shapes(out: Path, seeds: int, overrides: list[str]) -> dict:
+    """The shipped oval mission over every :func:`path_shapes` path (its keyframes replaced; the others in
+    a room 1.6 m beyond the path), geometric camera, seeds 0 … ``seeds`` − 1: success [Wilson 95 %], max
+    deviation (mean, worst), final error."""
+    text = (ROOT / "missions" / EXPERIMENTS["oval"][0]).read_text()
+    head, rest = text.split("    keyframes: &path\n", 1)
+    tail = rest[rest.index("rate_hz:"):]  # the keyframe list ends where the mission's top-level keys resume
+    out.mkdir(parents=True, exist_ok=True)
+    rows = {}
+    for name, poses in path_shapes().items():
+        kfs = [f"      - {{id: {i}, pose: [{x:.4f}, {y:.4f}, 1.0, {math.remainder(yaw, 2 * math.pi):.4f}]}}\n"
+               for i, (x, y, yaw) in enumerate(poses)]
+        top = head.replace("mission: visual_path_oval", f"mission: visual_path_{name}", 1)
+        if name != "oval":  # a room 1.6 m beyond the path every way: the geometric camera's 20 landmarks per m²
+            # of a wall faced closer than ~1.2 m across a 22° keyframe step leave fewer than 16 shared points
+            xs, ys = [q[0] for q in poses], [q[1] for q in poses]
+            room = f"{{x0: {min(xs) - 1.6:.2f}, x1: {max(xs) + 1.6:.2f}, y0: {min(ys) - 1.6:.2f}, y1: {max(ys) + 1.6:.2f}, height: 2.5}}"
+            top = re.sub(r"    room: \{[^}]*\}", f"    room: {room}", top, count=1)
+        file = out / f"visual_path_{name}.yaml"
+        file.write_text(top + "    keyframes: &path\n" + "".join(kfs) + tail)
+        res = run_batch(str(file), trials=seeds, seed=0, out=out / name,
+                        overrides=["world.params.perception=geometric", *overrides])
+        trials = res["trials"]
+        ok = [t for t in trials if t["outcome"] == "succeeded"]
+        dev = [t["metrics"].get("path_deviation_max_m") for t in trials]
+        err = [t["metrics"].get("final_position_error_m") for t in ok]
+        rows[name] = {"keyframes": len(poses), "runs": len(trials), "succeeded": len(ok),
+                      "success_ci95": list(wilson_interval(len(ok), len(trials))),
+                      "path_deviation_max_m": [float(np.mean(dev)), float(np.max(dev))],
+                      "final_position_error_m": [float(np.mean(err)), float(np.max(err))] if err else None,
+                      "path_time_s": float(np.mean([t["sim_time_s"] for t in ok])) if ok else None,
+                      "collisions_max": max(int(t["metrics"].get("collisions") or 0) for t in trials)}
+    print(f"\npath shapes (visual_path_oval's mission, geometric camera, {seeds} seeds"
+          f"{', ' + ' '.join(overrides) if overrides else ''})")
+    print(f"  {'path':18s} {'kf':>3s}  success [95 % Wilson]   max deviation cm (mean / worst)  final error cm (mean / worst)  time s")
+    for name, r in rows.items():
+        ci, d, e = r["success_ci95"], r["path_deviation_max_m"], r["final_position_error_m"]
+        etext = "-" if e is None else f"{100 * e[0]:4.1f} / {100 * e[1]:4.1f}"
+        ttext = "-" if r["path_time_s"] is None else f"{r['path_time_s']:.1f}"
+        print(f"  {name:18s} {r['keyframes']:3d}  {r['succeeded']:2d}/{r['runs']:<2d} [{100 * ci[0]:3.0f}, {100 * ci[1]:3.0f}]"
+              f"           {100 * d[0]:5.1f} / {100 * d[1]:5.1f}                 {etext:>13s}           "
+              f"{ttext}")
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--only", nargs="*", choices=sorted(EXPERIMENTS), help="experiments to run (default: all)")
@@ -264,9 +365,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=10, help="seeds per experiment with --perception geometric")
     ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                     help="override a key of every mission run (as taskflow run --set), e.g. a gain")
+    ap.add_argument("--fidelity", choices=("ideal", "paper"), default="ideal",
+                    help="quad_room's fidelity level (paper: the Bebop 2 of the paper, docs/missions.md)")
+    ap.add_argument("--shapes", action="store_true", help="robustness over the taught path's shape (geometric)")
     args = ap.parse_args(argv)
     names = args.only or list(EXPERIMENTS)
     out = args.out or Path(tempfile.mkdtemp(prefix="visual_path_bench_"))
+    if args.fidelity != "ideal":
+        args.overrides = [f"world.params.fidelity={args.fidelity}", *args.overrides]
+    print(f"fidelity: {args.fidelity}")
+    if args.shapes:
+        rows = shapes(out, args.seeds, args.overrides)
+        print(json.dumps({"benchmark": "visual_path_shapes", "seeds": args.seeds, "overrides": args.overrides,
+                          "results": rows}))
+        return 0
     if args.perception == "geometric":
         rows = batch(names, out, args.perception, args.seeds, args.overrides)
         print(json.dumps({"benchmark": "visual_path", "perception": "geometric", "seeds": args.seeds,

@@ -6,7 +6,10 @@ keyframe images of the visual path; no pose ever enters an observation.
 
 * **Dynamics.**  The body ``[x, y, z, yaw]`` tracks the commanded body-frame ``[vx, vy, vz, wz]``
   through a first-order lag (robot ``tau``), integrated at ``physics_hz`` and moved kinematically
-  (``resetBasePositionAndOrientation``); no rigid-body dynamics, no gravity.
+  (``resetBasePositionAndOrientation``); no rigid-body dynamics, no gravity.  ``command_response:
+  relative_move`` executes each command as the Bebop 2 under ViSP does, a relative move of ``nu·Δt``
+  (:mod:`taskflow_sim.quad_response`); ``command_delay_s`` and ``frame_latency_s`` make commands and
+  frames late; ``fidelity: paper`` sets these from the paper and ViSP (``docs/missions.md``).
 * **Keyframes (teach-by-showing).**  ``keyframes`` lists the taught poses ``{id, pose: [x, y, z,
   yaw]}``; on :meth:`reset` the world renders the camera image at each pose, or loads the images
   :func:`teach` stored in ``keyframe_dir``.  The poses serve only the ground-truth summary.
@@ -44,12 +47,14 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.faults import FaultIntervals, IntervalFault
-from taskflow.fidelity import Fidelity
+from taskflow_sim.command_delay import CommandDelay
+from taskflow_sim.quad_response import move_target, relative_move_step
 from taskflow_sim.quad_scene import Column, QuadScene, Room
 from taskflow_sim.room_landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
 from taskflow_sim.stepped import SensorSchedule, SteppedWorld, check_command
 from taskflow.api import (Command, Marker, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message,
                           scalar, sequence)
+from taskflow.fidelity import Fidelity, Sourced
 from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow.registry import register_world
 
@@ -112,8 +117,16 @@ def load_keyframe_dir(path: str | Path) -> tuple[list[NDArray[np.uint8]], dict[s
     return images, meta
 
 
+MOVE_TAU_PAPER = 0.11
+MOVE_TAU_SOURCE = ("fitted to the paper's §5.3 'about 205 s' for the oval without feed-forward (Parrot publishes no "
+                   "figure for the Bebop 2's position loop): taskflow run "
+                   "missions/visual_path_oval.yaml --set world.params.perception=geometric --set world.params.fidelity=paper "
+                   "gives 204.2 s with 0.11 s (0.10: 192.5 s, 0.12: 218.3 s)")
+
+
 class QuadRoomParams(Fidelity):
-    """Room, obstacles, start pose, visual path and sensor faults of the ``quad_room`` world."""
+    """Room, obstacles, start pose, visual path, sensor faults, and the drone's response and latencies
+    (fidelity ``paper``: the Bebop 2 of the paper) of the ``quad_room`` world."""
 
     room: RoomSpec = RoomSpec()
     obstacles: list[ObstacleSpec] = Field(default_factory=list)
@@ -132,6 +145,28 @@ class QuadRoomParams(Fidelity):
     landmark_density: float = Field(default=20.0, gt=0.0, le=1000.0,
                                     description="landmarks per m² of wall, floor and ceiling (geometric mode)")
     pixel_noise: float = Field(default=0.5, ge=0.0, le=20.0, description="std of each landmark pixel coordinate (geometric mode)")
+    command_response: Literal["velocity", "relative_move"] = Field(
+        default="velocity", description="velocity: the body velocity tracks each command with the robot's lag tau; "
+        "relative_move: each command is a move of nu * control period from where the drone is (ViSP's Bebop 2 "
+        "setVelocity), executed by a position loop of time constant move_tau until the next one replaces it")
+    move_tau: float = Field(default=0.1, gt=0.0, le=10.0,
+                            description="time constant of the position loop executing a relative move (s)")
+    command_delay_s: float = Field(default=0.0, ge=0.0, le=2.0, description="transport delay of each command (s)")
+    frame_latency_s: float = Field(default=0.0, ge=0.0, le=2.0,
+                                   description="age of the frame an observation carries (s): the view of the pose then")
+    camera_rate_hz: float | None = Field(default=None, gt=0.0, le=1000.0,
+                                         description="frame rate (Hz); None: the robot camera's rate_hz")
+
+    FIDELITY: ClassVar[dict[str, dict[str, Sourced]]] = {"paper": {
+        "command_response": Sourced("relative_move", "Toro-Arcila et al. §5: commands are sent with ViSP's "
+                                    "vpRobotBebop2::setVelocity(v, dt), which sends setPosition(exp(v dt)), the ARSDK "
+                                    "relative move moveBy, non-blocking (ViSP modules/robot/src/real-robot/bebop2/"
+                                    "vpRobotBebop2.cpp)"),
+        "move_tau": Sourced(MOVE_TAU_PAPER, MOVE_TAU_SOURCE),
+        "camera_rate_hz": Sourced(30.0, "§5.2: the Bebop 2 camera in video mode works at 30 fps"),
+        "frame_latency_s": Sourced(0.04, "§5.1, Fig. 8: 40 ms cycle time in 96 % of the iterations, so each command "
+                                   "acts on a frame one cycle old"),
+    }}
 
     @field_validator("keyframes")
     @classmethod
@@ -210,11 +245,15 @@ class QuadRoom(SteppedWorld[QuadScene]):
 
     def _init_state(self) -> None:
         self.restart_clock()
-        self.camera_schedule = SensorSchedule(self.robot.params.camera.rate_hz)
+        self.camera_schedule = SensorSchedule(self.params.camera_rate_hz or self.robot.params.camera.rate_hz)
         self._lag = 1.0
         self.pose = np.asarray(self.params.start, dtype=np.float64).copy()
         self.vel = np.zeros(4)
         self.cmd = np.zeros(4)
+        self._delay = CommandDelay(self.params.command_delay_s, self.cmd) if self.params.command_delay_s > 0.0 else None
+        self._move_to: NDArray[np.float64] | None = None  # relative_move: the target of the move in progress
+        self._move_dt = 0.0
+        self._pose_log: list[tuple[float, NDArray[np.float64]]] = [(0.0, self.pose.copy())]  # frame latency
         self._frame = None
         self._frame_id = -1
         self._frame_t = -math.inf
@@ -308,26 +347,37 @@ class QuadRoom(SteppedWorld[QuadScene]):
 
     def _capture(self) -> None:
         cam = self.robot.params.camera
-        t = self.t
+        t, pose = self._seen()
         dark = self.blackout.active(t)
         self._frame_id += 1
         self._frame_t = t
         if self.params.perception == "geometric":
             empty = FeatureView(stamp=t, frame="camera", ids=np.zeros(0, dtype=np.int64), uv=np.zeros((0, 2)))
-            self._points = empty if dark else self._point_view(self.pose, t, "camera")
-            edges = None if dark else self._widest_column(self.pose)
+            self._points = empty if dark else self._point_view(pose, t, "camera")
+            edges = None if dark else self._widest_column(pose)
             self._obstacle = None if edges is None else Silhouette(stamp=t, frame="camera", u_left=edges[0],
                                                                    u_right=edges[1], touches_border=edges[2])
             return
         if dark:
             img = np.zeros((cam.height, cam.width, 3), dtype=np.uint8)
         else:
-            img = self._require_scene().render(tuple(self.pose))
+            img = self._require_scene().render(tuple(pose))
             if self.params.image_noise > 0.0:
                 noisy = img.astype(np.float32) + self._rng.normal(0.0, self.params.image_noise, img.shape)
                 img = np.clip(noisy, 0, 255).astype(np.uint8)
         img.setflags(write=False)
         self._frame = Image(stamp=t, frame="camera", pixels=img)
+
+    def _seen(self) -> tuple[float, NDArray[np.float64]]:
+        """Capture time and pose of the frame taken now: ``frame_latency_s`` ago (the latest logged pose
+        at or before then), or now."""
+        if self.params.frame_latency_s <= 0.0:
+            return self.t, self.pose
+        due = self.t - self.params.frame_latency_s + 1e-9
+        log = self._pose_log
+        while len(log) > 1 and log[1][0] <= due:
+            log.pop(0)
+        return log[0]
 
     def observe(self) -> Observation:
         if self.camera_schedule.poll(self.t):
@@ -344,16 +394,32 @@ class QuadRoom(SteppedWorld[QuadScene]):
 
     def apply(self, command: Command) -> None:
         """``nu`` = ``[vx, vy, vz, wz]`` (4 finite values), saturated to the robot's limits."""
-        self.cmd = self.robot.saturate(check_command(self.robot, command)["nu"])
+        nu = self.robot.saturate(check_command(self.robot, command)["nu"])
+        if self._delay is not None:
+            self._delay.push(self.t, nu)
+        else:
+            self.cmd = nu
+            if self.params.command_response == "relative_move":
+                self._move_to = None  # a new move starts at the next step
 
     # --- stepping (SteppedWorld hooks) ----------------------------------------------------------
     def begin_steps(self, n: int, h: float) -> None:
         tau = self.robot.params.tau
         self._lag = 1.0 - math.exp(-h / tau) if tau > 0.0 else 1.0
         self._start_xyz = tuple(self.pose[:3])
+        if n:
+            self._move_dt = n * h  # setVelocity(v, dt): dt is the control period
 
     def physics_step(self, h: float) -> None:
-        """The velocity lag, then the body moved by the new body-frame velocity."""
+        """The velocity lag, then the body moved by the new body-frame velocity; or (``relative_move``) a
+        step of the position loop toward the move in progress.  Delayed commands act once due."""
+        if self._delay is not None:
+            self.cmd = self._delay.at(self.t)
+            if self._delay.arrived:
+                self._move_to = None
+        if self.params.command_response == "relative_move":
+            self._relative_move_step(h)
+            return
         x, y, z, yaw = self.pose
         vel = self.vel
         vel += self._lag * (self.cmd - vel)
@@ -361,7 +427,19 @@ class QuadRoom(SteppedWorld[QuadScene]):
         self.pose[:] = (x + h * (c * vel[0] - s * vel[1]), y + h * (s * vel[0] + c * vel[1]), z + h * vel[2],
                         math.remainder(yaw + h * vel[3], 2.0 * math.pi))
 
+    def _relative_move_step(self, h: float) -> None:
+        if self._move_to is None:
+            self._move_to = move_target(self.pose, self.cmd, self._move_dt)
+        before = self.pose.copy()
+        self.pose[:] = relative_move_step(self.pose, self._move_to, h, self.params.move_tau)
+        d = self.pose - before
+        d[3] = math.remainder(d[3], 2.0 * math.pi)
+        c, s = math.cos(before[3]), math.sin(before[3])
+        self.vel[:] = ((c * d[0] + s * d[1]) / h, (-s * d[0] + c * d[1]) / h, d[2] / h, d[3] / h)  # body frame
+
     def end_steps(self, n: int, h: float) -> None:
+        if self.params.frame_latency_s > 0.0:
+            self._pose_log.append((self.t, self.pose.copy()))
         x, y, z, yaw = self.pose
         self.path_length += math.dist(self._start_xyz, (x, y, z))
         self._track_path_deviation()

@@ -18,7 +18,6 @@ Joints and links are found by name, never by index.
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,6 +27,7 @@ from numpy.typing import NDArray
 from taskflow.spatial import quaternion_from_yaw, rotation_from_quaternion, transform_from_pose, transform_xyz_yaw
 from taskflow_robots.iiwa_urdf import ARM_JOINTS, CAMERA_LINK, TOOL_JOINT, TOOL_TIP, write_urdf
 from taskflow_robots.mobile_iiwa import MobileIiwa
+from taskflow_sim.command_delay import CommandDelay
 
 
 @dataclass
@@ -52,37 +52,6 @@ def integrate_planar(pose: "tuple[float, float, float] | NDArray[np.float64]", t
         dy = (vx * (1.0 - c) + vy * s) / wz
     ct, st = math.cos(th), math.sin(th)
     return (x + ct * dx - st * dy, y + st * dx + ct * dy, th + dth)
-
-
-class CommandDelay:
-    """A pure transport delay: a value given at time ``t`` takes effect at ``t + delay`` (s).
-
-    :meth:`at` returns the latest value due by ``t`` (the initial value before any is due); values
-    due within ``eps`` s of ``t`` count as due (times are sums of float steps)."""
-
-    def __init__(self, delay: float, initial: tuple[float, ...], eps: float = 1e-9) -> None:
-        if not (math.isfinite(delay) and delay >= 0.0):
-            raise ValueError(f"CommandDelay needs a finite delay >= 0 s, got {delay!r}")
-        self.delay = delay
-        self.eps = eps
-        self.value = initial
-        self._queue: deque[tuple[float, tuple[float, ...]]] = deque()
-
-    def push(self, t: float, value: tuple[float, ...]) -> None:
-        """Give ``value`` at time ``t`` (s; not earlier than the last one given)."""
-        self._queue.append((t + self.delay, value))
-
-    def at(self, t: float) -> tuple[float, ...]:
-        """The value in effect at time ``t``: the latest one given at or before ``t − delay``."""
-        q = self._queue
-        while q and q[0][0] <= t + self.eps:
-            self.value = q.popleft()[1]
-        return self.value
-
-    def clear(self, value: tuple[float, ...]) -> None:
-        """Drop every pending value; ``value`` is in effect from now on."""
-        self._queue.clear()
-        self.value = value
 
 
 class MobileIiwaBody:

@@ -72,8 +72,12 @@ Choices where the paper is silent or its reading would not work (each marked in 
 * **Yaw decoupling** (``VisualGains.yaw_decoupling``, off by default).  ``e_v`` of eq. (2) holds the
   rotation as well as the translation, so law (3) answers a keyframe's yaw step with a sideways
   slide; on a curve ε (7) then passes ``T_ε`` with a sideways offset the yaw hides, and the offsets
-  add up over the keyframes (the shipped oval was cut by 45–55 cm).  With it on, the translation is
-  driven by ``e_v`` minus the yaw's share (:func:`~taskflow_tasks.homography.yaw_decoupled_error`).
+  add up over the keyframes (the shipped oval was cut by 45–55 cm).  With it on, the yaw is estimated
+  from H (:func:`~taskflow_tasks.homography.homography_yaw`) and the translation and the yaw are driven
+  separately (:func:`~taskflow_tasks.homography.yaw_decoupled_error`), in the feedback and in ``nu_p``.
+* **Feed-forward segment** (``PathGains.segment``).  Alg. 2 applies ``nu_p`` of segment ``k → k+1``
+  while servoing to keyframe ``k`` (``next``), so the drone turns one keyframe early on a curve;
+  ``current`` applies the segment being flown, ``k−1 → k`` (keyframe 0: ``0 → 1``).
 * ``sigma`` may be set per keyframe (§5.2 uses 0.13 then 0.06 for its two obstacles).
 """
 
@@ -109,6 +113,7 @@ from taskflow_tasks.homography import (
     feedforward_blend,
     feedforward_velocity,
     gain_matrix,
+    homography_yaw,
     mean_pixel_error,
     normalize_pixels,
     robot_velocity,
@@ -150,9 +155,9 @@ class VisualGains(StrictModel):
     v_offset: Vec3 = (0.0, 2.5, 0.0)
     w_scale: float = Field(default=0.5, gt=0.0, le=100.0)
     w_offset: float = Field(default=0.0, ge=0.0, le=100.0)
-    yaw_decoupling: bool = Field(default=False, description="drive the translation with e_v minus the yaw's share "
-                                 "(homography.yaw_decoupled_error), so turning toward a keyframe does not slide the drone "
-                                 "sideways; off: the paper's law (3)")
+    yaw_decoupling: bool = Field(default=False, description="estimate the yaw from H (homography.homography_yaw) and "
+                                 "drive translation and yaw separately (homography.yaw_decoupled_error), so turning toward "
+                                 "a keyframe does not slide the drone sideways; off: the paper's law (3)")
 
     @model_validator(mode="after")
     def _valid(self) -> VisualGains:
@@ -200,6 +205,9 @@ class PathGains(StrictModel):
     transition_s: float = Field(default=1.6, gt=0.0, le=60.0)
     gamma: float = Field(default=0.75, ge=0.0, le=1.0)
     p: float = Field(default=0.5, ge=0.0, le=1.0)
+    segment: Literal["next", "current"] = Field(
+        default="next", description="nu_p applied while servoing to keyframe k: next = segment k -> k+1 (Alg. 2's vVec); "
+        "current = segment k-1 -> k, the one being flown (k = 0: 0 -> 1)")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -349,6 +357,9 @@ def _segment_velocity(cur: NDArray[np.float64], kf: NDArray[np.float64], K: NDAr
     m_star = normalize_pixels(kf[:3], K).mean(axis=0)
     e = task_error(H, m_star)
     lam = adaptive_gain(float(np.linalg.norm(e)), gains.lambda_0, gains.lambda_inf, gains.lambda_0_slope)
+    if gains.yaw_decoupling:  # the segment's yaw step would slide nu_p sideways as it does nu_e
+        yaw_axis = Ad_body_camera[2, :3]
+        e = yaw_decoupled_error(H, m_star, yaw_axis, homography_yaw(H, yaw_axis, normalize_pixels(cur, K)))
     return feedforward_velocity(e, gain_matrix(lam, gains.homography_gains()), gamma, Ad_body_camera)
 
 
@@ -483,7 +494,11 @@ class ServoLaw:
         kf_in = (kf_px[:, 0] >= u0) & (kf_px[:, 0] <= u1) & (kf_px[:, 1] >= v0) & (kf_px[:, 1] <= v1)
         h_m = self.act_m.update(hier.visibility and points_outside(cur_px[kf_in], self.rect), t)
         # hierarchy (13)-(19), transition (28)-(29), robot velocities (6), feed-forward (31)
-        e_c = yaw_decoupled_error(e, m_star, self.Ad_body_camera[2, :3]) if self.visual.yaw_decoupling else e
+        if self.visual.yaw_decoupling:
+            yaw_axis = self.Ad_body_camera[2, :3]
+            e_c = yaw_decoupled_error(H, m_star, yaw_axis, homography_yaw(H, yaw_axis, m_cur))
+        else:
+            e_c = e
         res = hierarchical_control(J_a, [e_a], J_m, e_m, np.eye(6), e_c, hier.lambda_a, hier.lambda_m, lam_v, h_a, h_m)
         h_t = transition_weight(t - self.t_enter, self.path_gains.transition_s, self.path_gains.h0) if self.transition else 1.0
         nu_e = robot_velocity(h_t * res.nu, self.Ad_body_camera)
@@ -600,6 +615,8 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
                                            self.p.n_features, mem)
             mem[key] = table
         k = self.p.keyframe.id
+        if self.path_gains.segment == "current":
+            k = max(k - 1, 0)
         return table[k] if k < len(table) else np.zeros(4)
 
     def step(self, obs: Observation) -> StepResult:

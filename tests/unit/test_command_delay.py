@@ -1,11 +1,12 @@
-"""The platform's command transport delay (:class:`taskflow_sim.screw_robot.CommandDelay`), against
+"""The platform's command transport delay (:class:`taskflow_sim.command_delay.CommandDelay`, the screw
+platform's and the drone's), against
 hand-computed times."""
 
 from __future__ import annotations
 
 import pytest
 
-from taskflow_sim.screw_robot import CommandDelay
+from taskflow_sim.command_delay import CommandDelay
 
 
 def test_a_command_takes_effect_delay_seconds_after_it_was_given():
@@ -36,3 +37,13 @@ def test_a_zero_delay_acts_at_once_and_a_bad_delay_is_refused():
     for bad in (-0.01, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="finite delay >= 0"):
             CommandDelay(bad, (0.0,))
+
+
+def test_arrived_says_whether_the_call_released_a_new_value():
+    d = CommandDelay(0.1, (0.0,))
+    d.push(0.0, (0.5,))
+    d.push(0.04, (0.2,))
+    assert d.at(0.05) == (0.0,) and not d.arrived
+    assert d.at(0.1) == (0.5,) and d.arrived
+    assert d.at(0.12) == (0.5,) and not d.arrived  # still in effect, nothing new
+    assert d.at(0.14) == (0.2,) and d.arrived

@@ -13,11 +13,13 @@ from taskflow.spatial import R_FLU_OPTICAL, skew, transform, twist_adjoint, vee
 from taskflow_tasks.homography import (
     HomographyGains,
     adaptive_gain,
+    axis_rotation,
     euclidean_homography,
     feedforward_blend,
     feedforward_velocity,
     gain_matrix,
     homography_control,
+    homography_yaw,
     intrinsic_matrix,
     largest_triangle,
     mean_pixel_error,
@@ -255,25 +257,50 @@ def test_feedforward_equals_the_scaled_law_between_consecutive_keyframes():
 YAW_AXIS = np.array([0.0, -1.0, 0.0])  # body z (up) in the optical camera frame (y down)
 
 
-def test_yaw_decoupled_error_removes_a_pure_yaw_from_e_v():
-    """H = R_y(0.2) (a yaw seen by the optical camera), m* on the axis: e_v = (sin 0.2, 0, cos 0.2 − 1),
-    e_w = (0, 2 sin 0.2, 0); the yaw's share ½(e_w·a)a × m* = (sin 0.2, 0, 0) leaves (0, 0, cos 0.2 − 1)."""
-    c, s = math.cos(0.2), math.sin(0.2)
-    H = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-    e = task_error(H, (0.0, 0.0))
-    assert e == pytest.approx([s, 0.0, c - 1.0, 0.0, 2.0 * s, 0.0], abs=1e-12)
-    assert yaw_decoupled_error(e, (0.0, 0.0), YAW_AXIS) == pytest.approx([0.0, 0.0, c - 1.0, 0.0, 2.0 * s, 0.0], abs=1e-12)
+def R_y(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
-def test_yaw_decoupled_error_keeps_half_of_a_lateral_translation():
-    """H = I + t n^T / d with t = (0.3, 0, 0), n = (0, 0, 1), d = 3: e_v = (0.1, 0, 0), e_w = n × t / d =
-    (0, 0.1, 0); the yaw estimate ½(e_w·a)a = (0, 0.05, 0) takes (0.05, 0, 0) off e_v: (0.05, 0, 0) remains."""
+def test_axis_rotation_is_rodrigues():
+    """About the optical y axis the rotation is R_y; about −y (the body's up axis seen by the optical
+    camera) it is R_y(−θ); a vector of angles gives a stack."""
+    assert axis_rotation(0.3, [0.0, 1.0, 0.0]) == pytest.approx(R_y(0.3), abs=1e-15)
+    assert axis_rotation(0.3, YAW_AXIS) == pytest.approx(R_y(-0.3), abs=1e-15)
+    stack = axis_rotation(np.array([0.1, -0.2]), YAW_AXIS)
+    assert stack.shape == (2, 3, 3) and stack[1] == pytest.approx(R_y(0.2), abs=1e-15)
+
+
+def test_homography_yaw_of_a_pure_yaw_and_of_a_pure_lateral_translation():
+    """H = R_y(−0.2): the yaw is 0.2 about the body's up axis.  H = I + t nᵀ/d with t = (0.3, 0, 0),
+    n = (0, 0, 1), d = 3 has a second yaw-only decomposition, R_y(φ) with tan(φ/2) = 0.1/2 (H − R_y(φ)
+    is rank one there too, by hand: 2 − 2 cos φ = 0.1 sin φ), whose plane normal ≈ (1, 0, 0) puts points
+    left and right of the image centre at opposite depths; the visibility test picks θ = 0."""
+    m = np.array([[-0.3, -0.2], [0.3, -0.2], [-0.3, 0.2], [0.3, 0.2], [0.05, 0.0]])
+    assert homography_yaw(R_y(-0.2), YAW_AXIS, m) == pytest.approx(0.2, abs=1e-8)
     H = np.eye(3) + np.outer([0.3, 0.0, 0.0], [0.0, 0.0, 1.0]) / 3.0
-    e = task_error(H, (0.0, 0.0, 1.0))
-    assert e == pytest.approx([0.1, 0.0, 0.0, 0.0, 0.1, 0.0], abs=1e-12)
-    assert yaw_decoupled_error(e, (0.0, 0.0, 1.0), 2.0 * YAW_AXIS) == pytest.approx([0.05, 0, 0, 0, 0.1, 0], abs=1e-12)
+    phi = 2.0 * math.atan(0.05)
+    assert np.linalg.svd(H - R_y(phi), compute_uv=False)[1] == pytest.approx(0.0, abs=1e-12)  # the other root
+    assert homography_yaw(H, YAW_AXIS, m) == pytest.approx(0.0, abs=1e-8)
+
+
+def test_yaw_decoupled_error_separates_yaw_and_translation():
+    """Pure yaw H = R_y(0.2), m* on the axis: e_v' = 0 (the paper's e_v = (sin 0.2, 0, cos 0.2 − 1)),
+    e_w' = e_w = (0, 2 sin 0.2, 0).  Pure lateral translation (as above): all of it stays in e_v' =
+    (0.1, 0, 0) and e_w' = 0 (the paper's e_w = n × t / d = (0, 0.1, 0) would turn the drone).  Both:
+    H = R + t nᵀ/d gives e_v' = Rᵀ t (nᵀ m*)/d and e_w' = 2 sin θ a."""
+    s = math.sin(0.2)
+    theta = homography_yaw(R_y(0.2), YAW_AXIS, [[-0.3, 0.0], [0.3, 0.1], [0.0, -0.2]])
+    assert yaw_decoupled_error(R_y(0.2), (0.0, 0.0), YAW_AXIS, theta) == pytest.approx([0, 0, 0, 0, 2.0 * s, 0], abs=1e-8)
+    assert task_error(R_y(0.2), (0.0, 0.0)) == pytest.approx([s, 0.0, math.cos(0.2) - 1.0, 0.0, 2.0 * s, 0.0], abs=1e-12)
+    H = np.eye(3) + np.outer([0.3, 0.0, 0.0], [0.0, 0.0, 1.0]) / 3.0
+    assert yaw_decoupled_error(H, (0.0, 0.0, 1.0), 2.0 * YAW_AXIS, 0.0) == pytest.approx([0.1, 0, 0, 0, 0, 0], abs=1e-12)
+    t, n, R = np.array([0.2, 0.0, -0.1]), np.array([0.0, 0.0, 1.0]), R_y(-0.25)
+    e = yaw_decoupled_error(R + np.outer(t, n) / 2.0, (0.1, 0.05), YAW_AXIS, 0.25)
+    assert e[:3] == pytest.approx(R.T @ t * (n @ [0.1, 0.05, 1.0]) / 2.0, abs=1e-12)
+    assert e[3:] == pytest.approx([0.0, -2.0 * math.sin(0.25), 0.0], abs=1e-12)
     with pytest.raises(ValueError, match="non-zero"):
-        yaw_decoupled_error(e, (0.0, 0.0), np.zeros(3))
+        yaw_decoupled_error(H, (0.0, 0.0), np.zeros(3), 0.0)
 
 
 def test_yaw_decoupled_law_turns_toward_a_yawed_keyframe_without_sliding_sideways():
@@ -286,7 +313,9 @@ def test_yaw_decoupled_law_turns_toward_a_yawed_keyframe_without_sliding_sideway
     m_star = normalize_pixels(kf[list(largest_triangle(kf))], K).mean(axis=0)
     ad = twist_adjoint(transform(R_FLU_OPTICAL, [0.0, 0.0, 0.0]))
     paper = robot_velocity(homography_control(e, 1.0), ad)
-    decoupled = robot_velocity(homography_control(yaw_decoupled_error(e, m_star, ad[2, :3]), 1.0), ad)
+    theta = homography_yaw(H, ad[2, :3], normalize_pixels(project(X, *camera_pose(0.0, 0.0, 1.0, -0.28)), K))
+    assert theta == pytest.approx(-0.28, abs=1e-6)  # the current camera is turned right of the keyframe
+    decoupled = robot_velocity(homography_control(yaw_decoupled_error(H, m_star, ad[2, :3], theta), 1.0), ad)
     assert paper[3] > 0.2 and decoupled[3] == pytest.approx(paper[3])  # turns left toward the keyframe
     assert abs(paper[1]) > 0.2  # the paper's law slides sideways as fast
     assert abs(decoupled[1]) < 0.1 * abs(paper[1])

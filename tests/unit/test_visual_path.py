@@ -303,6 +303,13 @@ def test_segment_velocities_from_landmark_views_point_along_the_path():
                                          VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
     assert nus[0][0] > 0.02 and abs(nus[0][1]) < 0.2 * nus[0][0] and abs(nus[0][3]) < 0.01
     assert nus[1][3] > 0.02  # yaw left (+z)
+    # the yawed segment under the paper's law (3) also slides sideways (e_v holds the rotation); with the
+    # yaw decoupled (homography.yaw_decoupled_error) it turns in place, as the taught segment does
+    decoupled = segment_velocities_from_points((view(0.3, 0.0), view(0.3, 0.25)), Kc, twist_adjoint(rob.T_body_camera()),
+                                               VisualGains(lambda_0=1.5, lambda_inf=0.8, yaw_decoupling=True), 0.75)
+    # (what is left sideways is the camera's own swing: it sits 0.17 m ahead of the yaw axis)
+    assert nus[1][1] > 0.1 and decoupled[0][3] > 0.02
+    assert abs(decoupled[0][1]) < 0.25 * nus[1][1] and abs(decoupled[0][0]) < 0.01
 
 
 # ---------------------------------------------------------------------------------------------
