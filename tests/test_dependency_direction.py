@@ -22,6 +22,7 @@ PUBLIC_API = (
     "taskflow.specs",  # observation specs (also re-exported by taskflow.api)
     "taskflow.markers",  # scene markers and control points for figures (re-exported by taskflow.api)
     "taskflow.registry",  # register_task / register_robot / register_world
+    "taskflow.fidelity",  # a world's named fidelity levels (Fidelity, Sourced)
     "taskflow.messages",  # typed sensor messages: worlds produce them, tasks read them
     "taskflow.spatial",  # rigid-body maths named by direction
     "taskflow.shaping",  # the papers' activation h(t), shared with the executor's blend

@@ -85,7 +85,10 @@ def test_the_export_holds_every_state_change_with_its_cause(run_dir: Path) -> No
     assert [m for _, m in got] == records
     assert [t for t, _ in got] == [round(r["t"] * 1e9) for r in records]
     guard = next(m for _, m in got if m["cause"] == "guard")
-    assert guard["from"] == "forward" and guard["to"] == "rotate" and guard["metrics"]["feature_error"] < 2.0
+    assert guard["from"] == "forward" and guard["to"] == "rotate"
+    # either of the mission's two ways out of positioning: the paper's ±2 px, or the settle rule
+    m = guard["metrics"]
+    assert m["feature_error"] < 2.0 if "feature_error" in m else (m["goal_error"] < 0.01 and m["speed"] < 0.01)
     scene = msgs["/scene"][0][2]["entities"]
     assert [e["id"].split("-")[0] for e in scene] == ["start", "object"]
 
