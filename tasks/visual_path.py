@@ -105,7 +105,7 @@ from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictMod
                           scalar, sequence)
 from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow.registry import register_task
-from taskflow.spatial import transform, twist_adjoint
+from taskflow.spatial import transform, twist_adjoint, vee
 from taskflow_tasks.hierarchy import (
     Activation,
     collision_error,
@@ -496,8 +496,7 @@ class ServoLaw:
         self.J_a_last: NDArray[np.float64] | None = None
         self.memory = memory if memory is not None else ObstacleMemory()
         R = Ad_body_camera[:3, :3]
-        tx = Ad_body_camera[:3, 3:] @ R.T  # [et_c]x of eq. (5)
-        self.T_body_camera = transform(R, np.array([tx[2, 1], tx[0, 2], tx[1, 0]]))
+        self.T_body_camera = transform(R, vee(Ad_body_camera[:3, 3:] @ R.T))  # eq. (5): [[R, [t]x R], [0, R]]
 
     def __call__(self, t: float, cur_px: NDArray, kf_px: NDArray, obstacle: ObstacleDetection | None,
                  H: NDArray[np.float64] | None = None, nu_body: NDArray[np.float64] | None = None
