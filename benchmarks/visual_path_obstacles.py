@@ -3,13 +3,13 @@
     python benchmarks/visual_path_obstacles.py                     # both missions, 30 trials each (~4 min)
     python benchmarks/visual_path_obstacles.py --trials 10 --only obstacles
     python benchmarks/visual_path_obstacles.py --set profiles.hierarchy.paper.memory=false   # the paper's task
-    python benchmarks/visual_path_obstacles.py --scale 2       # columns twice as wide (and deep)
+    python benchmarks/visual_path_obstacles.py --scale 2       # columns twice as wide and deep, sigma x 2
 
 Each trial of ``visual_path_obstacles`` and ``visual_path_pose_regulation`` (geometric camera by default)
 draws its columns' places from the seed (``world.params.obstacles`` with ``{uniform: [a, b]}`` inside,
 :mod:`taskflow.distributions`): every column anywhere within ``--offset`` (0.2 m) of the taught line
 across it and over a stretch of the line along it (``PLACEMENTS``), with the shipped sizes times
-``--scale``.  The trials
+``--scale`` (and the collision references σ alike: the task starts at the same distance).  The trials
 run through :func:`taskflow.batch.run_batch`; collisions, clearance and final error are the world's
 ground truth (``quad_room``: PyBullet ``getClosestPoints`` between the drone's collision shapes and the
 columns).  Printed per mission: success with its Wilson 95 % interval, trials with a collision, the
@@ -27,6 +27,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -56,11 +57,30 @@ def placement(columns: list[tuple[tuple[float, float], dict[str, float]]], offse
     return "world.params.obstacles=[" + ", ".join(items) + "]"
 
 
+def sigma_overrides(path: Path, scale: float) -> list[str]:
+    """With columns ``scale`` times as wide, the collision references σ (eq. 8; per keyframe in
+    ``parameters.path``, else the hierarchy profile's) scaled alike, so the task starts avoiding at the
+    same distance as with the shipped columns; none when ``scale`` is 1."""
+    if scale == 1.0:
+        return []
+    spec = yaml.safe_load(path.read_text())
+    out = []
+    kfs = spec.get("parameters", {}).get("path", [])
+    if any("sigma" in k for k in kfs):
+        scaled = [{**k, "sigma": k["sigma"] * scale} if "sigma" in k else k for k in kfs]
+        out.append(f"parameters.path={json.dumps(scaled)}")
+    for name, prof in spec.get("profiles", {}).get("hierarchy", {}).items():
+        if "sigma" in prof:
+            out.append(f"profiles.hierarchy.{name}.sigma={prof['sigma'] * scale:g}")
+    return out
+
+
 def campaign(name: str, trials: int, offset: float, perception: str, overrides: list[str], out: Path,
              workers: int | None, scale: float = 1.0) -> dict:
     file, columns = PLACEMENTS[name]
     path = ROOT / "missions" / file
-    sets = [f"world.params.perception={perception}", placement(columns, offset, scale), *overrides]
+    sets = [f"world.params.perception={perception}", placement(columns, offset, scale), *sigma_overrides(path, scale),
+            *overrides]
     res = run_batch(str(path), trials=trials, seed=0, out=out / name, overrides=sets, workers=workers)
     mission = load_mission(path, overrides=sets)
     trials_out = res["trials"]
@@ -83,7 +103,7 @@ def campaign(name: str, trials: int, offset: float, perception: str, overrides: 
             "final_error_over_5cm": sum(1 for e in err if e > 0.05),
             "path_time_s": [float(np.mean([s["sim_time_s"] for s in ok])), float(np.max([s["sim_time_s"] for s in ok]))]
             if ok else [math.nan, math.nan],
-            "failed": failed, "placement": placement(columns, offset, scale)}
+            "failed": failed, "placement": placement(columns, offset, scale), "sigma": sigma_overrides(path, scale)}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -589,14 +589,13 @@ class ServoLaw:
         Every remembered obstacle is carried along with ``nu_body`` and forgotten once behind the body.
         A whole obstacle in view is placed in the body frame and replaces the remembered one it
         matches (centres within ``0.5 m``), keeping that one's escape side, or is added once the task
-        activates for it (``e_a > 0``).  The task acts
-        on a remembered obstacle out of view that is inside its keep-out disc (the nearest, by
-        :func:`~taskflow_tasks.obstacle_memory.remembered_collision`); otherwise on the one in view:
-        eq. (8), and eq. (9) at the edges moved to the committed escape side (chosen when the task
-        first activates for it); otherwise on the nearest remembered one (outside its disc).  The
-        task is active (eq. 20 rises) when ``e_a > 0`` for the obstacle in view, and for a remembered
-        one when the drone would reach its disc within the activation time
-        (:func:`~taskflow_tasks.obstacle_memory.closing_in`), so that ``h_a`` is up when it gets there."""
+        activates for it (``e_a > 0``).  The task acts on a remembered obstacle out of view that the
+        drone is inside of, or would reach within the activation time, the keep-out disc of
+        (:func:`~taskflow_tasks.obstacle_memory.closing_in`; the nearest by
+        :func:`~taskflow_tasks.obstacle_memory.remembered_collision`), and is then active, so that
+        ``h_a`` (eq. 20) is up when the drone gets there; otherwise on the one in view: eq. (8), and
+        eq. (9) at the edges moved to the committed escape side (chosen when the task first activates
+        for it), active when ``e_a > 0``; otherwise, inactive, on the nearest remembered one."""
         hier, mem = self.hier, self.memory
         rems = [propagate(r, nu_body, t) for r in mem.obstacles]
         rems = [r for r in rems if not has_passed(r, hier.pass_margin_m)]
