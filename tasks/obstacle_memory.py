@@ -19,7 +19,9 @@ This module gives the two missing pieces, as pure functions (arrays in, arrays o
   and its rate is ``(d/ρ)`` times the approach speed — eq. (9) of a centred obstacle, for which only
   the approach moves the edges apart.  Inside the keep-out disc the task stops the drone from
   approaching it further while it passes (motion around the obstacle lies in its null space); the
-  obstacle is watched until it is behind the body.
+  obstacle is watched until it is behind the body.  A new view is matched to a remembered obstacle
+  by :func:`associate`; a remembered one switches the task on once the drone would reach its disc
+  within the activation time (:func:`closing_in`), so that ``h_a`` (eq. 20) is up when it gets there.
 * **Escape side.**  Chosen once per obstacle when the task first activates (:func:`escape_side`: away
   from the obstacle's offset in the image, or a fixed side when it is centred) and kept;
   :func:`committed_edges` moves both edge points so that the obstacle's centre lies at least
