@@ -22,7 +22,7 @@ tracked points that a new matching of the keyframe cannot bring back to ``min_po
 ``features_lost`` event and command a hover; ``visual_path_rematch`` hovers and re-matches until it
 raises ``features_found``.
 
-Only images are used: the current frame (``obs.sensors["image"]``, an :class:`~taskflow.messages.Image`)
+Only images (and, for the obstacle memory, the measured body velocity) are used: the current frame (``obs.sensors["image"]``, an :class:`~taskflow.messages.Image`)
 and the keyframe images (``obs.sensors["keyframes"]``); the keyframe poses in the parameters are ground
 truth for the world's summary and are never read here.  With the world's geometric camera the frame's
 message is a :class:`~taskflow.messages.FeatureView` instead (``obs.sensors["points"]``, and
@@ -38,9 +38,21 @@ feedback alone.
 
 Choices where the paper is silent or its reading would not work (each marked in the code):
 
-* **Obstacle at the image border.**  Eq. (8) needs both edges (§3.1); a blob touching the left or
-  right border is treated as leaving the field of view: ``e_a`` goes to its reference (0) and
-  ``h_a`` decays with the last ``J_a`` kept, so the null-space projector changes continuously.
+* **Obstacle at the image border, and beside the drone.**  Eq. (8) needs both edges (§3.1); a blob
+  touching the left or right border is leaving the field of view.  The paper's task then lets ``e_a``
+  go to its reference and ``h_a`` decay (``hierarchy.memory: false``, the last ``J_a`` kept) — but the
+  camera loses a column 0.4–0.6 m before the drone reaches it, and the visual task pulls the drone back
+  into it.  By default (``memory: true``) the task remembers the obstacle in the body frame, carries it
+  along with the measured body velocity (``state.nu``: odometry, the only non-image input) and acts on
+  it until it is behind the drone (:mod:`~taskflow_tasks.obstacle_memory`: eq. 8 seen from the body's
+  centre, a keep-out distance ``keep_out_m``); the memory lasts across the keyframes of a run
+  (mission data ``visual_path.obstacle``, not in the summary).
+* **Symmetric block.**  With the obstacle dead ahead eq. (9) has no yaw term and the task only holds
+  the drone back (rendered, it hovered in front of the column at ~1 mm/s).  When the task first
+  activates for an obstacle it commits to a side (away from the obstacle's offset in the image, or
+  ``escape_side`` when it is centred) and eq. (9) is evaluated with the obstacle at least
+  ``escape_offset`` off the axis on the other side, so the drone turns and slides away
+  (``escape_offset: 0`` or ``memory: false``: the paper's eq. 9).
 * **Safety area.**  ``checkPoints`` only considers points whose keyframe location is inside the
   safety rectangle; otherwise a keyframe with features near its border keeps the visibility task
   active at the goal, where it fights the visual task.
@@ -93,10 +105,11 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
 
 from taskflow_robots.quadcopter import QuadCamera
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, message, scalar, sequence
+from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, instance, message,
+                          scalar, sequence)
 from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow.registry import register_task
-from taskflow.spatial import twist_adjoint
+from taskflow.spatial import transform, twist_adjoint, vee
 from taskflow_tasks.hierarchy import (
     Activation,
     collision_error,
@@ -106,6 +119,20 @@ from taskflow_tasks.hierarchy import (
     transition_weight,
     visibility_error,
     visibility_jacobian,
+)
+from taskflow_tasks.obstacle_memory import (
+    LEFT,
+    RIGHT,
+    ObstacleMemory,
+    RememberedObstacle,
+    associate,
+    closing_in,
+    committed_edges,
+    edges_in_body,
+    escape_side,
+    has_passed,
+    propagate,
+    remembered_collision,
 )
 from taskflow_tasks.homography import (
     HomographyGains,
@@ -195,6 +222,25 @@ class HierarchyGains(StrictModel):
     hsv_low: Vec3 = (48.0, 120.0, 60.0)
     hsv_high: Vec3 = (75.0, 255.0, 255.0)
     min_obstacle_px: int = Field(default=80, ge=1)
+    memory: bool = Field(default=True, description="remember the obstacle in the body frame once it leaves the view and "
+                         "keep the collision task on it until it is behind the body (obstacle_memory); off: the paper's "
+                         "task, which lets h_a decay as soon as an edge leaves the image")
+    obstacle_width: float | None = Field(default=None, gt=0.0, le=5.0,
+                                         description="width (m) that places a seen obstacle in the body frame; "
+                                                     "default sigma x z_obstacle (the width that looks sigma wide at "
+                                                     "the depth estimate)")
+    pass_margin_m: float = Field(default=0.3, ge=0.0, le=5.0,
+                                 description="a remembered obstacle is forgotten once both its edges are this far "
+                                             "behind the body's centre (m)")
+    keep_out_m: float = Field(default=0.55, gt=0.0, le=5.0,
+                              description="the collision task acts on a remembered obstacle once the body's centre "
+                                          "is within this distance (m) of it")
+    escape_offset: float = Field(default=0.1, ge=0.0, le=1.0,
+                                 description="while the task is active, eq. 9 sees the obstacle's centre at least this "
+                                             "far (normalised) off the optical axis on the side away from the committed "
+                                             "escape side; 0: the paper's eq. 9")
+    escape_side: Literal["left", "right"] = Field(default="left", description="escape side for an obstacle centred "
+                                                  "within escape_offset / 2 when the task first activates")
 
 
 class PathGains(StrictModel):
@@ -372,6 +418,11 @@ def _by_id(view: FeatureView, kf: FeatureView) -> tuple[NDArray[np.float64], NDA
 # ---------------------------------------------------------------------------------------------
 # the tasks
 
+# the obstacle the collision task remembers, carried across the keyframes of a run (a controller's state)
+OBSTACLE_MEMORY: MemoryKey[ObstacleMemory] = MemoryKey(
+    "visual_path.obstacle", instance(ObstacleMemory), output=False,
+    doc="the obstacle the collision task remembers in the body frame until it is behind the drone")
+
 _METRICS = {
     "epsilon": "px",
     "epsilon_margin": "px",
@@ -435,7 +486,7 @@ class ServoLaw:
 
     def __init__(self, K: NDArray[np.float64], Ad_body_camera: NDArray[np.float64], size: tuple[int, int], params: VisualPathParams,
                  visual: VisualGains, hier: HierarchyGains, path_gains: PathGains, t_enter: float,
-                 nu_p: NDArray[np.float64] | None = None) -> None:
+                 nu_p: NDArray[np.float64] | None = None, memory: ObstacleMemory | None = None) -> None:
         self.K, self.Ad_body_camera, self.p = K, Ad_body_camera, params
         if params.keyframe.sigma is not None:
             hier = hier.model_copy(update={"sigma": params.keyframe.sigma})
@@ -454,9 +505,16 @@ class ServoLaw:
         self.rising = 0
         self.eps_history: deque[tuple[float, float]] = deque()
         self.J_a_last: NDArray[np.float64] | None = None
+        self.memory = memory if memory is not None else ObstacleMemory()
+        R = Ad_body_camera[:3, :3]
+        self.T_body_camera = transform(R, vee(Ad_body_camera[:3, 3:] @ R.T))  # eq. (5): [[R, [t]x R], [0, R]]
 
     def __call__(self, t: float, cur_px: NDArray, kf_px: NDArray, obstacle: ObstacleDetection | None,
-                 H: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], dict[str, float]]:
+                 H: NDArray[np.float64] | None = None, nu_body: NDArray[np.float64] | None = None
+                 ) -> tuple[NDArray[np.float64], dict[str, float]]:
+        """One frame: tracked and keyframe pixels, the obstacle detection (``None``: none), optionally
+        ``H`` (else estimated) and the body's measured velocity ``nu_body = [vx, vy, vz, wz]`` (odometry,
+        which carries a remembered obstacle along; ``None``: taken as zero)."""
         p, hier, K = self.p, self.hier, self.K
         if H is None:
             H, _ = estimate_homography(cur_px, kf_px, K, p.homography)
@@ -467,23 +525,13 @@ class ServoLaw:
         lam = adaptive_gain(norm_e, self.visual.lambda_0, self.visual.lambda_inf, self.visual.lambda_0_slope)
         lam_v = gain_matrix(lam, self.gains)
         # collision avoidance, eqs. (8)-(9); h_a by eq. (20)
-        e_a = 0.0
-        J_a = np.zeros((1, 6))
-        active_a = False
         if obstacle is not None and obstacle.touches_border:
             obstacle = None  # both edges must be visible (§3.1): it is leaving the field of view
-        if obstacle is not None and hier.collision:
-            p1n, p2n = normalize_pixels([obstacle.p1, obstacle.p2], K)
-            e_a = collision_error(p1n, p2n, hier.sigma)
-            J_a = collision_jacobian(p1n, p2n, hier.z_obstacle, hier.z_obstacle)
-            active_a = e_a > 0.0
-            self.J_a_last = J_a
-        elif self.J_a_last is not None:
-            J_a = self.J_a_last  # out of view: e_a at its reference (0) while h_a decays
-        h_a = self.act_a.update(active_a, t)
-        if (obstacle is None or not hier.collision) and h_a <= 0.0:
-            self.J_a_last = None
-            J_a = np.zeros((1, 6))
+        if hier.collision and hier.memory:
+            e_a, J_a, active_a = self._collision(t, obstacle, np.zeros(4) if nu_body is None else nu_body)
+            h_a = self.act_a.update(active_a, t)
+        else:
+            e_a, J_a, h_a = self._collision_paper(t, obstacle)
         # visibility, eqs. (10)-(12)
         m_cur = normalize_pixels(cur_px, K)
         e_m = visibility_error(m_cur, self.c_star)
@@ -530,6 +578,70 @@ class ServoLaw:
         }
         return nu_e, metrics
 
+    def _collision_paper(self, t: float, obstacle: ObstacleDetection | None) -> tuple[float, NDArray[np.float64], float]:
+        """Eqs. (8)-(9) on the obstacle in view, ``h_a`` by eq. (20); out of view ``e_a`` is at its
+        reference (0) while ``h_a`` decays with the last ``J_a`` (``hierarchy.memory: false``)."""
+        hier = self.hier
+        e_a, J_a, active_a = 0.0, np.zeros((1, 6)), False
+        if obstacle is not None and hier.collision:
+            p1n, p2n = normalize_pixels([obstacle.p1, obstacle.p2], self.K)
+            e_a = collision_error(p1n, p2n, hier.sigma)
+            J_a = collision_jacobian(p1n, p2n, hier.z_obstacle, hier.z_obstacle)
+            active_a = e_a > 0.0
+            self.J_a_last = J_a
+        elif self.J_a_last is not None:
+            J_a = self.J_a_last
+        h_a = self.act_a.update(active_a, t)
+        if (obstacle is None or not hier.collision) and h_a <= 0.0:
+            self.J_a_last = None
+            J_a = np.zeros((1, 6))
+        return e_a, J_a, h_a
+
+    def _collision(self, t: float, obstacle: ObstacleDetection | None,
+                   nu_body: NDArray[np.float64]) -> tuple[float, NDArray[np.float64], bool]:
+        """``(e_a, J_a, active)`` with the obstacle memory (:mod:`~taskflow_tasks.obstacle_memory`).
+
+        Every remembered obstacle is carried along with ``nu_body`` and forgotten once behind the body.
+        A whole obstacle in view is placed in the body frame and replaces the remembered one it
+        matches (centres within ``0.5 m``), keeping that one's escape side, or is added once the task
+        activates for it (``e_a > 0``).  The task acts on a remembered obstacle out of view that the
+        drone is inside of, or would reach within the activation time, the keep-out disc of
+        (:func:`~taskflow_tasks.obstacle_memory.closing_in`; the nearest by
+        :func:`~taskflow_tasks.obstacle_memory.remembered_collision`), and is then active, so that
+        ``h_a`` (eq. 20) is up when the drone gets there; otherwise on the one in view: eq. (8), and
+        eq. (9) at the edges moved to the committed escape side (chosen when the task first activates
+        for it), active when ``e_a > 0``; otherwise, inactive, on the nearest remembered one."""
+        hier, mem = self.hier, self.memory
+        rems = [propagate(r, nu_body, t) for r in mem.obstacles]
+        rems = [r for r in rems if not has_passed(r, hier.pass_margin_m)]
+        seen, view = None, None
+        if obstacle is not None:
+            p1n, p2n = normalize_pixels([obstacle.p1, obstacle.p2], self.K)
+            e_view = collision_error(p1n, p2n, hier.sigma)
+            width = hier.obstacle_width if hier.obstacle_width is not None else hier.sigma * hier.z_obstacle
+            seen = RememberedObstacle(*edges_in_body(p1n, p2n, width, self.T_body_camera), width, t)
+            i = associate(rems, seen, 0.5)
+            side = rems[i].side if i is not None else 0
+            if side == 0 and e_view > 0.0:
+                side = escape_side(p1n, p2n, 0.5 * hier.escape_offset, LEFT if hier.escape_side == "left" else RIGHT)
+            seen = RememberedObstacle(seen.p1, seen.p2, width, t, side)
+            if i is not None:
+                rems[i] = seen
+            elif e_view > 0.0:  # remembered once the task acts on it (a far one's place is too uncertain)
+                rems.append(seen)
+            c1, c2 = committed_edges(p1n, p2n, side, hier.escape_offset)
+            view = (e_view, collision_jacobian(c1, c2, hier.z_obstacle, hier.z_obstacle))
+        mem.obstacles = rems
+        horizon = hier.activation_s
+        out_of_view = [(*remembered_collision(r, hier.keep_out_m), closing_in(r, nu_body, hier.keep_out_m, horizon))
+                       for r in rems if r is not seen]
+        nearest = max(out_of_view, key=lambda eja: (eja[2], eja[0])) if out_of_view else None
+        if nearest is not None and (nearest[2] or view is None):
+            return nearest[0], nearest[1] @ self.Ad_body_camera, nearest[2]
+        if view is not None:
+            return view[0], view[1], view[0] > 0.0
+        return 0.0, np.zeros((1, 6)), False
+
     def rebase(self, ratio: float | None) -> None:
         """The point set changed (re-matched points added): rescale the ε history by ``ratio`` (ε of
         the new set / ε of the old one, on the same frame) so that the rising count and the progress
@@ -564,7 +676,8 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
     events: ClassVar[tuple[str, ...]] = ("features_lost",)
     command_interface: ClassVar[str] = "body_velocity"
     robot_params: ClassVar[type[BaseModel]] = ForwardCamera
-    requires: ClassVar[dict[str, ObsSpec]] = {**_CAMERA, "sensors.obstacle": message(Silhouette)}
+    requires: ClassVar[dict[str, ObsSpec]] = {**_CAMERA, "sensors.obstacle": message(Silhouette), "state.nu": array(4)}
+    writes: ClassVar[tuple[MemoryKey[Any], ...]] = (OBSTACLE_MEMORY,)
 
     def __init__(self, ctx: TaskContext[VisualPathParams, ForwardCamera]) -> None:
         super().__init__(ctx)
@@ -640,7 +753,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
             self.tracker = PointTracker(grey, cur, kfp)
             self.n_matched = len(cur)
             self.law = ServoLaw(self.K, self.Ad_body_camera, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
-                                self._feedforward(obs, view))
+                                self._feedforward(obs, view), OBSTACLE_MEMORY.setdefault(self.ctx.memory, ObstacleMemory()))
         elif self._track(obs, grey) < p.min_points:
             self.metrics_out.update(n_points=float(len(self.tracker)))
             return self._hover(("features_lost",))
@@ -725,7 +838,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         cur, kfp = cur[order], kfp[order]
         if self.law is None:
             self.law = ServoLaw(self.K, self.Ad_body_camera, self.size, p, self.visual, self.hier, self.path_gains, self.t_enter,
-                                self._feedforward(obs, view))
+                                self._feedforward(obs, view), OBSTACLE_MEMORY.setdefault(self.ctx.memory, ObstacleMemory()))
         obstacle = _silhouette(obs.sensors.get("obstacle"), self.size, self.hier.min_obstacle_px) \
             if self.hier.collision else None
         return self._control(obs, tic, cur, kfp, obstacle, H)
@@ -736,7 +849,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         if self.law is None:
             raise RuntimeError("visual_path_servo: no law before the first match (internal error)")
         tic2 = time.perf_counter()
-        nu_e, metrics = self.law(obs.t, cur, kf, obstacle, H)
+        nu_e, metrics = self.law(obs.t, cur, kf, obstacle, H, np.asarray(obs.state["nu"], dtype=np.float64))
         toc = time.perf_counter()
         self.command = nu_e
         self.metrics_out = metrics
