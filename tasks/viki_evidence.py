@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["box_cut_by_border", "view_shift", "goal_offset", "in_robot_frame"]
+__all__ = ["box_cut_by_border", "view_shift", "view_shifts", "goal_offset", "in_robot_frame"]
 
 
 def box_cut_by_border(bbox: ArrayLike, width: int, height: int, margin_px: float) -> bool:
@@ -46,17 +46,23 @@ def in_robot_frame(pose: ArrayLike, xy: ArrayLike) -> NDArray[np.float64]:
     return np.array([c * dx + s * dy, -s * dx + c * dy])
 
 
-def view_shift(pose_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> float:
-    """Distance (m) in odometry between where the robot-frame ``point`` was at ``pose_then`` and where it
-    is at ``pose_now`` (both ``(x, y, theta)``): translation plus rotation times the point's lever arm."""
+def view_shifts(poses_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> NDArray[np.float64]:
+    """Distance (m) in odometry between where the robot-frame ``point`` was at each of ``poses_then``
+    (``(N, 3)`` rows ``(x, y, theta)``) and where it is at ``pose_now``: translation plus rotation times the
+    point's lever arm (one per row; the settle rule checks every stored detection each tick)."""
     g = np.asarray(point, dtype=float).reshape(2)
 
-    def world(pose: ArrayLike) -> NDArray[np.float64]:
-        x, y, th = (float(v) for v in np.asarray(pose, dtype=float).reshape(3))
-        c, s = math.cos(th), math.sin(th)
-        return np.array([x + c * g[0] - s * g[1], y + s * g[0] + c * g[1]])
+    def world(P: NDArray[np.float64]) -> NDArray[np.float64]:
+        c, s = np.cos(P[:, 2]), np.sin(P[:, 2])
+        return np.stack([P[:, 0] + c * g[0] - s * g[1], P[:, 1] + s * g[0] + c * g[1]], axis=1)
 
-    return float(np.hypot(*(world(pose_now) - world(pose_then))))
+    d = world(np.asarray(pose_now, dtype=float).reshape(1, 3)) - world(np.asarray(poses_then, dtype=float).reshape(-1, 3))
+    return np.hypot(d[:, 0], d[:, 1])
+
+
+def view_shift(pose_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> float:
+    """:func:`view_shifts` for one pose ``(x, y, theta)`` then."""
+    return float(view_shifts(pose_then, pose_now, point)[0])
 
 
 def goal_offset(pose: ArrayLike, object_xy: ArrayLike, desired: ArrayLike) -> NDArray[np.float64]:

@@ -51,7 +51,7 @@ command moving the body toward the object (memory) once within ``keep_out_margin
 
 Evidence for the settle rule (a completion a car can meet, docs/missions.md): ``goal_error`` (m) is the
 distance from ``desired`` to the mean object position of the last ``evidence_frames`` whole detections
-taken within ``evidence_window`` of view shift of the current pose (:func:`taskflow_tasks.viki_evidence.view_shift`),
+taken within ``evidence_window`` of view shift of the current pose (:func:`taskflow_tasks.viki_evidence.view_shifts`),
 seen from the current odometry pose; ``view_shift`` (m) is how far the goal point has moved in odometry
 since the last whole detection (a still camera gives the same image: that detection still holds).
 
@@ -83,7 +83,7 @@ from taskflow_tasks.car_goto import CarGains, CarGeometry
 from taskflow.spatial import twist_adjoint_inverse
 from taskflow_tasks.car_visual_servo import car_jacobian_r
 from taskflow_tasks.keep_out import keep_out_speed
-from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shift
+from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shifts
 from taskflow_tasks.viki_laws import (
     ServoInputs,
     desired_centre,
@@ -323,8 +323,9 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             h = pose[:2] + self.d_point * np.array([c, s])  # the controlled point, eq. 1
             metrics["pos_error"] = float(np.hypot(*(self.target - h)))
         if self.evidence:
-            metrics["view_shift"] = view_shift(self.evidence[-1][0], pose, self.goal)
-            near = [O for P, O in self.evidence if view_shift(P, pose, self.goal) < self.p.evidence_window]
+            shifts = view_shifts([P for P, _ in self.evidence], pose, self.goal)
+            metrics["view_shift"] = float(shifts[-1])
+            near = [O for (_, O), shift in zip(self.evidence, shifts) if shift < self.p.evidence_window]
             if near:
                 metrics["goal_error"] = float(np.hypot(*goal_offset(pose, np.mean(near, axis=0), self.goal)))
         if MEM_OBJECT.present(self.memory):
