@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shift
+from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shift, view_shifts
 
 
 @pytest.mark.parametrize("bbox, cut", [
@@ -50,3 +50,14 @@ def test_view_shift_is_translation_plus_lever_arm_rotation():
     # rotating by a about the rear axle moves the point 0.9 m behind by 2 * 0.9 * sin(a / 2)
     a = 0.02
     assert view_shift((0.0, 0.0, 0.0), (0.0, 0.0, a), g) == pytest.approx(2 * 0.9 * math.sin(a / 2))
+
+
+def test_view_shifts_gives_each_stored_pose_its_own_shift():
+    """Three poses then: the same one (0), 3 cm back along x (0.03), and turned by 0.1 rad in place with
+    the point 1 m ahead (chord 2 sin(0.05) = 0.09996 m)."""
+    now = (0.0, 0.0, 0.0)
+    then = [(0.0, 0.0, 0.0), (-0.03, 0.0, 0.0), (0.0, 0.0, 0.1)]
+    got = view_shifts(then, now, (1.0, 0.0))
+    assert got.shape == (3,)
+    assert got == pytest.approx([0.0, 0.03, 2 * math.sin(0.05)], abs=1e-12)
+    assert [view_shift(p, now, (1.0, 0.0)) for p in then] == pytest.approx(got.tolist(), abs=0.0)
