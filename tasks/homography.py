@@ -232,6 +232,16 @@ def sort_points(points: ArrayLike) -> Array:
 # eqs. (2)–(4): task error, gains, control law
 
 
+def _keyframe_point(m_star: ArrayLike) -> Array:
+    """A normalised keyframe point ``(x, y)`` or ``(x, y, 1)`` as ``(x, y, 1)`` (3,)."""
+    ms = np.asarray(m_star, dtype=np.float64).reshape(-1)
+    if ms.shape == (2,):
+        ms = np.array([ms[0], ms[1], 1.0])
+    if ms.shape != (3,):
+        raise ValueError(f"m_star must be (x, y) or (x, y, 1), got shape {ms.shape}")
+    return ms
+
+
 def task_error(H: ArrayLike, m_star: ArrayLike) -> Array:
     """Eq. (2): ``e_v = (H - I) m*``, ``[e_w]x = H - H^T``; returns ``e = [e_v, e_w]`` (6,).
 
@@ -239,11 +249,7 @@ def task_error(H: ArrayLike, m_star: ArrayLike) -> Array:
     ``(x, y, 1)``.  ``e = 0`` iff ``H = I`` for a point off the plane's vanishing line.
     """
     h = np.asarray(H, dtype=np.float64).reshape(3, 3)
-    ms = np.asarray(m_star, dtype=np.float64).reshape(-1)
-    if ms.shape == (2,):
-        ms = np.array([ms[0], ms[1], 1.0])
-    if ms.shape != (3,):
-        raise ValueError(f"m_star must be (x, y) or (x, y, 1), got shape {ms.shape}")
+    ms = _keyframe_point(m_star)
     e_v = (h - np.eye(3)) @ ms
     e_w = vee(h - h.T)
     return np.concatenate((e_v, e_w))
@@ -333,11 +339,7 @@ def yaw_decoupled_error(H: ArrayLike, m_star: ArrayLike, yaw_axis: ArrayLike, th
     normalised as in :func:`task_error`; ``yaw_axis`` the body's z axis in camera coordinates (3,).
     """
     h = np.asarray(H, dtype=np.float64).reshape(3, 3)
-    ms = np.asarray(m_star, dtype=np.float64).reshape(-1)
-    if ms.shape == (2,):
-        ms = np.array([ms[0], ms[1], 1.0])
-    if ms.shape != (3,):
-        raise ValueError(f"m_star must be (x, y) or (x, y, 1), got shape {ms.shape}")
+    ms = _keyframe_point(m_star)
     a = _unit_axis(yaw_axis)
     R = axis_rotation(theta, a)
     return np.concatenate((R.T @ h @ ms - ms, 2.0 * math.sin(theta) * a))

@@ -300,9 +300,11 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             T_robot_camera=self.T_robot_camera, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
             psi_max=self.psi_max, mode=self.p.mode, object_size=self.p.object_size, smoothing=self.p.smoothing,
             direction=self.direction)
-        if self.p.keep_out_body is not None and MEM_OBJECT.present(self.memory):
-            v_safe = keep_out_speed(out.v_cmd, self.p.keep_out_body, in_robot_frame(pose, MEM_OBJECT(self.memory)),
-                                    self.object_radius, self.p.keep_out_margin)
+        # the object (memory) in the robot frame, once per tick: for the keep-out and the object_x/y metrics
+        object_robot = in_robot_frame(pose, MEM_OBJECT(self.memory)) if MEM_OBJECT.present(self.memory) else None
+        if self.p.keep_out_body is not None and object_robot is not None:
+            v_safe = keep_out_speed(out.v_cmd, self.p.keep_out_body, object_robot, self.object_radius,
+                                    self.p.keep_out_margin)
             if v_safe != out.v_cmd:  # backing away: the applied twist is the reversed one (eq. 26's memory)
                 out = replace(out, v_cmd=v_safe, V=-out.V)
         self.last = out
@@ -328,8 +330,8 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             near = [O for (_, O), shift in zip(self.evidence, shifts) if shift < self.p.evidence_window]
             if near:
                 metrics["goal_error"] = float(np.hypot(*goal_offset(pose, np.mean(near, axis=0), self.goal)))
-        if MEM_OBJECT.present(self.memory):
-            metrics["object_x"], metrics["object_y"] = in_robot_frame(pose, MEM_OBJECT(self.memory)).tolist()
+        if object_robot is not None:
+            metrics["object_x"], metrics["object_y"] = object_robot.tolist()
         elif obs.t - self.t0 >= self.p.search_timeout - 1e-9:
             events = ("no_target",)
         command = {"v": np.array([out.v_cmd]), "steer": np.array([out.psi])}
