@@ -140,7 +140,7 @@ def load_operator_script(path: str | Path, mission: CompiledMission, live: bool 
     try:
         script = _SCRIPT.validate_python(data)
     except ValidationError as exc:
-        problems = pydantic_problems(exc, smap, (), OperatorAction)
+        found = pydantic_problems(exc, smap, (), OperatorAction)
         hints: dict[tuple[int, int], str] = {}
         for err in exc.errors():
             loc = clean_loc(tuple(err["loc"]))
@@ -150,7 +150,7 @@ def load_operator_script(path: str | Path, mission: CompiledMission, live: bool 
                 hints.setdefault(smap.where(loc), "an item is {t, action, args, who}, args {to: STATE_PATH} for "
                                  "preempt, {event: EVENT} for inject (this mission's events: "
                                  f"{', '.join(sorted(mission.events)) or 'none'}), none for pause, hold, resume")
-        raise MissionError([p if p.hint else replace(p, hint=hints.get((p.line, p.col), "")) for p in problems]) from None
+        raise MissionError([p if p.hint else replace(p, hint=hints.get((p.line, p.col), "")) for p in found]) from None
     problems: list[Problem] = []
     for i, a in enumerate(script):
         try:
