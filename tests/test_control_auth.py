@@ -102,6 +102,7 @@ def test_an_action_without_the_runs_token_is_refused_changes_nothing_and_is_logg
         assert stat.S_IMODE(os.stat(out / "control.json").st_mode) == 0o600  # its owner's only
         assert isinstance(token, str) and len(token) >= 32 and info["pid"] == os.getpid()
         _until(lambda: request(url + "/state")[1]["paused"], "the script's pause")  # a GET on loopback: no token
+        errs: list[str] = []
         code, body = request(url + "/preempt", "POST", None, {"who": "mallory"})
         assert code == 401 and "needs its token" in body["error"]
         code, body = request(url + "/preempt", "POST", token[::-1], {"who": "mallory"})
@@ -111,7 +112,13 @@ def test_an_action_without_the_runs_token_is_refused_changes_nothing_and_is_logg
         time.sleep(0.3)  # a refused action that had been queued would be applied within a wait of the paused loop
         state = request(url + "/state")[1]
         assert (state["paused"], state["running"], state["t"]) == (True, True, 1.0)
-        assert request(url + "/hold", "POST", token, {"who": "trent"}) == (200, {"queued": "hold", "who": "trent"})
+        errs.append(capsys.readouterr().err)  # the refusals' lines so far
+        assert main(["ctl", "--url", url, "--token", "not-it", "pause"]) == 1  # taskflow ctl with a wrong token
+        assert "taskflow ctl: wrong token for this run" in capsys.readouterr().err
+        assert main(["ctl", str(out), "pause", "--token", token]) == 1  # RUN_DIR brings its own token
+        assert "--token goes with --url" in capsys.readouterr().err
+        assert main(["ctl", str(out), "hold", "--who", "trent"]) == 0  # RUN_DIR: the token from control.json
+        assert "hold queued by trent" in capsys.readouterr().out
         _until(lambda: request(url + "/state")[1]["held"], "the hold")
     finally:
         result = _end(thread, url, token, box)
@@ -121,9 +128,9 @@ def test_an_action_without_the_runs_token_is_refused_changes_nothing_and_is_logg
     refused = [json.loads(line) for line in (out / "refused.jsonl").read_text().splitlines()]
     assert [(r["method"], r["path"], r["status"], r["why"]) for r in refused] == [
         ("POST", "/preempt", 401, "no token"), ("POST", "/preempt", 403, "wrong token"),
-        ("POST", "/resume", 403, "wrong token")]
+        ("POST", "/resume", 403, "wrong token"), ("POST", "/pause", 403, "wrong token")]
     assert all(r["client"].startswith("127.0.0.1:") for r in refused)
-    err = capsys.readouterr().err
+    err = "".join(errs) + capsys.readouterr().err
     assert err.count("taskflow: refused POST /preempt from 127.0.0.1:") == 2 and "no token (HTTP 401)" in err
     assert token not in err and not (out / "control.json").exists()
 
