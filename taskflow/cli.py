@@ -77,9 +77,19 @@ def _load(path: str, overrides: list[str] | None = None):  # type: ignore[no-unt
     return load_mission(path, overrides)
 
 
+def _check_display(gui: bool) -> None:
+    """``--gui`` opens an X11 window on Linux: without a display PyBullet dies in C, after the run started."""
+    import os
+
+    if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+        raise UsageError("--gui: no display (DISPLAY is not set) — run without --gui (headless), or under a "
+                         "display (xvfb-run taskflow run --gui …)")
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from .runtime import Progress, print_progress, run_mission
 
+    _check_display(args.gui)
     path = args.mission or str(default_mission())
     max_time = _max_time(args.max_time)
     frames_hz = _frames_hz(args.frames)
@@ -112,23 +122,22 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def _operator_options(args: argparse.Namespace, mission):  # type: ignore[no-untyped-def]
     """The control endpoint (bound now, so a port in use is a usage error) and the operator script of ``run``."""
-    from .control import ControlError, check_script, load_operator_script
+    from .control import ControlError, load_operator_script
     from .control_http import ControlServer
 
-    operator = load_operator_script(args.operator_script, mission) if args.operator_script else None
-    try:
-        check_script(operator or [], live=not args.no_control)
-    except ControlError as exc:
-        raise UsageError(f"--operator-script {args.operator_script}: {exc}") from None
+    operator = (load_operator_script(args.operator_script, mission, live=not args.no_control)
+                if args.operator_script else None)
     if args.no_control:
         if args.view:
             raise UsageError("--view needs the control endpoint: drop --no-control")
         return None, operator
 
-    def announce(url: str, run_dir: Path | None) -> None:
-        print(f"control: {url}  (taskflow ctl {run_dir} state|pause|hold|resume|preempt|inject)", file=sys.stderr)
+    def announce(url: str, run_dir: Path | None, token: str | None) -> None:
+        # the token is printed once: with the page's address, or beside the endpoint's without --view
+        print(f"control: {url}  (taskflow ctl {run_dir} state|pause|hold|resume|preempt|inject"
+              + (")" if args.view else f"; token {token})"), file=sys.stderr)
         if args.view:
-            print(f"view: {url}/  (open it in a browser)", file=sys.stderr)
+            print(f"view: {url}/?token={token}  (open it in a browser)", file=sys.stderr)
 
     try:
         return ControlServer(args.control, announce, view=args.view), operator
@@ -137,9 +146,13 @@ def _operator_options(args: argparse.Namespace, mission):  # type: ignore[no-unt
 
 
 def cmd_ctl(args: argparse.Namespace) -> int:
+    import os
+
     from .control import ControlError
     from .control_http import ControlClient
 
+    if args.token is not None and args.url is None:
+        raise UsageError("--token goes with --url: with RUN_DIR the token is read from RUN_DIR/control.json")
     words = list(args.words)
     try:
         if args.url is None:
@@ -147,7 +160,7 @@ def cmd_ctl(args: argparse.Namespace) -> int:
                 raise UsageError("give the run directory and an action: taskflow ctl RUN_DIR pause (or --url URL pause)")
             client = ControlClient.for_run(words.pop(0))
         else:
-            client = ControlClient(args.url)
+            client = ControlClient(args.url, token=args.token or os.environ.get("TASKFLOW_TOKEN") or None)
         action, rest = words[0] if words else "", words[1:]
         extra: dict[str, str] = {}
         if action == "inject":
@@ -189,8 +202,9 @@ def cmd_view(args: argparse.Namespace) -> int:
     from .view import ViewError
     from .view_http import serve_replay, wait_forever
 
-    def announce(url: str, run_dir: Path | None) -> None:
-        print(f"view: {url}/  (replay of {args.run_dir}; Ctrl-C stops)", file=sys.stderr)
+    def announce(url: str, run_dir: Path | None, token: str | None) -> None:
+        page = f"{url}/?token={token}" if token else f"{url}/"
+        print(f"view: {page}  (replay of {args.run_dir}; Ctrl-C stops)", file=sys.stderr)
 
     try:
         server = serve_replay(args.run_dir, f"{args.host}:{args.port}", announce)
@@ -452,6 +466,8 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("words", nargs="+", metavar="[RUN_DIR] ACTION [EVENT]",
                    help="the run directory (unless --url), then the action; inject takes the event name")
     o.add_argument("--url", default=None, help="the endpoint's address instead of RUN_DIR/control.json")
+    o.add_argument("--token", default=None, help="with --url: the run's token (default: $TASKFLOW_TOKEN; "
+                   "with RUN_DIR it is read from control.json)")
     o.add_argument("--to", default=None, metavar="STATE_PATH", help="preempt: the state to go to (default: abort the run)")
     o.add_argument("--who", default=_user(), help="who asks (recorded in transitions.jsonl; default: your user name)")
     o.set_defaults(fn=cmd_ctl)

@@ -72,9 +72,10 @@ def view_routes(view: RunView) -> list[Any]:
 
 
 def serve_replay(run_dir: str | Path, address: str,
-                 announce: Callable[[str, Path | None], None] | None = None) -> "Any":
+                 announce: Callable[[str, Path | None, str | None], None] | None = None) -> "Any":
     """Start serving the finished run ``run_dir`` on ``address`` (``HOST:PORT``) from a daemon thread and
-    return its :class:`~taskflow.control_http.ControlServer` (``.url``; ``.stop()``).  Raises
+    return its :class:`~taskflow.control_http.ControlServer` (``.url``; ``.token``: None on loopback, else
+    the secret every request must carry; ``.stop()``).  Raises
     :class:`~taskflow.view.ViewError` or :class:`~taskflow.control.ControlError` with the reason."""
     from .control_http import ControlServer
 

@@ -94,4 +94,37 @@ def cases(tmp: Path) -> list[BadInput]:
         BadInput("plot-missing-folder", ("plot", str(tmp / "nope")), "no such folder", f"taskflow plot: {tmp / 'nope'}"),
         BadInput("plot-batch-folder", ("plot", str(batch_dir)), "a batch folder", f"taskflow plot: {batch_dir}"),
     ]
+    out += _operator_scripts(tmp)  # the "ops" block (issue 20): malformed operator scripts
+    return out
+
+
+# (name, script text, where in it: "LINE:COL", fragment) — each refused before the run starts, at its own position
+_OPERATOR_SCRIPTS = [
+    ("ops-yaml-syntax", "- {t: 1, action: pause\n", "2:1", "YAML error"),
+    ("ops-empty", "", "1:1", "the operator script is empty"),
+    ("ops-not-a-list", "pause: 1\n", "1:1", "an operator script is a list of actions"),
+    ("ops-unknown-action", "- {t: 1, action: paws}\n", "1:10",
+     "invalid value 'paws' — Input should be 'pause', 'hold'"),
+    ("ops-unknown-argument", "- {t: 1, action: pause, args: {to: x}}\n", "1:3",
+     "unknown argument 'to' (it takes none) — an item is {t, action, args, who}"),
+    ("ops-argument-not-text", "- {t: 1, action: preempt, args: {to: [a]}}\n", "1:34",
+     "a valid string — args: {to: STATE_PATH} for preempt"),
+    ("ops-negative-t", "- {t: 1, action: hold}\n- {t: -1, action: resume}\n", "2:4",
+     "greater than or equal to 0 — t is the sim time in seconds"),
+    ("ops-infinite-t", "- {t: .inf, action: hold}\n", "1:4", "finite number"),
+    ("ops-preempt-unknown-state", "- {t: 1, action: preempt, args: {to: drive.aproach}}\n", "1:34",
+     "did you mean 'drive.approach'"),
+    ("ops-inject-undeclared-event", "- {t: 1, action: inject, args: {event: arrived}}\n", "1:33",
+     "event 'arrived' is not declared by mission 'car_waypoints'"),
+    ("ops-pause-never-resumed", "- {t: 5, action: pause}\n- {t: 1, action: resume}\n", "1:10", "never resumed"),
+]
+
+
+def _operator_scripts(tmp: Path) -> list[BadInput]:
+    out = []
+    for name, text, where, fragment in _OPERATOR_SCRIPTS:
+        path = tmp / f"{name}.yaml"
+        path.write_text(text)
+        argv = ("run", CAR, "--no-control", "--operator-script", str(path), "--out", str(tmp / f"{name}-run"))
+        out.append(BadInput(name, argv, fragment, f"{path}:{where}:"))
     return out

@@ -21,7 +21,11 @@ NAMES = ["max-time-nan", "max-time-inf", "max-time-huge", "max-time-negative", "
          "physics-1-hz", "rates-do-not-divide", "rate-with-wrong-unit", "distribution-support",
          "distribution-normal-bounded", "guard-syntax-in-set", "guard-deep-parentheses", "guard-not-chain",
          "device-file", "too-many-states", "history-yes", "quad-start-outside-room", "batch-zero-trials",
-         "batch-zero-workers", "batch-negative-workers", "plot-missing-folder", "plot-batch-folder"]
+         "batch-zero-workers", "batch-negative-workers", "plot-missing-folder", "plot-batch-folder",
+         # the "ops" block: malformed operator scripts
+         "ops-yaml-syntax", "ops-empty", "ops-not-a-list", "ops-unknown-action", "ops-unknown-argument",
+         "ops-argument-not-text", "ops-negative-t", "ops-infinite-t", "ops-preempt-unknown-state",
+         "ops-inject-undeclared-event", "ops-pause-never-resumed"]
 
 
 def test_the_table_is_the_list_below(table: dict[str, BadInput]) -> None:
