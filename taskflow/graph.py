@@ -12,7 +12,12 @@ state: its anchor is an invisible node (each region shows its own start).  Long 
 :data:`WRAP` characters a line so a wide machine stays readable.
 
 Mermaid labels are written with Mermaid's own entity codes (``#lt;``, ``#gt;``, ``#58;`` …), which
-it renders as the characters written — never HTML escapes such as ``&lt;``.
+it renders as the characters written — never HTML escapes such as ``&lt;``; a label is one line (a line
+break would end Mermaid's statement), and the few sequences Mermaid's lexer reads as syntax anywhere on a
+line (``[[``, ``%%``) have their first character written as its code.  Mermaid has no invisible edges, so
+its regions are only separated by ``--`` (Mermaid lays them out itself); a state id that is one of
+Mermaid's keywords (``note``, ``state``, ``class`` …) gets a trailing ``_``.  Both outputs are checked by
+their own parsers over every shipped mission in ``tests/test_graph.py``.
 """
 
 from __future__ import annotations
@@ -26,17 +31,34 @@ WRAP = 28
 
 _MERMAID_ENTITIES = {"#": "#35;", "<": "#lt;", ">": "#gt;", ":": "#58;", ";": "#59;", '"': "#quot;",
                      "{": "#123;", "}": "#125;"}
+_MERMAID_PAIRS = {"[[": "#91;[", "]]": "#93;]", "%%": "#37;%"}
+"""Two-character sequences Mermaid's lexer takes as syntax wherever they stand (``[[fork]]``, ``%%{``)."""
+_MERMAID_KEYWORDS = frozenset({"as", "class", "classdef", "click", "default", "href", "note", "scale", "state",
+                               "statediagram", "style"})
+"""Words Mermaid's state-diagram lexer reads as a keyword when one stands where a state id is expected
+(matched without regard to case, as the lexer does)."""
 
 
 def _mid(node: StateNode) -> str:
     return node.path.replace(".", "__").replace("-", "_")
 
 
+def _mermaid_id(node: StateNode) -> str:
+    """The Mermaid id of ``node``: its dot id, with a trailing ``_`` when that is one of Mermaid's keywords."""
+    mid = _mid(node)
+    return mid + "_" if mid.lower() in _MERMAID_KEYWORDS else mid
+
+
 def mermaid_text(text: str, quoted: bool = False) -> str:
-    """``text`` with each character Mermaid would read as syntax written as its entity code; inside a
-    quoted state description (``quoted``) only ``"``, ``#``, ``<`` and ``>`` need it."""
+    """``text`` on one line (runs of white space, line breaks included, become one space) with each character
+    Mermaid would read as syntax written as its entity code; inside a quoted state description
+    (``quoted``) only ``"``, ``#``, ``<`` and ``>`` need it.  ``[[``, ``]]`` and ``%%`` are read as syntax
+    in both places, so their first character is written as its code."""
     keep = set(":;{}") if quoted else set()
-    return "".join(c if c in keep else _MERMAID_ENTITIES.get(c, c) for c in text)
+    out = "".join(c if c in keep else _MERMAID_ENTITIES.get(c, c) for c in " ".join(text.split()))
+    for pair, code in _MERMAID_PAIRS.items():
+        out = out.replace(pair, code)
+    return out
 
 
 def _state_label(node: StateNode) -> str:
@@ -59,39 +81,41 @@ def _state_label(node: StateNode) -> str:
 
 
 def to_mermaid(m: CompiledMission) -> str:
-    lines = ["stateDiagram-v2", f"    %% {m.name}"]
+    """``m`` as a Mermaid ``stateDiagram-v2``: composites as nested ``state … {}`` blocks, a parallel
+    state's regions separated by ``--``, every transition drawn at the top level with its trigger as label."""
+    lines = ["stateDiagram-v2", f"    %% mission {mermaid_text(m.name)}"]
 
     def block(node: StateNode, indent: str) -> None:
         if node.children and not node.parallel:
-            lines.append(f"{indent}[*] --> {_mid(node.children[node.initial])}")  # type: ignore[index]
+            lines.append(f"{indent}[*] --> {_mermaid_id(node.children[node.initial])}")  # type: ignore[index]
         for i, child in enumerate(node.children.values()):
             if node.parallel and i:
                 lines.append(f"{indent}--")
             label = mermaid_text(_state_label(child), quoted=True)
             if child.children:
-                lines.append(f'{indent}state "{label}" as {_mid(child)} {{')
+                lines.append(f'{indent}state "{label}" as {_mermaid_id(child)} {{')
                 block(child, indent + "    ")
                 lines.append(f"{indent}}}")
-                if node.parallel and child is not next(iter(node.children.values())):
-                    # regions are stacked top to bottom, so a wide region does not widen the others' row
-                    above = list(node.children.values())[list(node.children).index(child.name) - 1]
-                    for leaf in (d for d in above.walk() if d.is_leaf):
-                        lines.append(f'{indent}"{_mid(leaf)}" -> "{start_id(child)}" [style=invis, weight=0];')
             else:
-                lines.append(f'{indent}state "{label}" as {_mid(child)}')
+                lines.append(f'{indent}state "{label}" as {_mermaid_id(child)}')
             if child.final:
-                lines.append(f"{indent}{_mid(child)} --> [*]")
+                lines.append(f"{indent}{_mermaid_id(child)} --> [*]")
 
     block(m.root, "    ")
     for t in m.transitions:
-        lines.append(f"    {_mid(t.source)} --> {_mid(t.target)} : {mermaid_text(t.label)}")
+        lines.append(f"    {_mermaid_id(t.source)} --> {_mermaid_id(t.target)} : {mermaid_text(t.label)}")
     return "\n".join(lines)
+
+
+def _dot_escape(text: str) -> str:
+    """``text`` inside a dot quoted string: backslashes and quotes escaped."""
+    return text.replace("\\", "\\\\").replace('"', '\\"')
 
 
 def _dot_text(text: str) -> str:
     """A dot label: quotes escaped, wrapped at :data:`WRAP` characters (``\\n`` line breaks)."""
     lines = textwrap.wrap(text, WRAP, break_long_words=False, break_on_hyphens=False) or [""]
-    return "\\n".join(line.replace("\\", "\\\\").replace('"', '\\"') for line in lines)
+    return "\\n".join(_dot_escape(line) for line in lines)
 
 
 def start_id(node: StateNode) -> str:
@@ -100,7 +124,8 @@ def start_id(node: StateNode) -> str:
 
 
 def to_dot(m: CompiledMission) -> str:
-    lines = [f'digraph "{m.name}" {{',
+    """``m`` as a Graphviz digraph laid out top to bottom (see the module's docstring)."""
+    lines = [f'digraph "{_dot_escape(m.name)}" {{',
              "    compound=true; rankdir=TB; newrank=true; nodesep=0.3; ranksep=0.35;",
              '    node [shape=box, style=rounded, fontsize=11]; edge [fontsize=9];']
 
