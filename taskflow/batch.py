@@ -229,11 +229,6 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
         if progress is not None:
             progress.trial(todo[i][0].index, todo[i][1], str(result[0].get("outcome")))
 
-    if progress is not None:
-        recorded = campaign.records()
-        progress.start(name, spec.trials * len(spec.conditions()), len(recorded),
-                       sum(r["summary"].get("outcome") == "succeeded" for r in recorded.values()))
-
     t0, started = time.perf_counter(), time.time()
     interrupted: BaseException | None = None
     lost: WorkerLost | None = None
@@ -247,6 +242,10 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
                 raise BackendError(f"{exc} (the campaign waits in {campaign.root}: taskflow batch --resume "
                                    f"{campaign.root} runs it)") from None
             old_term = _on_sigterm()  # after the backend starts: Ray's own handler must not win
+            if progress is not None:  # once the backend is up: a backend that cannot start is one line
+                recorded = campaign.records()
+                progress.start(name, spec.trials * len(spec.conditions()), len(recorded),
+                               sum(r["summary"].get("outcome") == "succeeded" for r in recorded.values()))
             runner.run(jobs, on_result)
     except (KeyboardInterrupt, BatchInterrupted, TrialInterrupted) as exc:
         interrupted = exc
