@@ -4,6 +4,7 @@ Real ``taskflow batch`` processes on the toy mission (registered by the child's 
 
 from __future__ import annotations
 
+import io
 import os
 import pty
 import re
@@ -11,7 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from taskflow.batch import run_batch
+from taskflow.batch import BatchProgress, resume_batch, run_batch
 
 HERE = Path(__file__).resolve().parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
@@ -73,3 +74,12 @@ def test_a_batch_on_a_terminal_rewrites_one_progress_line(tmp_path: Path) -> Non
     assert all(re.search(r", ETA \d+ s$", s) for s in states[1:4]) and "ETA" not in states[4]
     assert "success 2/4" in stdout
     assert (out / "batch.json").read_bytes() == _silent_batch_json(tmp_path)
+
+
+def test_a_resumed_batch_counts_the_trials_already_recorded(tmp_path: Path) -> None:
+    out = tmp_path / "b"
+    run_batch(str(TOY), trials=3, workers=1, seed=3, out=out)
+    (out / "trials" / "c000-s00004.json").unlink()  # as if the batch had been stopped before seed 4 finished
+    log = io.StringIO()
+    resume_batch(out, workers=1, progress=BatchProgress(log, tty=False))
+    assert log.getvalue() == "batch toy_full: 3/3 trials, 3 succeeded (condition 0 seed 4: succeeded)\n"

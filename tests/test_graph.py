@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
-from diagram_parsers import dot_errors, mermaid_errors
+from diagram_parsers import ParserMissing, dot_errors, mermaid_errors
 
 from taskflow.graph import WRAP, mermaid_text, start_id, to_dot, to_mermaid
 from taskflow.loader import load_mission
@@ -52,6 +52,14 @@ def test_the_parsers_reject_what_they_should() -> None:
     assert "Lexical error" in errors[1] or "Parse error" in errors[1]
     assert dot_errors('digraph "x" { "a" -> "b" [label="ok"]; }') is None
     assert dot_errors('digraph "x" { "a" -> [label="no head"]; }') is not None
+
+
+def test_a_missing_parser_is_an_error_that_says_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PATH", "/nonexistent")  # neither node nor dot can be found: fail, never skip
+    with pytest.raises(ParserMissing, match="node is not on PATH: install Node.js"):
+        mermaid_errors(["stateDiagram-v2\n    [*] --> a\n"])
+    with pytest.raises(ParserMissing, match="install graphviz"):
+        dot_errors("digraph x {}")
 
 
 def test_mermaid_ids_that_are_keywords_and_labels_over_several_lines_stay_mermaid() -> None:
