@@ -77,7 +77,7 @@ class BatchProgress:
         self.name, self.total, self.done, self.ok, self.new = name, total, done, succeeded, 0
         self.t0 = time.perf_counter()
         if self.tty:
-            self._write(f"\rbatch {name}: {done}/{total} trials, {succeeded} succeeded, running …\x1b[K")
+            self._write(f"\r{self._fit(f'batch {name}: {done}/{total} trials, {succeeded} succeeded, running …')}\x1b[K")
             self._open_line = True
 
     def trial(self, condition: int, seed: int, outcome: str) -> None:
@@ -89,7 +89,7 @@ class BatchProgress:
         status = (f"{self.done}/{self.total} trials, {self.ok} succeeded"
                   + (f", ETA {_duration(eta)}" if left else ""))
         if self.tty:
-            self._write(f"\rbatch {self.name}: {status}\x1b[K")
+            self._write(f"\r{self._fit(f'batch {self.name}: {status}')}\x1b[K")
             self._open_line = True
         else:
             self._write(f"batch {self.name}: {status} (condition {condition} seed {seed}: {outcome})\n")
@@ -99,6 +99,15 @@ class BatchProgress:
         if self._open_line:
             self._write("\n")
             self._open_line = False
+
+    def _fit(self, line: str) -> str:
+        """``line`` cut to the terminal's width, so that ``\\r`` rewrites it instead of leaving a wrapped
+        remainder behind."""
+        try:
+            width = os.get_terminal_size(self.stream.fileno()).columns
+        except (OSError, ValueError, AttributeError):
+            return line
+        return line if width <= 1 or len(line) < width else line[:width - 2] + "…"
 
     def _write(self, text: str) -> None:
         self.stream.write(text)

@@ -8,6 +8,7 @@ import io
 import os
 import pty
 import re
+import select
 import subprocess
 import sys
 from pathlib import Path
@@ -83,3 +84,29 @@ def test_a_resumed_batch_counts_the_trials_already_recorded(tmp_path: Path) -> N
     log = io.StringIO()
     resume_batch(out, workers=1, progress=BatchProgress(log, tty=False))
     assert log.getvalue() == "batch toy_full: 3/3 trials, 3 succeeded (condition 0 seed 4: succeeded)\n"
+
+
+def test_the_terminal_line_is_cut_to_the_terminal_width() -> None:
+    import fcntl
+    import struct
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 30, 0, 0))  # a 30-column terminal
+    with os.fdopen(slave, "w") as term:
+        progress = BatchProgress(term)
+        assert progress.tty
+        progress.start("a_mission_with_a_long_name", 10, 0, 0)
+        progress.trial(0, 1, "succeeded")
+        progress.finish()
+    raw = b""
+    while select.select([master], [], [], 0.5)[0]:
+        try:
+            raw += os.read(master, 4096)
+        except OSError:
+            break
+    os.close(master)
+    shown = raw.decode().replace("\r\n", "\n")
+    assert shown.endswith("\n") and shown.count("\n") == 1
+    lines = [s.rstrip("\n").removesuffix("\x1b[K") for s in shown.split("\r") if s.strip()]
+    assert lines == ["batch a_mission_with_a_long_…"] * 2  # 29 columns: \r rewrites it, nothing wraps
