@@ -54,6 +54,31 @@ def test_the_parsers_reject_what_they_should() -> None:
     assert dot_errors('digraph "x" { "a" -> [label="no head"]; }') is not None
 
 
+TRICKY_NAMES = ["note", "state", "class", "classDef", "style", "click", "scale", "default", "as", "href",
+                "stateDiagram", "stateDiagram-v2", "Note", "STATE", "end", "direction", "hide", "fork", "ä_größe",
+                "1st", "x-y", "root"]
+"""State names a mission may use (letters, digits, '_', '-') that Mermaid's lexer reads as keywords, or
+that look like syntax."""
+
+
+def test_state_names_that_are_mermaid_keywords_draw_in_both_formats() -> None:
+    from taskflow.loader import load_mission_text
+
+    states = "\n".join(f"    {n}:\n      transitions: [{{to: {nxt}, after: 1 s}}]"
+                       for n, nxt in zip(TRICKY_NAMES, TRICKY_NAMES[1:] + ["fin"]))
+    comp = "\n".join(f"        {n}:\n          transitions: [{{to: {nxt}, after: 1 s}}]"
+                     for n, nxt in zip(TRICKY_NAMES, TRICKY_NAMES[1:] + ["ok"]))
+    text = (f"mission: tricky\nrobot: toy_point\nworld: toy_line\nrate_hz: 20\nmax_time: 30 s\nmachine:\n  initial: {TRICKY_NAMES[0]}\n  states:\n"
+            f"{states}\n    fin:\n      history: true\n      initial: {TRICKY_NAMES[0]}\n"
+            f"      transitions: [{{to: done, done: true}}]\n      states:\n{comp}\n        ok: {{final: true}}\n"
+            "    done: {final: succeeded}\n")
+    m = load_mission_text(text, "tricky.yaml")
+    assert len(m.states) == 2 * len(TRICKY_NAMES) + 3
+    (error,) = mermaid_errors([to_mermaid(m)])
+    assert error is None, error
+    assert dot_errors(to_dot(m)) is None
+
+
 def test_a_missing_parser_is_an_error_that_says_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("PATH", "/nonexistent")  # neither node nor dot can be found: fail, never skip
     with pytest.raises(ParserMissing, match="node is not on PATH: install Node.js"):
