@@ -30,6 +30,7 @@ import json
 import math
 import os
 import signal
+import sys
 import time
 from pathlib import Path
 from typing import Any, TextIO
@@ -64,8 +65,6 @@ class BatchProgress:
     wall-clock time per trial so far times the trials left — a display only, never recorded."""
 
     def __init__(self, stream: TextIO | None = None, tty: bool | None = None) -> None:
-        import sys
-
         self.stream: TextIO = stream if stream is not None else sys.stderr
         self.tty = self.stream.isatty() if tty is None else tty
         self.name, self.total, self.done, self.ok, self.new = "", 0, 0, 0, 0
