@@ -79,6 +79,40 @@ def test_state_names_that_are_mermaid_keywords_draw_in_both_formats() -> None:
     assert dot_errors(to_dot(m)) is None
 
 
+def test_states_whose_ids_would_clash_stay_apart() -> None:
+    from taskflow.loader import load_mission_text
+
+    # `a-b` beside `a_b`, the composite `p`'s child `q` beside a top-level `p__q`, and `note` beside `note_`
+    text = """mission: clash
+robot: toy_point
+world: toy_line
+rate_hz: 20
+max_time: 30 s
+machine:
+  initial: a-b
+  states:
+    a-b: {transitions: [{to: a_b, after: 1 s}]}
+    a_b: {transitions: [{to: p, after: 1 s}]}
+    p:
+      initial: q
+      states:
+        q: {transitions: [{to: r, after: 1 s}]}
+        r: {final: true}
+      transitions: [{to: p__q, done: true}]
+    p__q: {transitions: [{to: note, after: 1 s}]}
+    note: {transitions: [{to: note_, after: 1 s}]}
+    note_: {final: succeeded}
+"""
+    m = load_mission_text(text, "clash.yaml")
+    mer, dot = to_mermaid(m), to_dot(m)
+    declared = re.findall(r'state "[^"]*" as (\S+)', mer)
+    assert len(declared) == len(set(declared)) == len(m.states) == 8
+    assert declared[:2] == ["a_b", "a_b_2"] and "p__q_2" in declared and declared[-2:] == ["note_", "note__2"]
+    assert len(_nodes(dot)) == len(set(_nodes(dot))) == 7 + 2  # 7 leaves, the machine's and p's start nodes
+    assert '"a_b" -> "a_b_2" [label="after 1 s"];' in dot
+    assert mermaid_errors([mer]) == [None] and dot_errors(dot) is None
+
+
 def test_a_missing_parser_is_an_error_that_says_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("PATH", "/nonexistent")  # neither node nor dot can be found: fail, never skip
     with pytest.raises(ParserMissing, match="node is not on PATH: install Node.js"):
