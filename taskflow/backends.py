@@ -52,7 +52,12 @@ class WorkerLost(BackendError):
 
 
 class TrialInterrupted(Exception):
-    """The trial run in the batch's own process saw Ctrl-C / SIGTERM and stopped itself."""
+    """The trial run in the batch's own process saw Ctrl-C / SIGTERM and stopped itself; :attr:`signum`
+    says which."""
+
+    def __init__(self, signum: int = signal.SIGINT) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
 
 @dataclass(frozen=True)
@@ -106,7 +111,7 @@ class InProcessBackend:
         for i, job in enumerate(jobs):
             summary, timing = run_trial(job)
             if summary.get("reason") in (INTERRUPTED, TERMINATED):
-                raise TrialInterrupted()
+                raise TrialInterrupted(signal.SIGINT if summary["reason"] == INTERRUPTED else signal.SIGTERM)
             on_result(i, (summary, timing))
 
     def close(self) -> None:

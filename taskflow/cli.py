@@ -2,7 +2,7 @@
 describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
-130 interrupted.
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM) — ``run`` and ``batch`` alike, once the record is written.
 """
 
 from __future__ import annotations
@@ -86,8 +86,16 @@ def _check_display(gui: bool) -> None:
                          "display (xvfb-run taskflow run --gui …)")
 
 
+def signal_exit_code(signum: int) -> int:
+    """The exit status of a command a signal stopped after it wrote its record: the shell's ``128 + signum``
+    (130 for Ctrl-C, 143 for SIGTERM), for ``run`` and ``batch`` alike."""
+    return 128 + int(signum)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
-    from .runtime import Progress, print_progress, run_mission
+    import signal
+
+    from .runtime import INTERRUPTED, TERMINATED, Progress, print_progress, run_mission
 
     _check_display(args.gui)
     path = args.mission or str(default_mission())
@@ -115,8 +123,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         from .telemetry import export_run
 
         print(f"telemetry: {export_run(result.run_dir, args.record)}")
-    if s["outcome"] == "aborted" and "interrupted" in s.get("reason", ""):
-        return 130
+    if s["outcome"] == "aborted" and s.get("reason") in (INTERRUPTED, TERMINATED):
+        return signal_exit_code(signal.SIGINT if s["reason"] == INTERRUPTED else signal.SIGTERM)
     return 0 if result.succeeded else 1
 
 
@@ -244,7 +252,7 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 def cmd_batch(args: argparse.Namespace) -> int:
     from .backends import BackendError
-    from .batch import format_table, resume_batch, run_batch
+    from .batch import BatchProgress, BatchStopped, format_table, resume_batch, run_batch
     from .campaign import CampaignError
 
     _positive("--workers", args.workers)
@@ -261,7 +269,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
             if given:
                 raise UsageError(f"--resume {args.resume} runs the campaign as its campaign.json says: drop "
                                  + ", ".join(given))
-            result = resume_batch(args.resume, workers=args.workers, backend=args.backend, address=args.address)
+            result = resume_batch(args.resume, workers=args.workers, backend=args.backend, address=args.address,
+                                  progress=BatchProgress())
         else:
             if args.mission is None:
                 raise UsageError("name a mission file, or --resume DIR to finish a campaign")
@@ -273,11 +282,14 @@ def cmd_batch(args: argparse.Namespace) -> int:
             result = run_batch(args.mission, trials=args.trials, workers=args.workers,
                                seed=0 if args.seed is None else args.seed, overrides=args.set, out=args.out,
                                max_time=max_time, keep_runs=args.keep_runs, sweep=args.sweep,
-                               backend=args.backend, address=args.address)
-    except KeyboardInterrupt as exc:
-        print(f"interrupted: finished trials recorded in {exc}; finish with taskflow batch --resume "
-              f"{Path(str(exc)).parent}", file=sys.stderr)
-        return 130
+                               backend=args.backend, address=args.address, progress=BatchProgress())
+    except BatchStopped as exc:  # a Ctrl-C before the campaign starts is main's plain "interrupted"
+        import signal
+
+        signum = exc.signum
+        print(f"{'terminated' if signum == signal.SIGTERM else 'interrupted'}: finished trials recorded in {exc}; "
+              f"finish with taskflow batch --resume {Path(str(exc)).parent}", file=sys.stderr)
+        return signal_exit_code(signum)
     except (CampaignError, BackendError) as exc:
         raise UsageError(str(exc)) from None
     print(format_table(result))
