@@ -149,7 +149,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
         gt_keys = world.ground_truth_keys if world is not None else mission.world_cls.ground_truth_keys
         recorder = RunRecorder(run_dir, sorted(mission.metric_units), robot.command_keys, gt_keys)
     frames = FrameRecorder(recorder.dir, frames_hz) if recorder is not None and frames_hz else None
-    summary: dict[str, Any] = {"mission": mission.name, "file": mission.file, "seed": seed, "outcome": "aborted",
+    summary: dict[str, Any] = {"mission": mission.name, "file": recorded_file(mission.file), "seed": seed,
+                               "outcome": "aborted",
                                "reason": "run did not finish", "versions": versions()}
     resolved = dict(mission.raw)
     resolved["seed"] = seed
@@ -324,12 +325,19 @@ def _safe_stop(world: World, executor: Executor, recorder: RunRecorder | None, t
     return t
 
 
+def recorded_file(file: str) -> str:
+    """The mission file as a run records it: its resolved absolute path, the same from any working
+    directory (so a seed reproduces ``summary.json`` byte for byte wherever it is run from); a mission
+    loaded from text keeps its placeholder name (``<string>``)."""
+    return file if file.startswith("<") else str(Path(file).resolve())
+
+
 def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: float,
                   metrics: dict[str, Any], ticks: int) -> dict[str, Any]:
     """What a run did, from the mission, the seed and the simulation only (no wall-clock figure)."""
     return clean_floats({
         "mission": mission.name,
-        "file": mission.file,
+        "file": recorded_file(mission.file),
         "seed": seed,
         "outcome": ex.outcome,
         "reason": ex.reason,
