@@ -23,12 +23,16 @@ PACKAGE_DIRS: dict[str, str] = {
     "taskflow_sim": "sim",
     "taskflow_missions": "missions",
 }
-SKIPPED = {"__pycache__"}
+
+def _skipped(name: str) -> bool:
+    """Build caches and hidden files (``__pycache__``, ``.mypy_cache``, an editor's ``.swp``) never travel."""
+    return name == "__pycache__" or name.startswith(".") or name.endswith(".pyc")
 
 
 def _folders(folder: Path) -> list[Path]:
-    """``folder`` and every folder below it, build caches aside."""
-    return [folder] + sorted(p for p in folder.rglob("*") if p.is_dir() and not SKIPPED & set(p.parts))
+    """``folder`` and every folder below it, skipped ones (and what is under them) aside."""
+    return [folder] + sorted(p for p in folder.rglob("*")
+                             if p.is_dir() and not any(_skipped(n) for n in p.relative_to(folder).parts))
 
 
 def discover() -> tuple[list[str], dict[str, str], dict[str, list[str]]]:
@@ -42,7 +46,8 @@ def discover() -> tuple[list[str], dict[str, str], dict[str, list[str]]]:
             package = ".".join((name, *rel.parts))
             packages.append(package)
             package_dir[package] = (Path(source) / rel).as_posix()
-            data = sorted(p.name for p in folder.iterdir() if p.is_file() and p.suffix not in {".py", ".pyc"})
+            data = sorted(p.name for p in folder.iterdir()
+                          if p.is_file() and p.suffix != ".py" and not _skipped(p.name))
             if data:
                 package_data[package] = data
     return packages, package_dir, package_data
