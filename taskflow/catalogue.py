@@ -38,7 +38,7 @@ from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined, to_jsonable_python
 
 from .api import ObsSpec, Robot, Task, World
-from .contracts import hosts, robot_params_problem, task_problem
+from .contracts import hosts, task_problem
 from .fidelity import Fidelity
 from .registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError, describe_choices
 from .units import UNITS, suffix_unit
@@ -389,10 +389,11 @@ def _readers(key: str, spec: ObsSpec, tasks: dict[str, type]) -> tuple[str, ...]
     return tuple(f"task {n}" for n, t in tasks.items() if key in t.requires and spec.satisfies(t.requires[key]))
 
 
-def _drives(task: type[Task], robot: type[Robot]) -> bool:
-    """Whether ``task`` can command ``robot`` (its interface and the robot parameters it reads), on some world."""
-    interface_fits = not task.command_interface or task.command_interface == robot.command_interface
-    return interface_fits and robot_params_problem(task, robot) is None
+def _worlds_for(task: type[Task], robot: type[Robot], worlds: dict[str, type]) -> tuple[str, ...]:
+    """The worlds on which ``task`` can run with ``robot``: each hosts the robot, and the task's interface,
+    the robot parameters it reads and the observations it requires are there (the compiler's rule,
+    :func:`taskflow.contracts.task_problem`)."""
+    return tuple(n for n, w in worlds.items() if hosts(w, robot) and task_problem(task, robot, w) is None)
 
 
 def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type]) -> Entry:
@@ -400,8 +401,7 @@ def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type
     slots = tuple(Slot(name=s, profile_kind=getattr(m, "kind", None) or s, model=m.__name__,
                        required=_slot_required(m), summary=summary_of(_own_doc(m)), fields=params_of(m))
                   for s, m in task.slots.items())
-    works = tuple(f"{r.name} on {w.name}" for r in robots.values() if _drives(task, r) for w in worlds.values()
-                  if hosts(w, r) and task_problem(task, r, w) is None)
+    works = tuple(f"{r.name} on {w}" for r in robots.values() for w in _worlds_for(task, r, worlds))
     return Entry(
         kind="task", name=task.name, summary=summary_of(doc), doc=doc, source=_source(task),
         params_doc=_own_doc(task.Params), params=params_of(task.Params), slots=slots,
@@ -413,7 +413,7 @@ def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type
 
 def robot_entry(robot: type[Robot], tasks: dict[str, type], worlds: dict[str, type]) -> Entry:
     doc = _class_doc(robot)
-    drivers = [f"task {n}" for n, t in tasks.items() if _drives(t, robot)]
+    drivers = [f"task {n}" for n, t in tasks.items() if _worlds_for(t, robot, worlds)]
     hosting = [f"world {n}" for n, w in worlds.items() if hosts(w, robot)]
     return Entry(
         kind="robot", name=robot.name, summary=summary_of(doc), doc=doc, source=_source(robot),

@@ -130,6 +130,28 @@ def test_describe_robot_shows_command_interface_and_mounts(capsys: pytest.Captur
         assert f"  {line}" in out.splitlines(), line
 
 
+def _task_specs(node: Any) -> list[dict[str, Any]]:
+    """Every ``task: {name: ...}`` in a machine tree."""
+    if isinstance(node, dict):
+        own = [node["task"]] if isinstance(node.get("task"), dict) else []
+        return own + [t for v in node.values() for t in _task_specs(v)]
+    return [t for v in node for t in _task_specs(v)] if isinstance(node, list) else []
+
+
+def test_a_robot_is_driven_only_by_tasks_some_world_that_hosts_it_can_run(capsys: pytest.CaptureFixture[str]) -> None:
+    """``contact_monitor`` reads a wrench that no world hosting the Husky provides: not listed for the Husky."""
+    code, out, _ = _run(capsys, "describe", "husky", "--kind", "robot")
+    assert code == 0
+    lines = out.splitlines()
+    assert "  task unicycle_goto" in lines and "  task contact_monitor" not in lines
+    catalogue = build()
+    for path in sorted((ROOT / "missions").glob("*.yaml")):  # and every task a shipped mission runs is listed
+        doc = load_yaml_file(path)[0]
+        tasks = {t["name"] for t in _task_specs(doc["machine"])}
+        listed = {w.removeprefix("task ") for w in catalogue.find(doc["robot"], "robot").works_with}
+        assert tasks and tasks <= listed, (path.name, tasks - listed)
+
+
 def test_describe_sensor_by_short_name(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = _run(capsys, "describe", "marker")
     assert code == 0
