@@ -70,8 +70,12 @@ class SourceMap:
         self.file = file
         self.marks: dict[Path_, tuple[int, int]] = {}
         self.overrides: dict[Path_, str] = {}  # path → the --set KEY=VALUE that wrote it
-        self.grafts: list[Graft] = []
+        self.grafts: dict[Path_, Graft] = {}  # prefix → the graft spliced there (the first one wins)
         self.uses: dict[Path_, str] = {}  # state path → the sub-mission file it uses, as written (graphs)
+
+    def graft(self, graft: Graft) -> None:
+        """Record ``graft`` (a lookup walks the prefixes of a path, longest first: no scan of every graft)."""
+        self.grafts.setdefault(graft.prefix, graft)
 
     def where(self, path: Path_) -> tuple[int, int]:
         """Line and column of ``path``, or of its nearest ancestor that has a mark."""
@@ -90,7 +94,7 @@ class SourceMap:
             # inside the overridden value, or the mapping it was written into (e.g. a missing key there)
             if p[: len(opath)] == opath or (len(p) == len(opath) - 1 and opath[: len(p)] == p and p):
                 return Problem(self.file, 0, 0, f"--set {item}: {message}", hint)
-        graft = max((g for g in self.grafts if p[: len(g.prefix)] == g.prefix), key=lambda g: len(g.prefix), default=None)
+        graft = next((g for k in range(len(p), -1, -1) if (g := self.grafts.get(p[:k])) is not None), None)
         if graft is not None:
             inner = graft.smap.problem(graft.base + p[len(graft.prefix):], message, hint)
             return replace(inner, via=inner.via + graft.via)
