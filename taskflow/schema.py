@@ -15,6 +15,8 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictBool, S
 from .units import UnitError, parse_duration, parse_max_time, parse_rate
 
 OUTCOMES = ("succeeded", "failed", "aborted")
+SEED_MAX = 2**63 - 1
+"""The largest seed (``seed:``, ``--seed``): numpy's and the record's 64-bit signed integers."""
 Outcome = Literal["succeeded", "failed", "aborted"]
 
 
@@ -201,7 +203,7 @@ class Mission(_Model):
     robot: str | ComponentRef
     world: str | ComponentRef
     rate_hz: Rate = Field(description="control rate: 20 or '20 Hz'; must divide the world's physics rate")
-    seed: int = Field(0, ge=0, le=2**63 - 1)
+    seed: int = Field(0, ge=0, le=SEED_MAX)
     max_time: MaxTime = Field(600.0, description="simulated time limit (≤ one simulated day); reaching it ends the run "
                                                  "as 'timeout'")
     parameters: dict[str, Any] = Field(default_factory=dict, description="poses, lists of poses, thresholds ...")
