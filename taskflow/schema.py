@@ -216,6 +216,17 @@ class Mission(_Model):
                                  "mission, e.g. viki.object) → the value it holds from the start of the run")
     machine: Machine
 
+    @field_validator("parameters", "data", "profiles", "machine", mode="before")
+    @classmethod
+    def _keys_are_names(cls, value: Any) -> Any:
+        """``1: 2`` or ``~: x`` under a block of names: say so (pydantic says "Input should be a valid string")."""
+        if isinstance(value, dict):
+            odd = next((k for k in value if not isinstance(k, str)), None)
+            if odd is not None or None in value:
+                raise ValueError(f"key {'~ (null)' if odd is None else f'{odd!r} ({type(odd).__name__})'} is not a name: "
+                                 "write the name as text (quote it if it looks like a number)")
+        return value
+
 
 def mission_json_schema() -> dict[str, Any]:
     schema = Mission.model_json_schema(by_alias=True)
