@@ -115,12 +115,12 @@ def _load(path: str, overrides: list[str] | None = None):  # type: ignore[no-unt
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    _seed("--seed", args.seed)  # the options first: no simulator import for a bad number
+    max_time = _max_time(args.max_time)
+    frames_hz = _frames_hz(args.frames)
     from .runtime import Progress, print_progress, run_mission
 
     path = args.mission or str(default_mission())
-    _seed("--seed", args.seed)
-    max_time = _max_time(args.max_time)
-    frames_hz = _frames_hz(args.frames)
     mission = _load(path, args.set)
     progress = Progress(print_progress) if sys.stderr.isatty() and not args.quiet else None
     control, operator = _operator_options(args, mission)
