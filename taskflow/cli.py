@@ -223,6 +223,8 @@ def _print_run(result) -> None:  # type: ignore[no-untyped-def]
 
 
 def cmd_view(args: argparse.Namespace) -> int:
+    if not 0 <= args.port <= 65535:
+        raise UsageError(f"--port {args.port}: a TCP port — valid: 0 to 65535 (0: any free port)")
     from .control import ControlError
     from .view import ViewError
     from .view_http import serve_replay, wait_forever

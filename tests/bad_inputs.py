@@ -200,6 +200,8 @@ def _seam_cases(tmp: Path) -> list[BadInput]:
                  "taskflow check: --param flat_ground.friction=abc"),
         BadInput("check-param-unknown-world", ("check", "--param", "flat_grund.friction=1"),
                  "did you mean 'flat_ground'", "taskflow check: --param flat_grund.friction=1"),
+        BadInput("view-port-out-of-range", ("view", str(tmp), "--port", "70000"), "valid: 0 to 65535",
+                 "taskflow view: --port 70000"),
         BadInput("check-world-cannot-host", ("check", "--world", "flat_ground", "--robot", "quadcopter"),
                  "worlds that host it: quad_room", "taskflow check: --world flat_ground --robot quadcopter"),
     ]
