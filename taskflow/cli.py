@@ -354,8 +354,7 @@ def cmd_teach(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from .plots import plot_run
-    from .recorded import RunDirError
+    from .recorded import RunDirError, load_run
 
     run_dir = Path(args.run_dir)
     if (run_dir / "campaign.json").is_file() and (run_dir / "batch.json").is_file():
@@ -365,7 +364,13 @@ def cmd_plot(args: argparse.Namespace) -> int:
             print(f)
         return 0
     try:
-        for f in plot_run(args.run_dir):
+        run = load_run(args.run_dir)  # a folder that is not a run is refused before matplotlib loads
+    except RunDirError as exc:
+        raise UsageError(str(exc)) from None
+    from .plots import plot_recorded
+
+    try:
+        for f in plot_recorded(run):
             print(f)
     except RunDirError as exc:
         raise UsageError(str(exc)) from None
