@@ -107,7 +107,7 @@ def json_value(value: Any) -> Any:
 def from_yaml(spec: ObsSpec, value: Any) -> Any:
     """A value written in a mission (``data:``) as a key of ``spec`` holds it; raises ValueError saying
     what the key takes."""
-    bad = _not_finite_or_bool(value) if spec.kind in ("array", "scalar") else _not_finite(value)
+    bad = _not_finite_or_bool(value) if spec.kind in ("array", "scalar") else not_finite(value)
     if bad is not None:
         raise ValueError(f"holds {bad!r}: a value of the mission's data must be a finite number"
                          f"{' (not true/false)' if isinstance(bad, bool) else ''}; it takes {spec}")
@@ -141,13 +141,13 @@ def _numbers(value: Any) -> Iterator[Any]:
             yield v
 
 
-def _not_finite(value: Any) -> Any:
+def not_finite(value: Any) -> Any:
     """The first NaN or infinite number inside ``value`` (None: there is none)."""
     return next((v for v in _numbers(value) if isinstance(v, float) and not math.isfinite(v)), None)
 
 
 def _not_finite_or_bool(value: Any) -> Any:
-    """As :func:`_not_finite`, and a boolean where a number belongs (``[true, false]`` is no array)."""
+    """As :func:`not_finite`, and a boolean where a number belongs (``[true, false]`` is no array)."""
     return next((v for v in _numbers(value) if isinstance(v, bool) or (isinstance(v, float) and not math.isfinite(v))),
                 None)
 
