@@ -36,6 +36,7 @@ to taskflow; expansion stops at the first budget that runs out (:data:`MAX_USE_D
 from __future__ import annotations
 
 import copy
+import itertools
 import re
 from pathlib import Path
 from typing import Any
@@ -300,7 +301,8 @@ class _Expander:
         if isinstance(got, MissionError):
             first = got.problems[0]
             if first.line == 0:  # the file itself: missing, a directory, unreadable
-                near = sorted(f.name for f in path.parent.glob("*.yaml")) if path.parent.is_dir() else []
+                near = (sorted(f.name for f in itertools.islice(path.parent.glob("*.yaml"), 500))
+                        if path.parent.is_dir() else [])  # a few hundred names are enough for a "did you mean"
                 hint = "the path is relative to the file that uses it"
                 if first.message == "no such file" and near:
                     hint += "; " + describe_choices(path.name, near)

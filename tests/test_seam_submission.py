@@ -156,3 +156,28 @@ def test_a_graft_is_found_without_scanning_every_graft() -> None:
     assert [(p.file, p.line, p.col, p.via) for p in found[:2]] == [("lib.yaml", 7, 5, ("m.yaml:0:1",)),
                                                                    ("lib.yaml", 7, 5, ("m.yaml:1:1",))]
     assert took < 0.5, took
+
+
+def test_a_symbolic_link_out_of_the_missions_folder_is_refused(tmp_path: Path) -> None:
+    """The rule is on the resolved path: a link in lib/ to a file elsewhere is outside the folder too."""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "leaf.yaml").write_text(LEAF.replace("GUARD", "pos_error < 1 cm"))
+    mission = tmp_path / "mission"
+    (mission / "lib").mkdir(parents=True)
+    (mission / "lib" / "leaf.yaml").symlink_to(elsewhere / "leaf.yaml")
+    (mission / "m.yaml").write_text(MISSION.replace("use: l0.yaml", "use: lib/leaf.yaml"))
+    err, _ = refused(mission / "m.yaml")
+    assert len(err.problems) == 1 and (err.first.line, err.first.col) == (10, 7), err
+    assert f"resolves to {elsewhere / 'leaf.yaml'}, outside the mission's folder {mission}" in err.first.message
+
+
+def test_a_file_in_lib_may_use_a_sibling_folder_inside_the_mission(tmp_path: Path) -> None:
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "leaf.yaml").write_text(LEAF.replace("GUARD", "pos_error < 1 cm"))
+    (tmp_path / "lib" / "l0.yaml").write_text("submission: l0\nmachine:\n  initial: u\n  states:\n"
+                                              "    u:\n      use: ../other/leaf.yaml\n"
+                                              "      transitions: [{to: ok, done: true}]\n    ok: {final: succeeded}\n")
+    (tmp_path / "m.yaml").write_text(MISSION.replace("use: l0.yaml", "use: lib/l0.yaml"))
+    assert "a.u.go" in load_mission(tmp_path / "m.yaml").states
