@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
@@ -71,6 +72,42 @@ def _positive(flag: str, value: int | None) -> int | None:
     return value
 
 
+def _seed(flag: str, value: int | None, count: int = 1) -> int | None:
+    """``--seed`` as a mission's ``seed:`` takes it (0 to 2**63 - 1), with room for ``count`` seeds from it."""
+    from .schema import SEED_MAX
+
+    if value is not None and not 0 <= value <= SEED_MAX - (count - 1):
+        top = f"{SEED_MAX - (count - 1)} (trial i of {count} runs seed + i)" if count > 1 else f"{SEED_MAX}"
+        raise UsageError(f"{flag} {value}: a seed is a whole number from 0 to {top}")
+    return value
+
+
+def _check_batch_options(args: argparse.Namespace) -> None:
+    """What ``batch`` can refuse before importing the statistics and the backends (seconds of imports):
+    the numbers, the syntax of ``--sweep`` and ``--set``, the mission, and each swept value on it."""
+    from .campaign import CampaignError, parse_sweep
+
+    _positive("--workers", args.workers)
+    if args.resume is not None or args.mission is None or args.trials is None:
+        return  # cmd_batch says what is missing, or --resume checks the campaign's own
+    _positive("--trials", args.trials)
+    _seed("--seed", args.seed, args.trials)
+    _max_time(args.max_time)
+    try:
+        sweep = parse_sweep(args.sweep, args.set)
+    except CampaignError as exc:
+        raise UsageError(str(exc)) from None
+    _load(args.mission, args.set)
+    for key, values in sweep:  # each value once (not the grid): a bad one is named as the --sweep it is
+        for v in values:
+            item = f"{key}={v}"
+            try:
+                _load(args.mission, [*args.set, item])
+            except MissionError as exc:
+                raise MissionError([replace(p, message=p.message.replace(f"--set {item}", f"--sweep {item}"))
+                                    for p in exc.problems]) from None
+
+
 def _load(path: str, overrides: list[str] | None = None):  # type: ignore[no-untyped-def]
     from .loader import load_mission
 
@@ -95,12 +132,13 @@ def signal_exit_code(signum: int) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     import signal
 
-    from .runtime import INTERRUPTED, TERMINATED, Progress, print_progress, run_mission
-
-    _check_display(args.gui)
-    path = args.mission or str(default_mission())
+    _seed("--seed", args.seed)  # the options first: no simulator import for a bad number
     max_time = _max_time(args.max_time)
     frames_hz = _frames_hz(args.frames)
+    _check_display(args.gui)
+    from .runtime import INTERRUPTED, TERMINATED, Progress, print_progress, run_mission
+
+    path = args.mission or str(default_mission())
     mission = _load(path, args.set)
     progress = Progress(print_progress) if sys.stderr.isatty() and not args.quiet else None
     control, operator = _operator_options(args, mission)
@@ -206,6 +244,8 @@ def _print_run(result) -> None:  # type: ignore[no-untyped-def]
 
 
 def cmd_view(args: argparse.Namespace) -> int:
+    if not 0 <= args.port <= 65535:
+        raise UsageError(f"--port {args.port}: a TCP port — valid: 0 to 65535 (0: any free port)")
     from .control import ControlError
     from .view import ViewError
     from .view_http import serve_replay, wait_forever
@@ -251,6 +291,7 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 
 def cmd_batch(args: argparse.Namespace) -> int:
+    _check_batch_options(args)
     from .backends import BackendError
     from .batch import BatchProgress, BatchStopped, format_table, resume_batch, run_batch
     from .campaign import CampaignError
@@ -325,6 +366,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_teach(args: argparse.Namespace) -> int:
+    _seed("--seed", args.seed)
     mission = _load(args.mission, args.set)
     if not mission.world_cls.teaches:
         print(f"{args.mission}: world {mission.world_cls.name!r} has nothing to teach "
@@ -338,8 +380,7 @@ def cmd_teach(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from .plots import plot_run
-    from .recorded import RunDirError
+    from .recorded import RunDirError, load_run
 
     run_dir = Path(args.run_dir)
     if (run_dir / "campaign.json").is_file() and (run_dir / "batch.json").is_file():
@@ -349,7 +390,13 @@ def cmd_plot(args: argparse.Namespace) -> int:
             print(f)
         return 0
     try:
-        for f in plot_run(args.run_dir):
+        run = load_run(args.run_dir)  # a folder that is not a run is refused before matplotlib loads
+    except RunDirError as exc:
+        raise UsageError(str(exc)) from None
+    from .plots import plot_recorded
+
+    try:
+        for f in plot_recorded(run):
             print(f)
     except RunDirError as exc:
         raise UsageError(str(exc)) from None
@@ -372,25 +419,44 @@ def cmd_export(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     import yaml
 
-    from .conformance import check_all
+    from .conformance import MAX_STEPS, check_all, no_pair_reason, param_problem
     from .registry import UnknownName
+    from .yamlsrc import MissionLoader
 
+    if not 1 <= args.steps <= MAX_STEPS:
+        raise UsageError(f"--steps {args.steps}: ticks per seeded rollout — valid: 1 to {MAX_STEPS}")
     params: dict[str, dict[str, object]] = {}
+    given: dict[tuple[str, str], str] = {}
     for item in args.param:
         key, sep, value = item.partition("=")
         world, dot, name = key.partition(".")
         if not (sep and dot and world and name):
             raise UsageError(f"--param {item!r}: expected WORLD.KEY=VALUE, e.g. quad_room.perception=geometric")
-        params.setdefault(world, {})[name] = yaml.safe_load(value)
+        try:
+            params.setdefault(world, {})[name] = yaml.load(value, Loader=MissionLoader)  # noqa: S506 - a SafeLoader
+        except yaml.YAMLError:
+            raise UsageError(f"--param {item}: the value is not valid YAML") from None
+        given[(world, name)] = item
     try:
+        for world, values in params.items():
+            bad = param_problem(world, values)
+            if bad is not None:
+                item = given.get((world, bad[0]), next(i for (w, _), i in given.items() if w == world))
+                raise UsageError(f"--param {item}: {bad[1]}" + (f" — {bad[2]}" if bad[2] else ""))
         results = check_all(params, args.world or None, args.robot or None, steps=args.steps)
+        if not results:
+            flags = " ".join([f"--world {w}" for w in args.world] + [f"--robot {r}" for r in args.robot])
+            raise UsageError(f"{flags or 'the registries'}: nothing to check: {no_pair_reason(args.world, args.robot)}")
     except UnknownName as exc:
-        raise UsageError(str(exc)) from None
+        flag = "--world" if exc.kind == "world" else "--robot"
+        if exc.name in params:
+            raise UsageError(f"--param {next(i for (w, _), i in given.items() if w == exc.name)}: {exc}") from None
+        raise UsageError(f"{flag} {exc.name}: {exc}") from None
     for r in results:
         print(r)
     bad = sum(not r.ok for r in results)
     print(f"{len(results) - bad}/{len(results)} world x robot pairings conform")
-    return 1 if bad or not results else 0
+    return 1 if bad else 0
 
 
 def cmd_list(args: argparse.Namespace) -> int:
