@@ -6,8 +6,10 @@ swept the same grid; or the single condition of one campaign against each of the
 * mission success: both rates with their Wilson 95 % intervals, Fisher's exact test (two-sided p) and
   the pooled two-proportion z test;
 * item success per foreach loop both campaigns have (screws, waypoints): the same, over items;
-* each numeric final metric both have (or the ones asked for): means with their t 95 % intervals and the
-  two-sided Mann–Whitney U test, which assumes nothing about the errors' distribution.
+* each numeric aggregate both have (or the ones asked for): every numeric final metric of the trials and
+  the run's own numbers :mod:`taskflow.batch` aggregates beside them (``sim_time_s``, from each trial's
+  summary): means with their t 95 % intervals and the two-sided Mann–Whitney U test, which assumes
+  nothing about the errors' distribution.
 
 ``p < alpha`` (0.05) is reported as a difference.  With many metrics some will pass that by chance;
 the table says how many were tested.
@@ -59,10 +61,26 @@ def _trials(batch: dict[str, Any], condition: dict[str, Any]) -> list[dict[str, 
     return [t for t in batch["trials"] if t.get("condition", 0) == condition["index"]]
 
 
+RUN_NUMBERS = ("sim_time_s",)
+"""The numbers of a trial's summary itself (not of its ``metrics``) that :func:`taskflow.batch.aggregate`
+aggregates, and so that a comparison compares."""
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _value(trial: dict[str, Any], metric: str) -> Any:
+    """A trial's value of ``metric``: its final metric of that name, else its summary's own number."""
+    metrics = trial.get("metrics", {})
+    if metric in metrics:
+        return metrics[metric]
+    return trial.get(metric) if metric in RUN_NUMBERS else None
+
+
 def _values(trials: list[dict[str, Any]], metric: str) -> np.ndarray:
-    vals = [t.get("metrics", {}).get(metric) for t in trials]
-    return np.array([v for v in vals if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)],
-                    dtype=float)
+    vals = [_value(t, metric) for t in trials]
+    return np.array([v for v in vals if _number(v)], dtype=float)
 
 
 def _proportions(k1: int, n1: int, k2: int, n2: int) -> dict[str, Any]:
@@ -74,8 +92,9 @@ def _proportions(k1: int, n1: int, k2: int, n2: int) -> dict[str, Any]:
 
 
 def _metric_names(trials: list[dict[str, Any]]) -> set[str]:
-    return {k for t in trials for k, v in t.get("metrics", {}).items()
-            if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    """Every numeric final metric of the trials and every :data:`RUN_NUMBERS` entry a trial has."""
+    return {k for t in trials for k, v in [*t.get("metrics", {}).items(), *((n, t.get(n)) for n in RUN_NUMBERS)]
+            if _number(v)}
 
 
 def compare(a: dict[str, Any], b: dict[str, Any], metrics: list[str] | None = None) -> list[dict[str, Any]]:
