@@ -17,31 +17,75 @@ the table says how many were tested.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from .campaign import CampaignError
+from .record_io import RunDirError, SummaryFields, problem, read_json
 from .stats import fisher_exact, mann_whitney, mean_interval, two_proportion_z, wilson_interval
 
 ALPHA = 0.05
 
 
+class _Items(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    attempted: int
+    succeeded: int
+
+
+class _Aggregate(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    items: dict[str, _Items] = {}
+    metrics: dict[str, dict[str, Any]] = {}
+
+
+class _Condition(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    index: int
+    label: str
+    aggregate: _Aggregate
+
+
+class _Trial(SummaryFields):
+    outcome: str
+    condition: int = 0
+
+
+class BatchFields(BaseModel):
+    """The fields of ``batch.json`` the readers (:func:`compare`, :mod:`taskflow.campaign_plots`) use, with
+    their types: the trials (each a run summary, :class:`~taskflow.record_io.SummaryFields`, with its
+    ``condition``), the aggregate and the conditions with theirs."""
+
+    model_config = ConfigDict(extra="allow", strict=True)
+    mission: str = ""
+    trials: list[_Trial]
+    aggregate: _Aggregate
+    conditions: list[_Condition] | None = None
+
+
 def load_batch(path: str | Path) -> dict[str, Any]:
-    """``batch.json`` of a batch directory (or the file itself)."""
+    """``batch.json`` of a batch directory (or the file itself), read as untrusted input
+    (:mod:`taskflow.record_io`: inside its folder, bounded, its fields' types checked); a
+    :class:`CampaignError` of one line naming the file and what is wrong otherwise."""
     p = Path(path)
-    f = p / "batch.json" if p.is_dir() else p
-    if not f.is_file():
+    root, name = (p, "batch.json") if p.is_dir() else (p.parent, p.name)
+    if not (root / name).is_file():
         raise CampaignError(f"{path}: {'no such file or directory' if not p.exists() else 'has no batch.json'}")
     try:
-        data = json.loads(f.read_text())
-        data["trials"], data["aggregate"]  # noqa: B018 - the keys every batch.json has
-    except (ValueError, KeyError, TypeError):
-        raise CampaignError(f"{f}: not a batch.json written by taskflow batch") from None
-    if "conditions" not in data:  # written before sweeps: one condition
+        data = read_json(root, name)
+        if not isinstance(data, dict):
+            raise RunDirError(f"{root / name}: a JSON object was expected, got {type(data).__name__}")
+        try:
+            BatchFields.model_validate(data)
+        except ValidationError as exc:
+            raise RunDirError(f"{root / name}: {problem(exc)} — not a batch.json written by taskflow batch") from None
+    except RunDirError as exc:
+        raise CampaignError(str(exc)) from None
+    if data.get("conditions") is None:  # written before sweeps: one condition
         data["conditions"] = [{"index": 0, "label": "all", "aggregate": data["aggregate"]}]
     return dict(data)
 

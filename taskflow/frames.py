@@ -140,6 +140,8 @@ def frame_from_dict(d: Any, run_dir: Path) -> FrameRecord:
     extra = sorted(set(d) - set(_FIELDS))
     if extra:
         raise ValueError(f"unknown field {extra[0][:40]!r} — valid: {', '.join(_FIELDS)}")
+    if not d["file"].endswith(f".{FORMAT}"):
+        raise ValueError(f"file {d['file'][:60]!r} — a frame is a .{FORMAT} file (frames/SENSOR/TICK.{FORMAT})")
     try:
         inside(run_dir, d["file"])
     except RunDirError:

@@ -40,6 +40,11 @@ class RunDirError(ValueError):
     one line naming the file (and line) and what is wrong."""
 
 
+class NotJSONError(RunDirError):
+    """A file or line that is not (whole) JSON: a :class:`RunDirError` a reader may take for a record cut
+    short by a crash."""
+
+
 def _mib(n: int) -> str:
     return f"{n / (1 << 20):.0f} MiB"
 
@@ -84,25 +89,29 @@ def read_bytes(root: Path, name: str | Path, limit: int) -> bytes:
     return data
 
 
-def read_json(root: Path, name: str | Path, limit: int = MAX_JSON_BYTES) -> Any:
-    """The JSON document ``root / name`` (:func:`read_bytes`), its syntax errors as ``FILE:LINE:COL``."""
-    data = read_bytes(root, name, limit)
+def read_json(root: Path, name: str | Path, limit: int | None = None) -> Any:
+    """The JSON document ``root / name`` (:func:`read_bytes`, at most ``limit`` bytes, default
+    :data:`MAX_JSON_BYTES`), its syntax errors as ``FILE:LINE:COL``."""
+    data = read_bytes(root, name, MAX_JSON_BYTES if limit is None else limit)
     try:
         return json.loads(data.decode("utf-8"))
     except UnicodeDecodeError as exc:
         raise RunDirError(f"{Path(root) / name}: byte {exc.start} is not UTF-8 — JSON text was expected") from None
     except json.JSONDecodeError as exc:
-        raise RunDirError(f"{Path(root) / name}:{exc.lineno}:{exc.colno}: not JSON ({exc.msg})") from None
+        raise NotJSONError(f"{Path(root) / name}:{exc.lineno}:{exc.colno}: not JSON ({exc.msg})") from None
     except RecursionError:
         raise RunDirError(f"{Path(root) / name}: nested too deep — not a file taskflow writes") from None
 
 
 def lines(root: Path, name: str | Path, *, offset: int = 0, first_line: int = 1, complete_only: bool = False,
-          line_limit: int = MAX_LINE_BYTES, file_limit: int = MAX_TABLE_BYTES) -> Iterator[tuple[int, str, int]]:
+          line_limit: int | None = None, file_limit: int | None = None) -> Iterator[tuple[int, str, int]]:
     """``(line number, text without its newline, offset after it)`` of ``root / name`` from byte
     ``offset`` (numbered from ``first_line``).  A line longer than ``line_limit``, a file larger than
-    ``file_limit`` or bytes that are not UTF-8 are a :class:`RunDirError`; with ``complete_only`` a last
-    line without its newline (the recorder half-way through it) is left for the next read."""
+    ``file_limit`` (defaults :data:`MAX_LINE_BYTES`, :data:`MAX_TABLE_BYTES`) or bytes that are not UTF-8
+    are a :class:`RunDirError`; with ``complete_only`` a last line without its newline (the recorder
+    half-way through it) is left for the next read."""
+    line_limit = MAX_LINE_BYTES if line_limit is None else line_limit
+    file_limit = MAX_TABLE_BYTES if file_limit is None else file_limit
     path = _regular(root, name)
     where = Path(root) / name
     try:
@@ -115,6 +124,8 @@ def lines(root: Path, name: str | Path, *, offset: int = 0, first_line: int = 1,
         size = f.seek(0, 2)
         if size > file_limit:
             raise RunDirError(f"{where}: larger than {_mib(file_limit)} — not a file taskflow writes")
+        if size < offset:
+            raise RunDirError(f"{where}: shorter than when it was last read — a record being written only grows")
         f.seek(offset)
         n = first_line
         while True:
@@ -139,7 +150,7 @@ def json_line(where: str, text: str) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise RunDirError(f"{where}:{exc.colno}: not JSON ({exc.msg})") from None
+        raise NotJSONError(f"{where}:{exc.colno}: not JSON ({exc.msg})") from None
     except RecursionError:
         raise RunDirError(f"{where}: nested too deep — not a line taskflow writes") from None
 
@@ -176,10 +187,14 @@ class SummaryFields(BaseModel):
     metrics: dict[str, Any] = {}
 
 
-def check_summary(data: Any, where: str | Path) -> dict[str, Any]:
-    """``data`` (a parsed ``summary.json``) when its fields have their types, else :class:`RunDirError`."""
+def check_summary(data: Any, where: str | Path, require: tuple[str, ...] = ()) -> dict[str, Any]:
+    """``data`` (a parsed ``summary.json``) when its fields have their types and those in ``require``
+    are there, else :class:`RunDirError`."""
     if not isinstance(data, dict):
         raise RunDirError(f"{where}: a JSON object was expected, got {type(data).__name__}")
+    missing = [k for k in require if data.get(k) is None]
+    if missing:
+        raise RunDirError(f"{where}: no {missing[0]!r} — a finished run's summary has it")
     try:
         SummaryFields.model_validate(data)
     except ValidationError as exc:
@@ -187,5 +202,6 @@ def check_summary(data: Any, where: str | Path) -> dict[str, Any]:
     return data
 
 
-__all__ = ["MAX_FRAME_BYTES", "MAX_JSON_BYTES", "MAX_LINE_BYTES", "MAX_TABLE_BYTES", "RunDirError", "SummaryFields",
+__all__ = ["MAX_FRAME_BYTES", "MAX_JSON_BYTES", "MAX_LINE_BYTES", "MAX_TABLE_BYTES", "NotJSONError", "RunDirError",
+           "SummaryFields",
            "check_summary", "inside", "json_line", "lines", "problem", "read_bytes", "read_json"]

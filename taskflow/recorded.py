@@ -17,6 +17,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from .errors import MissionError
+from .frames import FrameRecord, read_frames
 from .guards import Comparison
 from .model import CompiledMission, EventTransition, GuardTransition
 from .record_io import MAX_FRAME_BYTES, RunDirError, check_summary, inside, read_bytes, read_json
@@ -52,7 +53,8 @@ class RecordedRun:
     ``trace`` maps column → array (:func:`~taskflow.records.read_trace`); ``transitions`` are the records of
     ``transitions.jsonl`` in order that change the active leaf (the operator's pre-emptions included),
     ``operator`` its operator actions (pause, hold, resume, preempt, inject: :class:`OperatorRecord`) in
-    order; ``summary`` is ``summary.json``; ``mission`` the recompiled mission,
+    order; ``frames`` the camera frames ``frames.jsonl`` indexes (:mod:`taskflow.frames`, each file
+    inside the run directory); ``summary`` is ``summary.json``; ``mission`` the recompiled mission,
     ``scene`` its markers and control points; ``metric_units`` metric → base unit; ``command_labels``
     trace column ``cmd.KEY[.i]`` → (component name, unit)."""
 
@@ -66,6 +68,7 @@ class RecordedRun:
     metric_units: dict[str, str] = field(default_factory=dict)
     command_labels: dict[str, tuple[str, str]] = field(default_factory=dict)
     operator: list[OperatorRecord] = field(default_factory=list)
+    frames: list[FrameRecord] = field(default_factory=list)
 
     @property
     def seed(self) -> int:
@@ -132,13 +135,40 @@ def _command_labels(mission: CompiledMission) -> dict[str, tuple[str, str]]:
     return out
 
 
+def _uses(node: Any, path: tuple[Any, ...]) -> tuple[Any, ...] | None:
+    """The key path of the first ``use:`` in the machine ``node``, None when it has none."""
+    if isinstance(node, dict):
+        if "use" in node and "states" in path:
+            return (*path, "use")
+        items: Any = node.items()
+    elif isinstance(node, list):
+        items = enumerate(node)
+    else:
+        return None
+    for key, child in items:
+        found = _uses(child, (*path, key))
+        if found is not None:
+            return found
+    return None
+
+
 def _load_mission(run_dir: Path) -> CompiledMission:
-    from .loader import load_mission
+    """The run's own ``mission.yaml`` compiled: a plain file inside ``run_dir`` (:func:`inside`), in
+    which every sub-mission is already expanded — a ``use:`` would read a file outside the record, so it
+    is refused (:class:`RunDirError` ``FILE:LINE:COL``), as is a mission this code cannot compile."""
+    from .loader import compile_mission
+    from .yamlsrc import load_yaml_file
 
     path = inside(run_dir, "mission.yaml")
     read_bytes(run_dir, "mission.yaml", MAX_FRAME_BYTES)  # there, a plain file, not too large
     try:
-        return load_mission(path)
+        data, smap, _ = load_yaml_file(path)
+        use = _uses(data.get("machine") if isinstance(data, dict) else None, ("machine",))
+        if use is not None:
+            where = smap.problem(use, "a run record's mission has its sub-missions expanded: this `use:` would "
+                                 "read a file outside the record", "a mission.yaml written by taskflow run")
+            raise RunDirError(str(where))
+        return compile_mission(data, smap, None)
     except MissionError as exc:
         first = str(exc.problems[0]) if exc.problems else str(exc)
         raise RunDirError(f"{run_dir}: its mission.yaml no longer loads ({first}) — the record was written by "
@@ -163,4 +193,4 @@ def load_run(run_dir: str | Path) -> RecordedRun:
     scene = mission_scene(mission, world_params)
     return RecordedRun(d, trace, [r for r in records if isinstance(r, TransitionRecord)], summary, mission,
                        world_params, scene, dict(mission.metric_units), _command_labels(mission),
-                       [r for r in records if isinstance(r, OperatorRecord)])
+                       [r for r in records if isinstance(r, OperatorRecord)], read_frames(d))

@@ -36,8 +36,8 @@ from pathlib import Path
 from typing import IO, Any
 
 
-from .frames import FrameRecord, read_frame, read_frames
-from .recorded import RecordedRun, load_run
+from .frames import FrameRecord, read_frame
+from .recorded import RecordedRun, RunDirError, load_run
 from .records import clean_floats
 
 FORMATS = ("mcap",)
@@ -172,7 +172,7 @@ def write_mcap(run: RecordedRun, out: str | Path) -> Path:
     bodies = {b: run.pose_track(b) for b in run.scene.poses}
     tracks = {b: v for b, v in bodies.items() if v is not None}
     cx, cy = run.control_track()
-    frames = read_frames(run.dir)
+    frames = run.frames
     with open(out, "wb") as f:
         mc = _Mcap(f, run)
         mc.channel("/tf", FRAME_TRANSFORM_SCHEMA)
@@ -240,7 +240,12 @@ def export_run(run_dir: str | Path, fmt: str = "mcap", out: str | Path | None = 
     if fmt not in FORMATS:
         raise ValueError(f"unknown export format {fmt!r} — valid: {', '.join(FORMATS)}")
     run = load_run(run_dir)
-    return write_mcap(run, Path(out) if out is not None else run.dir / f"telemetry.{fmt}")
+    path = Path(out) if out is not None else run.dir / f"telemetry.{fmt}"
+    try:
+        return write_mcap(run, path)
+    except RunDirError:  # a recorded frame refused half-way (record_io): no partial export stays
+        path.unlink(missing_ok=True)
+        raise
 
 
 __all__ = ["FORMATS", "export_run", "write_mcap"]

@@ -21,6 +21,11 @@ loop — so serving it costs the loop nothing per tick: the routes read ``trace.
 ``GET /view/frame?sensor=S&t=T``  the PNG of camera entry ``S`` captured nearest sim time ``T`` (without
                             ``t``: its latest), its capture time in the header ``X-Frame-Stamp`` (s) and
                             its tick's in ``X-Frame-T``; 404 with ``{error}`` when there is none
+
+The record is untrusted input (it may be a colleague's run or a CI artifact): every route reads files
+only inside the run directory, bounded (:mod:`taskflow.record_io`), and answers a malformed or hostile
+record — a frame whose ``file`` leads outside the folder or is a link out of it, a line too long, a field
+of the wrong type — with 422 and ``{error}``, one line naming the file and line, serving nothing of it.
 """
 
 from __future__ import annotations
@@ -168,13 +173,14 @@ class RecordReader:
         self._offsets = {"trace.csv": 0, "transitions.jsonl": 0, FRAMES_INDEX: 0}
         self._lines = {"trace.csv": 1, "transitions.jsonl": 1, FRAMES_INDEX: 1}
 
-    def _present(self, name: str) -> bool:
+    def present(self, name: str) -> bool:
+        """Whether ``name`` is in the run directory (a link counts: reading it decides)."""
         path = self.dir / name
         return path.exists() or path.is_symlink()  # a dangling link is read, and refused, by record_io
 
     def _trace_lines(self) -> None:
         name = "trace.csv"
-        if not self._present(name):
+        if not self.present(name):
             return
         where = self.dir / name
         for n, text, end in lines(self.dir, name, offset=self._offsets[name], first_line=self._lines[name],
@@ -190,12 +196,12 @@ class RecordReader:
     def refresh(self) -> None:
         self._trace_lines()
         name = "transitions.jsonl"
-        if self._present(name):
+        if self.present(name):
             for rec, n, end in read_transitions(self.dir, offset=self._offsets[name], first_line=self._lines[name],
                                                 complete_only=True):
                 self.records.append(rec)
                 self._offsets[name], self._lines[name] = end, n + 1
-        if self._present(FRAMES_INDEX):
+        if self.present(FRAMES_INDEX):
             for frame, n, end in frames_from(self.dir, offset=self._offsets[FRAMES_INDEX],
                                              first_line=self._lines[FRAMES_INDEX]):
                 self.frames.append(frame)
@@ -229,7 +235,7 @@ class RecordReader:
     def summary(self) -> dict[str, Any]:
         """``summary.json`` (empty until it is on disk), its fields checked
         (:func:`~taskflow.record_io.check_summary`)."""
-        if not self._present("summary.json"):
+        if not self.present("summary.json"):
             return {}
         return check_summary(read_json(self.dir, "summary.json"), self.dir / "summary.json")
 
@@ -261,8 +267,12 @@ class RunView:
         return {**self._machine, "live": self.live}
 
     def replay_state(self) -> dict[str, Any]:
-        """``GET /state`` of a replay: the run's end as its summary tells it (nothing runs)."""
-        s = self.reader.summary()
+        """``GET /state`` of a replay: the run's end as its summary tells it (nothing runs); a summary
+        that has turned unreadable gives no outcome and its error as the reason."""
+        try:
+            s = self.reader.summary()
+        except RunDirError as exc:
+            s = {"reason": str(exc)}
         return {"mission": self.mission.name, "state": s.get("final_state", ""), "t": s.get("sim_time_s", 0.0),
                 "tick": s.get("ticks", 0), "paused": False, "held": False, "outcome": s.get("outcome"),
                 "reason": s.get("reason", ""), "running": False, "replay": True}
@@ -284,9 +294,11 @@ def open_run(run_dir: str | Path) -> RunView:
         raise ViewError(f"{d}: {what}")
     try:
         view = RunView(_load_mission(d), d, live=False)
+        for name in ("summary.json", "transitions.jsonl"):
+            if not view.reader.present(name):
+                raise RunDirError(f"{d / name}: missing — a run record has it")
         view.reader.refresh()  # the whole record read once: a malformed or hostile one is refused here
-        if not view.reader.summary():
-            raise RunDirError(f"{d / 'summary.json'}: missing — a run record has it")
+        view.reader.summary()
     except RunDirError as exc:
         raise ViewError(str(exc)) from None
     return view
