@@ -24,6 +24,10 @@
 Everything but ``timing.json`` depends only on the mission and the seed: two runs with one seed write
 the same bytes.
 
+Read back, every reader parses a ``transitions.jsonl`` line with :func:`record_from_dict` (the one parse:
+an :class:`OperatorRecord` or a :class:`TransitionRecord`), a trace row with :func:`parse_trace_row`
+(:func:`read_trace`), through :mod:`taskflow.record_io` (a record is untrusted input).
+
 Rows are buffered and flushed every ``flush_every`` ticks; ``summary.json`` exists from the start
 (outcome ``aborted``, reason ``run did not finish``) and is replaced when the run ends, so a crash or
 Ctrl-C still leaves a readable record.
