@@ -37,10 +37,58 @@ REGION_SCRIPT = """\
 - {t: 1.0, action: resume, who: ann}
 - {t: 2.0, action: preempt, who: bob, args: {to: stopped}}
 """
+SUB_MISSION = {  # a mission using a sub-mission in a foreach loop (as tests/machine/test_submission.py)
+    "m.yaml": """\
+mission: m
+robot: toy_point
+world: {name: toy_line, params: {start: 0.0}}
+rate_hz: 20
+max_time: 30 s
+parameters: {spots: [1.0, 0.5], tol: 2 cm}
+machine:
+  initial: pick
+  states:
+    pick:
+      foreach: {in: spots, as: spot}
+      use: lib/goto.yaml
+      with: {target: $spot, reach: $tol}
+      transitions: [{to: fin, done: true}]
+    fin: {final: succeeded}
+""",
+    "lib/goto.yaml": """\
+submission: goto_and_visit
+description: go to $target, then to each of $vias
+parameters: {target: ~, reach: 1 cm, vias: [0.25]}
+profiles:
+  gains: {soft: {kp: 2.0}}
+machine:
+  bind: {gains: soft}
+  initial: go
+  states:
+    go:
+      task: {name: toy_goto, params: {target: $target}}
+      transitions: [{to: vias, when: "pos_error < $reach"}]
+    vias:
+      foreach: {in: vias, as: via}
+      initial: step
+      transitions: [{to: arrived, done: true}]
+      states:
+        step:
+          task: {name: toy_goto, params: {target: $via}}
+          transitions: [{to: ok, when: "pos_error < $reach"}]
+        ok: {final: succeeded}
+    arrived: {final: succeeded}
+""",
+}
+SUB_SCRIPT = """\
+- {t: 0.5, action: pause, who: script}
+- {t: 0.5, action: resume, who: ann}
+"""
 CASES = {  # name: (mission, operator script or None, extra arguments, the causes its record must hold)
     "operator": ("toy_full.yaml", FULL_SCRIPT, [], {"start", "timeout", "event", "operator", "guard", "done"}),
     "items": ("toy_full.yaml", None, [], {"start", "timeout", "guard", "event", "next_item", "done"}),
     "regions": ("toy_regions.yaml", REGION_SCRIPT, [], {"start", "operator", "timeout"}),
+    "sub-mission": ("m.yaml", SUB_SCRIPT, [], {"start", "guard", "next_item", "done"}),
 }
 
 
@@ -52,7 +100,11 @@ def _lines(run: Path) -> list[dict[str, Any]]:
 def recorded(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     mission, script, extra, _ = CASES[request.param]
     out = tmp_path_factory.mktemp(request.param)
-    args = ["run", str(MISSIONS / mission), "--no-control", "--out", str(out / "run"), *extra]
+    if request.param == "sub-mission":
+        for name, text in SUB_MISSION.items():
+            (out / name).parent.mkdir(parents=True, exist_ok=True)
+            (out / name).write_text(text)
+    args = ["run", str(out / mission if request.param == "sub-mission" else MISSIONS / mission), "--no-control", "--out", str(out / "run"), *extra]
     if script is not None:
         (out / "ops.yaml").write_text(script)
         args += ["--operator-script", str(out / "ops.yaml")]
