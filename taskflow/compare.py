@@ -37,16 +37,26 @@ class _Items(BaseModel):
     succeeded: int
 
 
+class _Stats(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    mean: float | None = None
+    n: int = 0
+    ci95: list[float] | None = None
+
+
 class _Aggregate(BaseModel):
     model_config = ConfigDict(extra="allow", strict=True)
+    success_rate: float | None = None
+    success_ci95: list[float] | None = None
     items: dict[str, _Items] = {}
-    metrics: dict[str, dict[str, Any]] = {}
+    metrics: dict[str, _Stats] = {}
 
 
 class _Condition(BaseModel):
     model_config = ConfigDict(extra="allow", strict=True)
     index: int
     label: str
+    values: dict[str, Any] = {}
     aggregate: _Aggregate
 
 
@@ -62,6 +72,7 @@ class BatchFields(BaseModel):
 
     model_config = ConfigDict(extra="allow", strict=True)
     mission: str = ""
+    sweep: dict[str, list[Any]] | None = None
     trials: list[_Trial]
     aggregate: _Aggregate
     conditions: list[_Condition] | None = None
@@ -80,9 +91,13 @@ def load_batch(path: str | Path) -> dict[str, Any]:
         if not isinstance(data, dict):
             raise RunDirError(f"{root / name}: a JSON object was expected, got {type(data).__name__}")
         try:
-            BatchFields.model_validate(data)
+            fields = BatchFields.model_validate(data)
         except ValidationError as exc:
             raise RunDirError(f"{root / name}: {problem(exc)} — not a batch.json written by taskflow batch") from None
+        for c in fields.conditions or []:
+            if set(c.values) != set(fields.sweep or {}):
+                raise RunDirError(f"{root / name}: condition {c.index} sets {', '.join(sorted(c.values)) or 'nothing'}"
+                                  f" — the keys its sweep names: {', '.join(sorted(fields.sweep or {})) or 'none'}")
     except RunDirError as exc:
         raise CampaignError(str(exc)) from None
     if data.get("conditions") is None:  # written before sweeps: one condition

@@ -159,16 +159,17 @@ RUN_CASES: dict[str, tuple[Callable[[Path], None], str]] = {
 }
 
 BATCH_CASES: dict[str, tuple[Callable[[Path], None], str, tuple[str, ...]]] = {
-    # name: (damage, the file the error must name, the readers it is for: compare, resume)
+    # name: (damage, the file the error must name, the readers it is for: compare, resume, plot (a batch
+    # directory's figures); a link out is not a batch directory to plot: its batch.json is not a file there)
     "batch-links-out": (_link_out("batch.json", ('"mission"', f'"note": "{SECRET}", "mission"')), "batch.json",
                         ("compare",)),
-    "batch-malformed-json": (lambda d: (d / "batch.json").write_text('{"trials": ['), "batch.json", ("compare",)),
-    "batch-trials-a-dict": (_edit_json("batch.json", _set("trials", {"a": 1})), "batch.json", ("compare",)),
+    "batch-malformed-json": (lambda d: (d / "batch.json").write_text('{"trials": ['), "batch.json", ("compare", "plot")),
+    "batch-trials-a-dict": (_edit_json("batch.json", _set("trials", {"a": 1})), "batch.json", ("compare", "plot")),
     "batch-string-for-number": (_edit_json("batch.json", _set_first_trial("sim_time_s", "long")), "batch.json",
-                                ("compare",)),
-    "batch-list-for-dict": (_edit_json("batch.json", _set_first_trial("metrics", [1, 2])), "batch.json", ("compare",)),
+                                ("compare", "plot")),
+    "batch-list-for-dict": (_edit_json("batch.json", _set_first_trial("metrics", [1, 2])), "batch.json", ("compare", "plot")),
     "batch-huge": (lambda d: (d / "batch.json").write_text('{"trials": [], "pad": "' + "x" * HUGE + '"}'),
-                   "batch.json", ("compare",)),
+                   "batch.json", ("compare", "plot")),
     "trial-links-out": (_link_out("trials/c000-s00000.json", ('"outcome"', f'"note": "{SECRET}", "outcome"')),
                         "c000-s00000.json", ("resume",)),
     "trials-folder-links-out": (lambda d: _move_trials_out(d), "c000-s00000.json", ("resume",)),

@@ -2,8 +2,8 @@
 
 Each reader — ``taskflow plot``, ``taskflow export``, the end-of-run report (``load_run`` +
 ``format_report``), ``taskflow view`` (refused at open) and the replay page's endpoints (a record that
-turns hostile after the page opened, ``/view/frame`` included), ``taskflow compare`` and ``taskflow batch
---resume`` — must answer with exit 1 (or HTTP 4xx) and one line naming the damaged file, no traceback,
+turns hostile after the page opened, ``/view/frame`` included), ``taskflow compare``, ``taskflow plot`` of
+a batch directory and ``taskflow batch --resume`` — must answer with exit 1 (or HTTP 4xx) and one line naming the damaged file, no traceback,
 and never read or show what lies outside the folder (``SECRET``).
 """
 
@@ -131,7 +131,8 @@ def test_compare_and_resume_refuse_a_hostile_batch(case: str, batch: Path, tmp_p
     d = make_case(batch, tmp_path, case, damage)
     capsys.readouterr()
     for reader in readers:
-        args = ["compare", str(d), str(batch)] if reader == "compare" else ["batch", "--resume", str(d), "--workers", "1"]
+        args = {"compare": ["compare", str(d), str(batch)], "plot": ["plot", str(d)],
+                "resume": ["batch", "--resume", str(d), "--workers", "1"]}[reader]
         assert main(args) == 1, reader
         out, err = capsys.readouterr()
         _one_line(err, names)
