@@ -152,3 +152,16 @@ def test_a_batch_whose_trials_are_hostile_is_refused_by_compare_when_rebuilt(bat
     _one_line(capsys.readouterr().err, names)
     assert (d / "batch.json").read_bytes() == before  # nothing rewritten from the hostile record
     shutil.rmtree(d.parent)
+
+
+@pytest.mark.parametrize("name", ["../outside.txt", "ABS", "trial/../../outside.txt"])
+def test_a_remote_trial_cannot_write_outside_its_run_directory(name: str, tmp_path: Path) -> None:
+    from taskflow.backends import BackendError, _write_files
+
+    root = tmp_path / "campaign" / "trial-00000"
+    name = str(tmp_path / "campaign" / "outside.txt") if name == "ABS" else name
+    with pytest.raises(BackendError, match="outside its run directory"):
+        _write_files(root, {"trace.csv": b"t,state,events\n", name: SECRET.encode()})
+    assert not (tmp_path / "campaign" / "outside.txt").exists()
+    _write_files(root, {"frames/image/000000.png": b"png"})  # inside: written
+    assert (root / "frames/image/000000.png").read_bytes() == b"png"
