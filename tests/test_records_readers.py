@@ -132,6 +132,10 @@ def test_the_end_of_run_summary_lists_the_operator_actions(recorded: tuple[Path,
             assert f"{op['action']}{arg} by {op['who']} (tick {op['tick']}, in {op['state']})" in printed
     else:
         assert "operator actions" not in printed
+    if "outcome: succeeded" not in printed:  # the chain of transitions names who pre-empted, to where
+        for r in _lines(run):
+            if r["cause"] == "operator" and "from" in r:
+                assert f"{r['from']} → {r['to']}: pre-empted by {r['who']} (operator)" in printed, printed
 
 
 def test_plot_succeeds_and_marks_the_operator_actions_on_the_time_axis(recorded: tuple[Path, str],
