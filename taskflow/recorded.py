@@ -152,10 +152,26 @@ def _uses(node: Any, path: tuple[Any, ...]) -> tuple[Any, ...] | None:
     return None
 
 
+EXTERNAL_PARAMS = ("_dir", "_file", "_path")
+"""Endings of the world parameters that name a file or folder outside the record (``quad_room``'s
+``keyframe_dir``): the world reads them when it runs, a reader never needs them, so a record's mission
+is compiled with them null — a reader opens nothing a record names outside itself."""
+
+
+def _without_external_files(data: Any) -> None:
+    world = data.get("world") if isinstance(data, dict) else None
+    params = world.get("params") if isinstance(world, dict) else None
+    if isinstance(params, dict):
+        for key in params:
+            if isinstance(key, str) and key.endswith(EXTERNAL_PARAMS):
+                params[key] = None
+
+
 def _load_mission(run_dir: Path) -> CompiledMission:
     """The run's own ``mission.yaml`` compiled: a plain file inside ``run_dir`` (:func:`inside`), in
     which every sub-mission is already expanded — a ``use:`` would read a file outside the record, so it
-    is refused (:class:`RunDirError` ``FILE:LINE:COL``), as is a mission this code cannot compile."""
+    is refused (:class:`RunDirError` ``FILE:LINE:COL``), as is a mission this code cannot compile; world
+    parameters naming files (:data:`EXTERNAL_PARAMS`) are read as null."""
     from .loader import compile_mission
     from .yamlsrc import load_yaml_file
 
@@ -168,6 +184,7 @@ def _load_mission(run_dir: Path) -> CompiledMission:
             where = smap.problem(use, "a run record's mission has its sub-missions expanded: this `use:` would "
                                  "read a file outside the record", "a mission.yaml written by taskflow run")
             raise RunDirError(str(where))
+        _without_external_files(data)
         return compile_mission(data, smap, None)
     except MissionError as exc:
         first = str(exc.problems[0]) if exc.problems else str(exc)

@@ -165,3 +165,28 @@ def test_a_remote_trial_cannot_write_outside_its_run_directory(name: str, tmp_pa
     assert not (tmp_path / "campaign" / "outside.txt").exists()
     _write_files(root, {"frames/image/000000.png": b"png"})  # inside: written
     assert (root / "frames/image/000000.png").read_bytes() == b"png"
+
+
+def test_a_record_whose_mission_names_a_folder_outside_is_read_without_opening_it(base: Path, tmp_path: Path,
+                                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """``quad_room``'s ``keyframe_dir`` names a folder the world reads when it runs; a reader of the record
+    never opens it (the outside ``keyframes.json`` is not JSON: opening it would fail the load)."""
+    import yaml
+
+    from taskflow.loader import load_mission
+
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    (outside / "keyframes.json").write_text(SECRET + " {")
+    raw = load_mission(Path(__file__).resolve().parent.parent / "missions" / "visual_path_pose_regulation.yaml").raw
+    raw["world"]["params"] = {**raw["world"].get("params", {}), "keyframe_dir": str(outside)}
+    def damage(d: Path) -> None:
+        (d / "mission.yaml").write_text(yaml.safe_dump(raw))
+        lines = (d / "transitions.jsonl").read_text().splitlines()  # this case is about the mission alone
+        (d / "transitions.jsonl").write_text("".join(f"{x}\n" for x in lines if '"action"' not in x))
+
+    d = make_case(base, tmp_path, "keyframes", damage)
+    run = load_run(d)
+    assert run.mission.name == raw["mission"] and run.world_params.keyframe_dir is None  # type: ignore[attr-defined]
+    report = format_report(run)
+    assert SECRET not in report and "keyframes.json" not in report
