@@ -202,7 +202,7 @@ def load_run(run_dir: str | Path) -> RecordedRun:
                 if (d / "batch.json").is_file() else "not a run folder (it has no trace.csv)")
         raise RunDirError(f"{d}: {what}")
     summary = check_summary(read_json(d, "summary.json"), d / "summary.json")
-    records = [rec for rec, _, _ in read_transitions(d)]
+    records = [rec for rec, _, _ in read_transitions(d, complete_only=True)]  # a line cut short by a crash: left out
     trace = read_trace(d)
     mission = _load_mission(d)
     seed = summary.get("seed")
