@@ -245,8 +245,15 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
 
 
 def _write_files(root: Path, files: dict[str, bytes]) -> None:
+    """A remote trial's run directory written under ``root``; a name leading outside it (``..``, an
+    absolute path: a node is not trusted to say where the driver writes) is a :class:`BackendError`."""
+    from .record_io import RunDirError, inside
+
     for rel, data in files.items():
-        path = root / rel
+        try:
+            path = inside(root, rel)
+        except RunDirError as exc:
+            raise BackendError(f"a remote trial sent a file outside its run directory: {exc}") from None
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(data)
 

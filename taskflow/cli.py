@@ -384,10 +384,14 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     run_dir = Path(args.run_dir)
     if (run_dir / "campaign.json").is_file() and (run_dir / "batch.json").is_file():
+        from .campaign import CampaignError
         from .campaign_plots import plot_campaign  # a batch directory: the campaign's figures
 
-        for f in plot_campaign(run_dir):
-            print(f)
+        try:
+            for f in plot_campaign(run_dir):
+                print(f)
+        except CampaignError as exc:
+            raise UsageError(str(exc)) from None
         return 0
     try:
         run = load_run(args.run_dir)  # a folder that is not a run is refused before matplotlib loads
