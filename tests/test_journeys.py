@@ -191,7 +191,9 @@ def check_export(capsys: pytest.CaptureFixture[str], run: Path, records: list[di
     with (run / "telemetry.mcap").open("rb") as f:
         for _schema, channel, message in make_reader(f).iter_messages():
             by_topic.setdefault(channel.topic, []).append(json.loads(message.data))
-    assert by_topic.get("/transitions") == records
+    # state changes on /transitions, operator actions on /operator, each in the record's order
+    assert by_topic.get("/transitions") == [r for r in records if "action" not in r]
+    assert by_topic.get("/operator", []) == [r for r in records if "action" in r]
     ticks = len(trace_rows(run)) - 1
     assert len(by_topic["/metrics"]) == len(by_topic["/commands"]) == len(by_topic["/ground_truth"]) == ticks
     states = [row[1] for row in trace_rows(run)[1:]]
