@@ -142,7 +142,7 @@ def test_describe_sensor_by_short_name(capsys: pytest.CaptureFixture[str]) -> No
 def test_describe_markdown_of_one_name(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = _run(capsys, "describe", "car_goto", "--markdown")
     assert code == 0
-    for line in ("### task `car_goto`", "- pos_error: m", "- k1: [float, float], default [2.0, 1.0]"):
+    for line in ("### task `car_goto`", "- pos_error: m, ≥ 0 (a distance)", "- k1: [float, float], default [2.0, 1.0]"):
         assert line in out.splitlines(), line
 
 
