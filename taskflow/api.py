@@ -405,6 +405,13 @@ class World:
         object, keyframes, walls, the start pose (:class:`~taskflow.markers.Marker`).  Default: nothing."""
         return []
 
+    @classmethod
+    def rate_problem(cls, params: BaseModel, robot_params: BaseModel | None, rate_hz: float) -> tuple[str, str] | None:
+        """Why the mission's control rate ``rate_hz`` is one this world with these (drawn) parameters and the
+        robot's cannot honour, as ``(what is wrong, what would be valid)``; None: it can.  The loader asks it
+        after checking that ``rate_hz`` divides the physics rate.  Default: any rate."""
+        return None
+
     # --- asynchronous actions ---------------------------------------------------------------
     def start_action(self, name: str, params: Mapping[str, Any]) -> None:
         raise KeyError(name)

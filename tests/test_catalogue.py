@@ -103,7 +103,7 @@ def test_describe_task_shows_parameters_units_slots_metrics_events(capsys: pytes
                  "state.pose: array[3] (robot husky, robot racecar)",
                  "sensors.detection: Detection? (world viki_ground)",
                  "racecar on viki_ground",
-                 "rate_hz: float, default 15.0, unit Hz, > 0"):  # CameraMount, a type its robot parameters name
+                 "rate_hz: float, default 15.0, unit Hz, ≥ 1, ≤ 90"):  # CameraMount, a type its robot parameters name
         assert f"  {line}" in out.splitlines() or any(line_.startswith(f"  {line}") for line_ in out.splitlines()), line
     # the class docstring sends the reader to the module's, so the description includes it
     assert "Kinematic target (eq. 25's fallback" in out
