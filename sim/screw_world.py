@@ -311,7 +311,7 @@ class ScrewConveyor(SteppedWorld):
         return (f"control rate_hz {rate_hz:g} Hz is too slow for world {cls.name!r}: the part ({wp.motion}, up to "
                 f"{need * tol_t:g} m/s) moves {step:.3g} mm between two commands, more than the tool's coupling "
                 f"tolerance tol_t = {1000.0 * tol_t:g} mm",
-                f"rate_hz of at least {need:.3g} Hz that divides physics_hz (the paper's 40 Hz with physics_hz: 200; 100 Hz)")
+                f"rate_hz of at least {need:.3g} Hz that divides physics_hz, or a slower part")
     events: ClassVar[tuple[str, ...]] = ("target_lost", "target_found")
     metrics: ClassVar[dict[str, str]] = {}
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("base_x", "base_y", "base_yaw", "base_speed", "base_yaw_rate",

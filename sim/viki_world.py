@@ -179,6 +179,23 @@ class VikiGround(FlatGround):
     """Racecar + one object + front/rear RGB-D cameras (+ LiDAR) with a detector."""
 
     Params: ClassVar[type[VikiGroundParams]] = VikiGroundParams  # type: ignore[assignment]
+
+    @classmethod
+    def rate_problem(cls, params: BaseModel, robot_params: BaseModel | None, rate_hz: float) -> tuple[str, str] | None:
+        """A camera faster than the control rate: frames are taken at control ticks (:class:`SensorSchedule`,
+        one per tick at most), so it would silently run at ``rate_hz`` instead (15 fps with the missions'
+        20 Hz is fine: 3 frames in 4 ticks)."""
+        wp = cast(VikiGroundParams, params)
+        rates = {m: float(wp.camera_rate_hz) if wp.camera_rate_hz is not None else
+                 float(getattr(getattr(robot_params, m, None), "rate_hz", 0.0)) for m in ("front_camera", "rear_camera")}
+        fast = {m: r for m, r in rates.items() if r > rate_hz * (1.0 + 1e-9)}
+        if not fast:
+            return None
+        which = ", ".join(f"{m} {r:g} Hz" for m, r in fast.items())
+        return (f"camera rate above the control rate_hz {rate_hz:g} Hz ({which}): world {cls.name!r} takes at most one "
+                f"frame per control tick, so the camera would run at {rate_hz:g} Hz, not its own rate",
+                f"a camera rate of at most {rate_hz:g} Hz (world.params.camera_rate_hz or the mounts' rate_hz), "
+                "or a control rate_hz at least the camera's")
     events: ClassVar[tuple[str, ...]] = ("target_found", "target_lost")
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "yaw", "v", "obj_x", "obj_y", "err_x", "err_y",
                                                     "detected", "camera")

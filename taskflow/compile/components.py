@@ -82,8 +82,9 @@ def _check_rates(c: Compilation, world_cls: type[World], wparams: BaseModel, wpa
     ratio = physics / rate
     if ratio >= 1.0 - 1e-9 and abs(ratio - round(ratio)) <= 1e-9 * ratio:
         problem = world_cls.rate_problem(wparams, c.robot_params, rate)
-        if problem is not None:
-            c.err(("rate_hz",), *problem)
+        if problem is not None:  # blame a --set of the world's or robot's parameters when rate_hz is the file's
+            sets = [p for p in c.smap.overrides if p[:1] in (("world",), ("robot",))]
+            c.err(sets[-1] if sets and ("rate_hz",) not in c.smap.overrides else ("rate_hz",), *problem)
         return
     world_raw = c.data.get("world")
     given = isinstance(world_raw, dict) and "physics_hz" in (world_raw.get("params") or {})

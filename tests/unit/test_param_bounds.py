@@ -126,6 +126,19 @@ def test_the_screw_world_refuses_a_control_rate_it_cannot_honour() -> None:
         load_mission(MISSIONS / "screw_fastening.yaml", ["world.params.speed=0.08", "rate_hz=25"])
 
 
+def test_viki_ground_refuses_a_camera_faster_than_the_control_rate() -> None:
+    with pytest.raises(MissionError) as exc:
+        load_mission(MISSIONS / "viki_hyco.yaml", ["world.params.camera_rate_hz=60"])
+    line = str(exc.value.problems[0])
+    assert line.startswith(f"{MISSIONS / 'viki_hyco.yaml'}: --set world.params.camera_rate_hz=60: camera rate above "
+                           "the control rate_hz 20 Hz (front_camera 60 Hz, rear_camera 60 Hz)"), line
+    assert "so the camera would run at 20 Hz" in line
+    with pytest.raises(MissionError, match="front_camera 30 Hz"):  # a mount's own rate, on the Husky
+        load_mission(MISSIONS / "husky_viki_approach.yaml", ["robot.params.front_camera.rate_hz=30"])
+    load_mission(MISSIONS / "viki_hyco.yaml", ["world.params.camera_rate_hz=60", "rate_hz=60"])
+    load_mission(MISSIONS / "viki_hyco.yaml", ["world.params.fidelity=paper"])  # 15 fps under 20 Hz
+
+
 @pytest.mark.parametrize("name, lines", [
     ("racecar", ["v_max: float, default 0.5, unit m/s, > 0, ≤ 2.5 — speed limit (m/s; paper: 0.5): at most 2.5 m/s",
                  "wheelbase: float, default 0.325, unit m, ≥ 0.1, ≤ 1 — m: the controller's belief"]),
