@@ -183,7 +183,9 @@ def _reachable(c: Compilation, guard: Guard, units: dict[str, str], where: YPath
             why = "an absolute value is never negative" + (f"; {cmp.metric} is {rng}" if rng else "")
         else:
             why = f"{cmp.metric} is {rng}"
-        c.err(where, f"guard {guard.text!r}: {shown} {cmp.op} {_threshold(cmp, unit)} can never hold ({why})",
+        given = ("parameters", cmp.param)  # a threshold a --set gave: name the --set, not the file's guard
+        at = given if cmp.param is not None and given in c.smap.overrides else where
+        c.err(at, f"guard {guard.text!r}: {shown} {cmp.op} {_threshold(cmp, unit)} can never hold ({why})",
               "a threshold inside the metric's range (`taskflow describe TASK` lists each metric's range)")
     return ok
 

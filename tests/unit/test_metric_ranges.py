@@ -92,6 +92,15 @@ def test_the_loader_refuses_a_guard_its_metric_can_never_satisfy() -> None:
     assert "\n" not in msg
     msgs = _problems(MISSION % ("1 cm", "heading_error > 200 deg and speed < -1 m/s"))
     assert len(msgs) == 2 and "heading_error > 3.49066 rad can never hold" in msgs[0] and "speed < -1 m/s" in msgs[1]
+    # a threshold from a --set: the --set is named
+    try:
+        load_mission_text(MISSION % ("1 cm", "pos_error < $tol"), "m.yaml", overrides=["parameters.tol=-1 mm"])
+    except MissionError as exc:
+        (p,) = exc.problems
+        assert str(p).startswith("m.yaml: --set parameters.tol=-1 mm: guard 'pos_error < $tol': pos_error < $tol = "
+                                 "-0.001 m can never hold"), str(p)
+    else:
+        pytest.fail("a --set threshold no distance reaches was accepted")
     # inside the range, and '!=' / the edges: accepted
     assert _problems(MISSION % ("0 mm", "pos_error <= $tol or abs(heading_error) <= 0 rad or speed != -1 m/s")) == []
     assert _problems(MISSION % ("1 cm", "heading_error >= 3.1 rad or heading_error < -3 rad")) == []
