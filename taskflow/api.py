@@ -136,11 +136,6 @@ WEIGHT = Metric("", low=0.0, high=1.0, reason="a task weight")
 """Ranged units of the kinds of metric the shipped tasks publish (declare ``{"pos_error": DISTANCE}``)."""
 
 
-def metric_range(unit: str) -> tuple[float | None, float | None]:
-    """The declared ``(low, high)`` of a metric's unit (``(None, None)``: a plain unit string, no range)."""
-    return (unit.low, unit.high) if isinstance(unit, Metric) else (None, None)
-
-
 ValueT = TypeVar("ValueT")
 
 
