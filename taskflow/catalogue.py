@@ -37,6 +37,7 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined, to_jsonable_python
 
+from . import api
 from .api import ObsSpec, Robot, Task, World
 from .contracts import hosts, task_problem
 from .fidelity import Fidelity
@@ -89,10 +90,19 @@ class Slot:
 
 @dataclass(frozen=True)
 class Metric:
-    """A metric guards can read, in its base ``unit`` (``""``: dimensionless)."""
+    """A metric guards can read, in its base ``unit`` (``""``: dimensionless), with the range its values
+    take where the task or world declares one (``bounds`` ``"≥ 0"``, empty: none; ``reason``: why)."""
 
     name: str
     unit: str
+    bounds: str = ""
+    reason: str = ""
+
+
+def _metrics(declared: dict[str, str]) -> tuple[Metric, ...]:
+    """The catalogue's view of a ``metrics`` declaration (plain unit strings or :class:`taskflow.api.Metric`)."""
+    return tuple(Metric(k, str(u), u.bounds(), u.reason) if isinstance(u, api.Metric) else Metric(k, str(u))
+                 for k, u in declared.items())
 
 
 @dataclass(frozen=True)
@@ -405,7 +415,7 @@ def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type
     return Entry(
         kind="task", name=task.name, summary=summary_of(doc), doc=doc, source=_source(task),
         params_doc=_own_doc(task.Params), params=params_of(task.Params), slots=slots,
-        metrics=tuple(Metric(k, u) for k, u in task.metrics.items()), events=tuple(task.events),
+        metrics=_metrics(task.metrics), events=tuple(task.events),
         requires=tuple(Stream(k, str(s), _providers(k, s, robots, worlds)) for k, s in task.requires.items()),
         command_interface=task.command_interface, robot_params=params_of(task.robot_params),
         works_with=works, types=_nested_models([task.Params, *task.slots.values(), task.robot_params]))
@@ -432,7 +442,7 @@ def world_entry(world: type[World], tasks: dict[str, type], robots: dict[str, ty
     return Entry(
         kind="world", name=world.name, summary=summary_of(doc), doc=doc, source=_source(world),
         params_doc=_own_doc(world.Params), params=params_of(world.Params),
-        metrics=tuple(Metric(k, u) for k, u in world.metrics.items()), events=tuple(world.events),
+        metrics=_metrics(world.metrics), events=tuple(world.events),
         actions=tuple(Action(a, tuple(ends), params_of(world.action_params.get(a)))
                       for a, ends in world.actions.items()),
         provides=tuple(Stream(k, str(s), _readers(k, s, tasks)) for k, s in world.observations.items()),

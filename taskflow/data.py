@@ -19,7 +19,7 @@ from typing import Any, Iterator, MutableMapping
 
 import numpy as np
 
-from .api import MemoryKey, Task
+from .api import FLAG, MemoryKey, Metric, Task
 from .guards import DATA_PREFIX  # what a guard writes before a key's name (data.viki.object[0]); $data. in a parameter
 from .records import clean_floats
 from .specs import ObsSpec
@@ -183,8 +183,10 @@ class DataCatalogue:
         return {k: copy.deepcopy(v) for k, v in self.defaults.items()}
 
     def guard_units(self) -> dict[str, str]:
-        """Every ``data.…`` name a guard may read → the unit of its key."""
-        return {n: key.unit for key in self.keys.values() for n in guard_names(key)}
+        """Every ``data.…`` name a guard may read → the unit of its key (a flag key's is
+        :data:`taskflow.api.FLAG`: a guard reads it as 1 or 0, so ``data.KEY > 1`` can never hold)."""
+        return {n: FLAG if key.spec.kind == "flag" and not isinstance(key.unit, Metric) else key.unit
+                for key in self.keys.values() for n in guard_names(key)}
 
     def samples(self) -> dict[str, Any]:
         """Key name → a value of its type in JSON form (its default when it has one), for load-time checks

@@ -103,7 +103,7 @@ def test_describe_task_shows_parameters_units_slots_metrics_events(capsys: pytes
                  "state.pose: array[3] (robot husky, robot racecar)",
                  "sensors.detection: Detection? (world viki_ground)",
                  "racecar on viki_ground",
-                 "rate_hz: float, default 15.0, unit Hz, > 0"):  # CameraMount, a type its robot parameters name
+                 "rate_hz: float, default 15.0, unit Hz, ≥ 1, ≤ 90"):  # CameraMount, a type its robot parameters name
         assert f"  {line}" in out.splitlines() or any(line_.startswith(f"  {line}") for line_ in out.splitlines()), line
     # the class docstring sends the reader to the module's, so the description includes it
     assert "Kinematic target (eq. 25's fallback" in out
@@ -164,7 +164,7 @@ def test_describe_sensor_by_short_name(capsys: pytest.CaptureFixture[str]) -> No
 def test_describe_markdown_of_one_name(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = _run(capsys, "describe", "car_goto", "--markdown")
     assert code == 0
-    for line in ("### task `car_goto`", "- pos_error: m", "- k1: [float, float], default [2.0, 1.0]"):
+    for line in ("### task `car_goto`", "- pos_error: m, ≥ 0 (a distance)", "- k1: [float, float], default [2.0, 1.0]"):
         assert line in out.splitlines(), line
 
 
