@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parent.parent
 CAR = str(ROOT / "missions" / "car_waypoints.yaml")
 VIKI = str(ROOT / "missions" / "viki_hyco.yaml")
 QUAD = str(ROOT / "missions" / "visual_path_pose_regulation.yaml")
+SCREW = str(ROOT / "missions" / "screw_fastening.yaml")
 
 
 @dataclass(frozen=True)
@@ -96,6 +97,7 @@ def cases(tmp: Path) -> list[BadInput]:
     ]
     out += _operator_scripts(tmp)  # the "ops" block (issue 20): malformed operator scripts
     out += _seam_cases(tmp)  # issue 20, "load": sub-missions, --sweep/--set, numeric options, check
+    out += _bound_cases()  # issue 20, "bounds": values the robot or world cannot honour, guards that never hold
     return out
 
 
@@ -237,4 +239,21 @@ def _seam_cases(tmp: Path) -> list[BadInput]:
                  "taskflow view: --port 70000"),
         BadInput("check-world-cannot-host", ("check", "--world", "flat_ground", "--robot", "quadcopter"),
                  "worlds that host it: quad_room", "taskflow check: --world flat_ground --robot quadcopter"),
+    ]
+
+
+def _bound_cases() -> list[BadInput]:
+    """Values the robot or world cannot honour, and a guard its metric can never satisfy, given on the command
+    line: each refused at the ``--set`` with the reason."""
+    return [
+        BadInput("bound-racecar-v-max", ("validate", CAR, "--set", "robot.params.v_max=1000"),
+                 "less than or equal to 2.5", f"{CAR}: --set robot.params.v_max=1000"),
+        BadInput("bound-screw-rate", ("validate", SCREW, "--set", "rate_hz=1"), "too slow for world 'screw_conveyor'",
+                 f"{SCREW}: --set rate_hz=1"),
+        BadInput("bound-guard-negative-distance", ("validate", SCREW, "--set", "parameters.eps_t=-1 mm"),
+                 "can never hold", f"{SCREW}: --set parameters.eps_t=-1 mm"),
+        BadInput("bound-viki-camera-rate", ("validate", VIKI, "--set", "world.params.camera_rate_hz=60"),
+                 "camera rate above the control rate_hz", f"{VIKI}: --set world.params.camera_rate_hz=60"),
+        BadInput("bound-viki-pixel-noise", ("validate", VIKI, "--set", "world.params.pixel_noise=1e6"),
+                 "less than or equal to 20", f"{VIKI}: --set world.params.pixel_noise=1e6"),
     ]

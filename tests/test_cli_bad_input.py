@@ -31,7 +31,10 @@ NAMES = ["max-time-nan", "max-time-inf", "max-time-huge", "max-time-negative", "
          "sweep-not-key-values", "sweep-empty-value", "sweep-bad-value", "sweep-not-a-mapping", "set-unknown-state",
          "set-creates-a-key", "set-bad-yaml", "run-seed-negative", "run-seed-too-big", "batch-seed-negative",
          "batch-seed-overflows", "teach-seed-negative", "check-steps-zero", "check-param-typo",
-         "check-param-bad-value", "check-param-unknown-world", "view-port-out-of-range", "check-world-cannot-host"]
+         "check-param-bad-value", "check-param-unknown-world", "view-port-out-of-range", "check-world-cannot-host",
+         # issue 20, "bounds"
+         "bound-racecar-v-max", "bound-screw-rate", "bound-guard-negative-distance", "bound-viki-camera-rate",
+         "bound-viki-pixel-noise"]
 
 
 def test_the_table_is_the_list_below(table: dict[str, BadInput]) -> None:
