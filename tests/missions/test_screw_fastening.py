@@ -164,14 +164,22 @@ def test_one_second_of_safe_stop_after_success_leaves_the_robot_at_rest():
         world.disconnect()
 
 
-@pytest.mark.parametrize("eps_t", ["1 m", "-1 mm"])
-def test_thresholds_that_fasten_nothing_end_failed(eps_t):
-    """A 1 m threshold lets every screw start far off its bolt (the coupling fails); −1 mm never lets one
-    start (each approach times out). Both used to end `succeeded` with 0 of 4 bolts fastened."""
-    r = run_on_world(load_mission(CONVEYOR, [f"parameters.eps_t={eps_t}"]), seed=0)
+def test_a_threshold_that_fastens_nothing_ends_failed():
+    """A 1 m threshold lets every screw start far off its bolt (the coupling fails).  It used to end
+    `succeeded` with 0 of 4 bolts fastened."""
+    r = run_on_world(load_mission(CONVEYOR, ["parameters.eps_t=1 m"]), seed=0)
     assert_outcome(r, "failed")
     assert r.summary["items"]["cell.operation.operate.screws"]["succeeded"] == 0
     assert r.summary["metrics"]["operations_fastened"] == 0 and r.summary["metrics"]["bolts_fastened"] == 0
+
+
+def test_a_threshold_no_distance_can_meet_is_refused_at_load():
+    """−1 mm never lets a screw start (each approach used to time out, and the run once ended `succeeded`
+    with 0 of 4 bolts): the guard's metric is a distance, so the loader refuses it at the guard."""
+    from taskflow.errors import MissionError
+
+    with pytest.raises(MissionError, match="can never hold .*a distance"):
+        load_mission(CONVEYOR, ["parameters.eps_t=-1 mm"])
 
 
 def test_the_safety_region_stops_an_over_force_and_leaves_the_robot_at_rest(tmp_path: Path):
