@@ -28,6 +28,14 @@ class ToyPoint(Robot):
     command_keys = {"v": 1}
 
 
+class ToyPair(Robot):
+    """``toy_point`` with a second command part ``w`` (``toy_line`` ignores it): two parallel regions can
+    each own one part."""
+
+    Params = ToyRobotParams
+    command_keys = {"v": 1, "w": 1}
+
+
 class ToyWheelParams(StrictModel):
     radius: float = 0.1
 
@@ -193,7 +201,8 @@ class ToyReturn(Task[Any, ToyLimits]):
 
 
 def register() -> None:
-    for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (ROBOTS, "toy_wheel", ToyWheel), (WORLDS, "toy_line", ToyLine),
+    for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (ROBOTS, "toy_wheel", ToyWheel),
+                           (ROBOTS, "toy_pair", ToyPair), (WORLDS, "toy_line", ToyLine),
                            (TASKS, "toy_goto", ToyGoto), (TASKS, "toy_watch", ToyWatch), (TASKS, "toy_mark", ToyMark),
                            (TASKS, "toy_return", ToyReturn)):
         if name not in reg._items:
