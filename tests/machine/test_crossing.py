@@ -153,3 +153,62 @@ def test_a_done_transition_into_its_own_history_state_starts_it_afresh():
     r = drive(mission(text), Script(), max_time=4.0)
     assert _fired(r)[1:5] == [(1.0, "h.b", "timeout", False), (2.0, "h.c", "timeout", False),
                               (2.5, "h.fin", "timeout", False), (2.5, "h.a", "done", False)]
+
+
+# -- 3. a guard in one region reads what a sibling region's task publishes --------------------------
+
+SIBLING = """
+machine:
+  initial: both
+  states:
+    both:
+      regions:
+        a:
+          owns: [v]
+          initial: go
+          states:
+            go:
+              task: {name: toy_goto, params: {target: 1.0}}
+              bind: {gains: g}
+              transitions: [{to: a_end, when: "x_abs > 0.5 m"}]   # x_abs: toy_watch's, in region b
+            a_end: {final: succeeded}
+        b:
+          initial: look
+          states:
+            look:
+              task: toy_watch
+              transitions: [{to: b_end, after: LOOK_FOR}]
+            b_end: {final: succeeded}
+      transitions: [{to: done, done: succeeded}]
+    done: {final: succeeded}
+"""
+
+
+def test_a_guard_fires_on_a_sibling_regions_metric_on_the_scripted_backend():
+    m = mission(SIBLING.replace("LOOK_FOR", "10 s"))
+    script = Script(metrics=lambda s: {"x_abs": 0.25 * s.t} if "both.b.look" in s.state else {})
+    r = drive(m, script, max_time=5.0)
+    first = r.executor.transitions_fired[1]
+    assert (round(first.t, 3), first.source, first.target, first.cause) == (2.05, "both.a.go", "both.a.a_end", "guard")
+    assert first.metrics == {"x_abs": pytest.approx(0.5125)}
+
+
+def test_a_guard_reads_the_sibling_tasks_metric_of_the_same_tick_on_the_toy_loop():
+    # the real loop: every region's task steps before any guard is checked, so region a's guard reads the
+    # x_abs that toy_watch computed from this tick's observation
+    m = mission(SIBLING.replace("LOOK_FOR", "10 s"))
+    r = run_mission(m, record=False, max_time=5.0)
+    first = r.executor.transitions_fired[1]
+    assert first.target == "both.a.a_end"
+    x_at = 1.0 - np.exp(-first.t)  # toy_goto's P law from 0 towards 1 m with kp = 1 (world integrates exactly)
+    assert first.metrics["x_abs"] > 0.5 and x_at == pytest.approx(first.metrics["x_abs"], abs=0.01)
+    assert first.t == pytest.approx(np.log(2.0), abs=0.06)
+
+
+def test_a_sibling_metric_not_published_on_a_tick_compares_false():
+    # region b leaves toy_watch at 0.3 s (x ≈ 0.26 m): x_abs is published by no active task afterwards,
+    # so region a's guard never holds although the robot passes 0.5 m
+    m = mission(SIBLING.replace("LOOK_FOR", "0.3 s"))
+    r = run_mission(m, record=False, max_time=3.0)
+    assert r.outcome == "timeout" and r.executor.state == "both.a.go|both.b.b_end"
+    assert r.executor.world.ground_truth()["x"] > 0.9
