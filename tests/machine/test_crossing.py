@@ -212,3 +212,34 @@ def test_a_sibling_metric_not_published_on_a_tick_compares_false():
     r = run_mission(m, record=False, max_time=3.0)
     assert r.outcome == "timeout" and r.executor.state == "both.a.go|both.b.b_end"
     assert r.executor.world.ground_truth()["x"] > 0.9
+
+
+# -- found by the oracle (tests/test_properties.py): a region moves while the last region is final ---------
+
+def test_a_region_moves_on_while_the_last_region_has_finished():
+    # `transitions` 0.9.3's own final-state check took region b's final state for the parallel state's and
+    # raised AttributeError ('scoped_enter'): the run aborted at 1 s
+    m = mission("""
+machine:
+  initial: both
+  states:
+    both:
+      regions:
+        a:
+          initial: a1
+          states:
+            a1: {transitions: [{to: a2, after: 1 s}]}
+            a2: {transitions: [{to: a_end, after: 1 s}]}
+            a_end: {final: true}
+        b:
+          initial: b1
+          states:
+            b1: {transitions: [{to: b_end, after: 0.5 s}]}
+            b_end: {final: true}
+      transitions: [{to: fin, done: true}]
+    fin: {final: true}
+""")
+    r = drive(m, Script(), max_time=5.0)
+    assert r.outcome == "succeeded", r.summary["reason"]
+    assert _fired(r)[1:] == [(0.5, "both.b.b_end", "timeout", False), (1.0, "both.a.a2", "timeout", False),
+                             (2.0, "both.a.a_end", "timeout", False), (2.0, "fin", "done", False)]
