@@ -878,8 +878,8 @@ def check_regions_run(doc: dict[str, Any], script: Script) -> tuple[list[tuple[i
     oracle.start()
     k = 0
     while oracle.outcome is None and k / RATE_HZ < REGION_MAX_TIME - 1e-9:
-        assert k < len(ticks), (f"the engine stopped at tick {len(ticks)} ({result.outcome}: {result.summary['reason']}); "
-                                f"the oracle goes on ({_oracle_snapshot(oracle)})")
+        assert k < len(ticks), (f"the engine stopped at tick {len(ticks)} ({result.outcome}: "
+                                f"{result.summary['reason']}); the oracle goes on ({_oracle_snapshot(oracle)})")
         cmd = oracle.step(k, _metrics_at(script, k), _script_events_at(script, k))
         engine, engine_cmd = ticks[k]
         assert engine == _oracle_snapshot(oracle), f"tick {k} (t = {k / RATE_HZ:g} s)"

@@ -149,7 +149,8 @@ def test_a_done_transition_into_its_own_history_state_starts_it_afresh():
     # the history as the exit leaves it is the final leaf: resuming it would finish h again, forever
     text = HISTORY.replace("- {to: end, done: true}", "- {to: h, done: true}").replace(
         "c: {transitions: [{to: fin, after: 10 s}]}", "c: {transitions: [{to: fin, after: 0.5 s}]}").replace(
-        "        - {to: away, on: target_found}\n", "        - {to: away, on: target_found}\n        - {to: end, after: 3 s}\n")
+        "        - {to: away, on: target_found}\n",
+        "        - {to: away, on: target_found}\n        - {to: end, after: 3 s}\n")
     r = drive(mission(text), Script(), max_time=4.0)
     assert _fired(r)[1:5] == [(1.0, "h.b", "timeout", False), (2.0, "h.c", "timeout", False),
                               (2.5, "h.fin", "timeout", False), (2.5, "h.a", "done", False)]
