@@ -11,12 +11,14 @@ Semantics in brief (docs/missions.md has the long form):
 * a transition on a composite state is checked while any of its sub-states is active; outer
   transitions are checked before inner ones, so `target_lost` on a parent pre-empts its children;
 * entering a composite enters its ``initial`` chain, or, with ``history: true`` and ``resume`` (the
-  default), the leaf that was active when it was last left (deep history, foreach index included);
+  default), the leaf that was active when it was last left (deep history, foreach index included) —
+  resolved after the transition's exits, so re-entering an active history state resumes where it is;
 * reaching a final sub-state finishes its parent: a ``foreach`` parent moves to the next item (or
   stops on a failed/aborted iteration unless ``on_failure: continue``); otherwise the parent's
   matching ``done`` transition fires.  A final state directly under the root ends the run;
 * ``blend: T`` on a transition mixes the last outgoing command into the incoming one with
-  ``h(τ) = ½(1 − cos(π τ / T))`` for ``τ < T``;
+  ``h(τ) = ½(1 − cos(π τ / T))`` for ``τ < T`` (inside a parallel region, only the parts that region
+  owns, alongside a sibling region's blend);
 * a state with ``regions`` runs them in parallel: one active leaf per region, each with its task; a
   tick steps every task, takes from each region's command only the parts it ``owns`` (the robot's stop
   command for the parts nobody drives) and checks every active leaf's table, each shared transition
