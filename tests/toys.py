@@ -1,6 +1,7 @@
 """Small registered robot/world/task used by the framework's own tests (no simulator).
 
-``toy_point`` is a 1-D point moved by a velocity command; ``toy_line`` integrates it exactly and
+``toy_point`` is a 1-D point moved by a velocity command (``toy_pair`` the same with a second command
+part ``w``, for two regions that each own one); ``toy_line`` integrates it exactly and
 emits ``target_lost`` / ``target_found`` at scheduled times; ``toy_goto`` is a P controller (it records
 its targets and robot view in mission data); ``toy_mark`` holds still and writes where it is
 (``toy.mark``, mission data), ``toy_return`` reads that mark and drives back to it.
