@@ -29,20 +29,32 @@ _PITCH = math.radians(30.0)
 class HuskyParams(StrictModel):
     """Geometry (m), limits (m/s, rad/s, m/s², rad/s²) and motor torque (N m per wheel)."""
 
-    wheel_radius: float = Field(default=0.17775, gt=0.0)
-    track: float = Field(default=0.5708, gt=0.0, description="distance between left and right wheel centres")
-    wheelbase: float = Field(default=0.512, gt=0.0)
-    track_multiplier: float = Field(default=1.875, ge=1.0, description="skid-steer effective track / track")
-    v_max: float = Field(default=1.0, gt=0.0)
-    w_max: float = Field(default=2.0, gt=0.0)
-    a_max: float = Field(default=1.5, gt=0.0, description="forward acceleration limit")
-    alpha_max: float = Field(default=4.0, gt=0.0, description="yaw acceleration limit")
-    wheel_torque: float = Field(default=60.0, gt=0.0)
+    # the body is the Husky URDF (its geometry is read from the URDF): these are the controller's belief
+    wheel_radius: float = Field(default=0.17775, ge=0.05, le=0.5, description="m: the controller's belief of the "
+                                "URDF's 0.178 m wheels, within about x1/3 to x3: the wheel speeds it commands are off by that factor")
+    track: float = Field(default=0.5708, ge=0.2, le=1.5, description="distance between left and right wheel centres "
+                         "(m): the controller's belief of the URDF's 0.571 m, within about x1/3 to x3")
+    wheelbase: float = Field(default=0.512, ge=0.2, le=1.5, description="m: the controller's belief of the URDF's "
+                             "0.512 m, within about x1/3 to x3")
+    track_multiplier: float = Field(default=1.875, ge=1.0, le=4.0, description="skid-steer effective track / track: "
+                                    "1 (no skid) to 4 (the skid-steer models' largest fitted value for four-wheel robots)")
+    v_max: float = Field(default=1.0, gt=0.0, le=1.0, description="speed limit (m/s): at most 1.0, the Husky's top "
+                         "speed (Clearpath datasheet)")
+    w_max: float = Field(default=2.0, gt=0.0, le=4.0, description="yaw-rate limit (rad/s): at most 4, what the wheels "
+                         "at 1 m/s can turn the skid-steer track (2 x 1 m/s / (0.571 m x 1.875) = 1.9 rad/s) with margin")
+    a_max: float = Field(default=1.5, gt=0.0, le=5.0, description="forward acceleration limit (m/s^2): at most 5, "
+                         "half the floor's grip mu g on the friction-1 floor")
+    alpha_max: float = Field(default=4.0, gt=0.0, le=20.0, description="yaw acceleration limit (rad/s^2): at most 20, "
+                             "the grip limit over the skid-steer half-track")
+    wheel_torque: float = Field(default=60.0, gt=0.0, le=500.0, description="N m per wheel: at most 500 (the Husky's "
+                                "motors give ~60 N m per wheel after their gearbox; more only spins the wheels)")
     # RGB-D cameras on a mast 0.55 m high pitched 30 deg down, at the front and rear bumpers (data only:
     # worlds that render sensors, e.g. viki_ground, read them), and a LiDAR above the centre.
-    front_camera: CameraMount = CameraMount(xyz=(0.58, 0.0, 0.55), rpy=(0.0, _PITCH, 0.0))
-    rear_camera: CameraMount = CameraMount(xyz=(-0.40, 0.0, 0.55), rpy=(0.0, _PITCH, math.pi))
-    lidar: LidarMount = LidarMount(xyz=(0.0, 0.0, 1.10))
+    front_camera: CameraMount = Field(default=CameraMount(xyz=(0.58, 0.0, 0.55), rpy=(0.0, _PITCH, 0.0)),
+                                      description="the forward RGB-D camera")
+    rear_camera: CameraMount = Field(default=CameraMount(xyz=(-0.40, 0.0, 0.55), rpy=(0.0, _PITCH, math.pi)),
+                                     description="the backward RGB-D camera")
+    lidar: LidarMount = Field(default=LidarMount(xyz=(0.0, 0.0, 1.10)), description="the LiDAR above the centre")
 
 
 @register_robot("husky")

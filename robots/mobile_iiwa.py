@@ -54,8 +54,16 @@ class Pose(StrictModel):
     ``[x, y, z, roll, pitch, yaw]`` (m, rad).
     """
 
-    xyz: Vec3
-    rpy: Vec3 = (0.0, 0.0, 0.0)
+    xyz: Vec3 = Field(description="m, in the parent frame: each within ±3 m (a part of the robot, on or beside "
+                      "its 1 m platform)")
+    rpy: Vec3 = Field(default=(0.0, 0.0, 0.0), description="URDF roll, pitch, yaw (rad): each within one turn either way")
+
+    @model_validator(mode="after")
+    def _on_the_robot(self) -> "Pose":
+        if max(abs(x) for x in self.xyz) > 3.0 or max(abs(a) for a in self.rpy) > 2.0 * math.pi:
+            raise ValueError(f"a pose on the robot has each xyz within ±3 m and each rpy angle within ±2 pi rad, "
+                             f"got xyz {list(self.xyz)}, rpy {list(self.rpy)}")
+        return self
 
     @model_validator(mode="before")
     @classmethod
@@ -101,13 +109,17 @@ class CameraParams(StrictModel):
 
     model_config = ConfigDict(allow_inf_nan=False)  # every number finite
 
-    mount: Pose = Pose(xyz=(0.45, 0.40, 1.35), rpy=(-2.41075, 0.0, -2.24554))
-    width: int = Field(default=640, gt=0)
-    height: int = Field(default=480, gt=0)
-    fov: float = Field(default=math.radians(32.0), gt=0.0, lt=math.pi)
-    rate_hz: float = Field(default=40.0, gt=0.0)
-    near: float = Field(default=0.05, gt=0.0)
-    far: float = Field(default=5.0, gt=0.0)
+    mount: Pose = Field(default=Pose(xyz=(0.45, 0.40, 1.35), rpy=(-2.41075, 0.0, -2.24554)),
+                        description="H_bc: the optical frame in the platform frame b")
+    width: int = Field(default=640, ge=16, le=4096, description="px: 16 (the marker needs pixels) to 4096 "
+                       "(TinyRenderer's largest image)")
+    height: int = Field(default=480, ge=16, le=4096, description="px, as width")
+    fov: float = Field(default=math.radians(32.0), ge=0.05, le=math.pi - 0.05, description="vertical field of view "
+                       "(rad): a pinhole camera has 0 < fov < pi (at pi the focal length is 0); kept 0.05 rad from both ends")
+    rate_hz: float = Field(default=40.0, ge=1.0, le=120.0, description="marker rate (Hz; paper: 40): 1-120, what "
+                           "industrial cameras deliver (the paper's IDS UI-5240CP: up to 50 fps)")
+    near: float = Field(default=0.05, gt=0.0, le=1.0, description="near clip plane (m): > 0, at most 1 m")
+    far: float = Field(default=5.0, gt=0.0, le=1000.0, description="far clip plane (m): beyond near, at most 1 km")
 
     @model_validator(mode="after")
     def _clip(self) -> "CameraParams":
@@ -134,19 +146,27 @@ class ToolParams(StrictModel):
 
     model_config = ConfigDict(allow_inf_nan=False)  # every number finite
 
-    length: float = Field(default=0.15, gt=0.0)
-    radius: float = Field(default=0.025, gt=0.0)
-    bit_radius: float = Field(default=0.004, gt=0.0)
-    bit_length: float = Field(default=0.03, gt=0.0)
-    mass: float = Field(default=0.6, gt=0.0)
-    activation_s: float = Field(default=1.0, gt=0.0)
-    tol_t: float = Field(default=0.003, gt=0.0)
-    tol_axial: float = Field(default=0.003, gt=0.0)
-    tol_r: float = Field(default=math.radians(3.0), gt=0.0, lt=0.5 * math.pi)
-    slip_t: float = Field(default=0.005, gt=0.0)
+    length: float = Field(default=0.15, gt=0.0, le=0.5, description="m: at most 0.5 (a longer tool on the iiwa's "
+                          "flange leaves the part's bolts out of the arm's reach from the platform)")
+    radius: float = Field(default=0.025, gt=0.0, le=0.1, description="m: at most 0.1 (a wider tool hits the "
+                          "neighbouring bolts, 4-12 cm apart on the default part)")
+    bit_radius: float = Field(default=0.004, gt=0.0, le=0.02, description="m: at most 0.02, and within the tool")
+    bit_length: float = Field(default=0.03, gt=0.0, le=0.2, description="m: shorter than the tool")
+    mass: float = Field(default=0.6, gt=0.0, le=7.0, description="kg: at most 7, the LBR iiwa 7's payload")
+    activation_s: float = Field(default=1.0, gt=0.0, le=60.0, description="s the coupling takes: at most 60")
+    tol_t: float = Field(default=0.003, gt=0.0, le=0.02, description="lateral coupling tolerance (m): at most 2 cm; "
+                         "beyond, a bit beside its bolt would count as coupled though it meets the part or the next bolt")
+    tol_axial: float = Field(default=0.003, gt=0.0, le=0.02, description="axial coupling tolerance (m): at most 2 cm, "
+                             "as tol_t")
+    tol_r: float = Field(default=math.radians(3.0), gt=0.0, lt=0.5 * math.pi, description="angular coupling "
+                         "tolerance (rad): below pi/2 (a bit across the bolt's axis does not engage it)")
+    slip_t: float = Field(default=0.005, gt=0.0, le=0.02, description="lateral error at which the bit slips off (m): "
+                          "at least tol_t, at most 2 cm")
 
     @model_validator(mode="after")
     def _bit(self) -> "ToolParams":
+        if self.bit_radius >= self.radius:
+            raise ValueError(f"bit_radius ({self.bit_radius}) must be below the tool's radius ({self.radius})")
         if self.bit_length >= self.length:
             raise ValueError(f"bit_length ({self.bit_length}) must be shorter than the tool ({self.length})")
         if self.slip_t < self.tol_t:
@@ -155,6 +175,7 @@ class ToolParams(StrictModel):
         return self
 
 
+IIWA_JOINT_LIMITS_DEG = (170.0, 120.0, 170.0, 120.0, 170.0, 120.0, 175.0)  # KUKA LBR iiwa 7 R800 datasheet
 _Q_HOME = (0.0, -0.35, 0.0, -1.74, 0.0, 1.75, 0.0)  # tool tip at b (0.55, 0, 1.10), pointing down
 
 
@@ -163,24 +184,31 @@ class MobileIiwaParams(StrictModel):
 
     model_config = ConfigDict(allow_inf_nan=False)  # every number finite
 
-    v_max: float = Field(default=1.0, gt=0.0, le=1.0, description="platform speed limit (m/s), paper: 1.0")
-    w_max: float = Field(default=1.0, gt=0.0, description="platform yaw-rate limit (rad/s)")
-    accel_max: float = Field(default=1.0, gt=0.0, description="platform acceleration limit (m/s²)")
-    brake_decel: float = Field(default=2.0, gt=0.0, description="platform deceleration of a safe stop (m/s²): "
-                               "rest within v_max / brake_decel s")
-    platform_size: Vec3 = (1.0, 0.7, 0.55)
-    arm_mount: Pose = Pose(xyz=(0.30, 0.0, 0.55))
-    camera: CameraParams = CameraParams()
-    tool: ToolParams = ToolParams()
-    q_home: tuple[float, ...] = _Q_HOME
-    qd_max: float = Field(default=1.5, gt=0.0, description="joint speed limit of the arm command (rad/s)")
-    dls_damping: float = Field(default=0.02, ge=0.0, description="λ of the damped least-squares J⁺")
+    v_max: float = Field(default=1.0, gt=0.0, le=1.0, description="platform speed limit (m/s): at most the paper's "
+                         "platform's 1.0")
+    w_max: float = Field(default=1.0, gt=0.0, le=2.0, description="platform yaw-rate limit (rad/s): at most 2, what "
+                         "wheels at the 1 m/s limit give the 1.0 x 0.7 m platform about its centre (1 / 0.61 m = 1.6 rad/s)")
+    accel_max: float = Field(default=1.0, gt=0.0, le=5.0, description="platform acceleration limit (m/s²): at most 5, "
+                             "half the grip mu g of its wheels")
+    brake_decel: float = Field(default=2.0, gt=0.0, le=9.8, description="platform deceleration of a safe stop (m/s²): "
+                               "rest within v_max / brake_decel s; at most the wheels' grip mu g = 9.8 m/s²")
+    platform_size: Vec3 = Field(default=(1.0, 0.7, 0.55), description="length, width, height of the platform box "
+                                "(m): each 0.1-3 m")
+    arm_mount: Pose = Field(default=Pose(xyz=(0.30, 0.0, 0.55)), description="H_ba: the arm's base in the platform frame b")
+    camera: CameraParams = Field(default=CameraParams(), description="the eye-to-hand camera")
+    tool: ToolParams = Field(default=ToolParams(), description="the screwdriver")
+    q_home: tuple[float, ...] = Field(default=_Q_HOME, description="the arm's home configuration (rad): 7 joint "
+                                      "angles within the LBR iiwa's joint limits (±170, ±120, ±170, ±120, ±170, ±120, ±175 deg)")
+    qd_max: float = Field(default=1.5, gt=0.0, le=3.14, description="joint speed limit of the arm command (rad/s): "
+                          "at most 3.14, the LBR iiwa 7's fastest joint (180 deg/s)")
+    dls_damping: float = Field(default=0.02, ge=0.0, le=1.0, description="λ of the damped least-squares J⁺: at most 1 "
+                               "(J's singular values are below ~1 m: a larger λ damps every motion, not only the singular ones)")
 
     @field_validator("platform_size")
     @classmethod
     def _size(cls, v: Vec3) -> Vec3:
-        if not all(x > 0.0 for x in v):
-            raise ValueError(f"platform_size needs 3 lengths > 0 (m), got {v}")
+        if not all(0.1 <= x <= 3.0 for x in v):
+            raise ValueError(f"platform_size needs 3 lengths of 0.1-3 m, got {v}")
         return v
 
     @field_validator("q_home")
@@ -188,6 +216,9 @@ class MobileIiwaParams(StrictModel):
     def _q7(cls, v: tuple[float, ...]) -> tuple[float, ...]:
         if len(v) != 7 or not all(math.isfinite(x) for x in v):
             raise ValueError(f"q_home needs 7 finite joint angles (rad), got {len(v)}")
+        for j, (q, lim) in enumerate(zip(v, IIWA_JOINT_LIMITS_DEG), start=1):
+            if abs(q) > math.radians(lim):
+                raise ValueError(f"q_home joint {j} = {q:g} rad is beyond the LBR iiwa's ±{lim:g} deg limit")
         return v
 
     def urdf_spec(self) -> UrdfSpec:

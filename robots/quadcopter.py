@@ -34,19 +34,26 @@ class QuadCamera(StrictModel):
     default here for speed (rendering ~20–35 ms per frame).
     """
 
-    width: int = Field(default=320, gt=15, le=4096)
-    height: int = Field(default=240, gt=15, le=4096)
-    fovy: float = Field(default=math.radians(60.0), gt=0.05, lt=math.pi - 0.05)
-    rate_hz: float = Field(default=25.0, gt=0.0, le=1000.0)
-    xyz: tuple[float, float, float] = (0.17, 0.0, -0.03)
-    pitch: float = Field(default=0.0, ge=-math.pi / 2, le=math.pi / 2)
-    near: float = Field(default=0.03, gt=0.0)
-    far: float = Field(default=30.0, gt=0.0)
+    width: int = Field(default=320, gt=15, le=4096, description="px: 16 (feature points need pixels) to 4096 "
+                       "(TinyRenderer's largest image)")
+    height: int = Field(default=240, gt=15, le=4096, description="px, as width")
+    fovy: float = Field(default=math.radians(60.0), gt=0.05, lt=math.pi - 0.05,
+                        description="vertical field of view (rad): a pinhole camera has 0 < fov < pi (at pi the "
+                        "focal length is 0); kept 0.05 rad from both ends")
+    rate_hz: float = Field(default=25.0, ge=1.0, le=120.0, description="frame rate (Hz): 1-120; the Bebop 2 streams "
+                           "30 fps; below 1 Hz the 25 Hz visual-servo law repeats one view for 25 ticks")
+    xyz: tuple[float, float, float] = Field(default=(0.17, 0.0, -0.03), description="camera origin in the body frame "
+                                            "(m): each within ±1 m (on the drone)")
+    pitch: float = Field(default=0.0, ge=-math.pi / 2, le=math.pi / 2, description="rad: from straight down to straight up")
+    near: float = Field(default=0.03, gt=0.0, le=1.0, description="near clip plane (m): > 0, at most 1 m")
+    far: float = Field(default=30.0, gt=0.0, le=1000.0, description="far clip plane (m): beyond near, at most 1 km")
 
     @model_validator(mode="after")
     def _range(self) -> QuadCamera:
         if not self.near < self.far:
             raise ValueError(f"camera near ({self.near}) must be < far ({self.far})")
+        if max(abs(x) for x in self.xyz) > 1.0:
+            raise ValueError(f"the camera sits on the drone: each xyz within ±1 m, got {list(self.xyz)}")
         return self
 
     def K(self) -> NDArray[np.float64]:
@@ -77,11 +84,15 @@ class QuadCamera(StrictModel):
 class QuadcopterParams(StrictModel):
     """Velocity-loop lag, limits, look and camera of the quadcopter."""
 
-    tau: float = Field(default=0.15, ge=0.0, le=5.0, description="first-order lag of the velocity loop (s)")
-    v_max: float = Field(default=1.0, gt=0.0, description="|vx|, |vy|, |vz| limit (m/s)")
-    wz_max: float = Field(default=math.radians(100.0), gt=0.0, description="|wz| limit (rad/s)")
+    tau: float = Field(default=0.15, ge=0.0, le=5.0, description="first-order lag of the velocity loop (s): at "
+                       "most 5 s (a drone that slow cannot follow a visual-servo command at all)")
+    v_max: float = Field(default=1.0, ge=0.05, le=5.0, description="|vx|, |vy|, |vz| limit (m/s): 0.05-5 (indoors; "
+                         "the Bebop 2 flies up to 16 m/s outdoors); below 0.05 m/s the saturation, not the visual-servo "
+                         "law, sets every command and a 1 m leg of the path takes over 20 s")
+    wz_max: float = Field(default=math.radians(100.0), ge=0.05, le=3.5, description="|wz| limit (rad/s): 0.05 to "
+                          "3.5 (the Bebop 2's 200 deg/s top yaw rate)")
     scale: float = Field(default=0.75, gt=0.05, le=3.0, description="scale of the iris mesh and shapes")
-    camera: QuadCamera = QuadCamera()
+    camera: QuadCamera = Field(default=QuadCamera(), description="the forward camera")
 
 
 @register_robot("quadcopter")

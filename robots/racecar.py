@@ -15,7 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from taskflow.api import ObsSpec, Robot, StrictModel, array, scalar
 from taskflow.registry import register_robot
@@ -32,8 +32,16 @@ class Mount(StrictModel):
     sensor down by ``a`` and ``yaw = pi`` looks backward.
     """
 
-    xyz: Vec3
-    rpy: Vec3 = (0.0, 0.0, 0.0)
+    xyz: Vec3 = Field(description="m, in the robot frame: each within ±3 m (a sensor carried by the robot)")
+    rpy: Vec3 = Field(default=(0.0, 0.0, 0.0), description="URDF roll, pitch, yaw (rad): each within one turn either way")
+
+    @model_validator(mode="after")
+    def _on_the_robot(self) -> "Mount":
+        if not all(math.isfinite(x) and abs(x) <= 3.0 for x in self.xyz) or \
+                not all(math.isfinite(a) and abs(a) <= 2.0 * math.pi for a in self.rpy):
+            raise ValueError(f"a sensor mount has each xyz within ±3 m and each rpy angle within ±2 pi rad, "
+                             f"got xyz {list(self.xyz)}, rpy {list(self.rpy)}")
+        return self
 
     def R_robot_mount(self) -> NDArray[np.float64]:
         """Rotation robot ← sensor body frame."""
@@ -51,12 +59,24 @@ class CameraMount(Mount):
     TinyRenderer costs ~0.2 s per 1280x720 frame (SIMULATOR_NOTES.md).
     """
 
-    width: int = Field(default=640, gt=0)
-    height: int = Field(default=360, gt=0)
-    fov: float = Field(default=0.7330, gt=0.0, lt=math.pi)  # vertical, 42 deg (RealSense D435 colour)
-    rate_hz: float = Field(default=15.0, gt=0.0)
-    near: float = Field(default=0.05, gt=0.0)
-    far: float = Field(default=20.0, gt=0.0)
+    width: int = Field(default=640, ge=16, le=4096, description="px: at least 16 (a box detector needs pixels "
+                       "across the object), at most 4096 (TinyRenderer's largest image)")
+    height: int = Field(default=360, ge=16, le=4096, description="px, as width")
+    fov: float = Field(default=0.7330, ge=0.05, le=math.pi - 0.05,  # vertical, 42 deg (RealSense D435 colour)
+                       description="vertical field of view (rad): a pinhole camera has 0 < fov < pi (at pi the focal "
+                       "length is 0); kept 0.05 rad from both ends")
+    rate_hz: float = Field(default=15.0, ge=1.0, le=90.0, description="frame rate (Hz): 1-90, what RGB-D cameras "
+                           "deliver (the RealSense D435i: 6 to 90 fps); below 1 Hz the 20 Hz control laws act on one "
+                           "frame for 20 ticks and the car covers v_max x 1 s between two detections")
+    near: float = Field(default=0.05, gt=0.0, le=1.0, description="near clip plane (m): > 0, at most 1 m (nearer objects vanish)")
+    far: float = Field(default=20.0, gt=0.0, le=1000.0, description="far clip plane (m): beyond near, at most 1 km "
+                       "(the depth buffer's resolution is spread over far / near)")
+
+    @model_validator(mode="after")
+    def _clip_planes(self) -> "CameraMount":
+        if not self.near < self.far:
+            raise ValueError(f"the far clip plane ({self.far} m) must lie beyond the near one ({self.near} m)")
+        return self
 
     def T_robot_camera(self) -> NDArray[np.float64]:
         """4x4 transform robot ← camera optical frame (x right, y down, z along the view, OpenCV).
@@ -80,20 +100,30 @@ class LidarMount(Mount):
     used by eq. (11), so the default spans a little more than the camera's horizontal field of view.
     """
 
-    layers: int = Field(default=16, gt=0)
-    v_fov: tuple[float, float] = (-math.radians(15.0), math.radians(15.0))
-    h_fov: float = Field(default=1.4, gt=0.0, le=2.0 * math.pi)
-    azimuths: int = Field(default=128, gt=0)
-    rate_hz: float = Field(default=10.0, gt=0.0)
-    min_range: float = Field(default=0.1, ge=0.0)
-    max_range: float = Field(default=30.0, gt=0.0)
+    layers: int = Field(default=16, ge=1, le=128, description="elevation rings: 1-128 (spinning LiDARs have 16 to 128)")
+    v_fov: tuple[float, float] = Field(default=(-math.radians(15.0), math.radians(15.0)),
+                                       description="(low, high) elevation of the outer rings (rad): low < high, "
+                                       "both within [-pi/2, pi/2] (straight down to straight up)")
+    h_fov: float = Field(default=1.4, gt=0.0, le=2.0 * math.pi, description="azimuth span (rad): at most a full turn")
+    azimuths: int = Field(default=128, ge=1, le=4096, description="azimuth steps: 1-4096 (a ray per step and ring "
+                          "is cast every scan)")
+    rate_hz: float = Field(default=10.0, ge=1.0, le=50.0, description="scan rate (Hz): 1-50, what spinning LiDARs "
+                           "do (the VLP-16: 5-20 Hz)")
+    min_range: float = Field(default=0.1, ge=0.0, le=300.0, description="m: nearer returns are dropped; below max_range")
+    max_range: float = Field(default=30.0, gt=0.0, le=300.0, description="m: at most 300 (the longest-range LiDARs)")
 
     @field_validator("v_fov")
     @classmethod
     def _ordered(cls, v: tuple[float, float]) -> tuple[float, float]:
-        if not v[0] < v[1]:
-            raise ValueError(f"v_fov must be (low, high) with low < high, got {v}")
+        if not -math.pi / 2 <= v[0] < v[1] <= math.pi / 2:
+            raise ValueError(f"v_fov must be (low, high) with -pi/2 <= low < high <= pi/2 rad, got {v}")
         return v
+
+    @model_validator(mode="after")
+    def _ranges(self) -> "LidarMount":
+        if not self.min_range < self.max_range:
+            raise ValueError(f"min_range ({self.min_range} m) must be below max_range ({self.max_range} m)")
+        return self
 
 
 _PITCH = math.radians(30.0)
@@ -102,16 +132,28 @@ _PITCH = math.radians(30.0)
 class RacecarParams(StrictModel):
     """Geometry (m), limits (m/s, rad) and sensor mounts of the racecar."""
 
-    wheelbase: float = Field(default=0.325, gt=0.0)
-    track: float = Field(default=0.2, gt=0.0)
-    wheel_radius: float = Field(default=0.05, gt=0.0)
-    v_max: float = Field(default=0.5, gt=0.0)
-    psi_max: float = Field(default=0.44, gt=0.0, lt=math.pi / 2)
+    # the body is PyBullet's racecar URDF (the worlds read its geometry from the URDF): these are the
+    # controller's belief about it, so they stay near the body's own numbers
+    wheelbase: float = Field(default=0.325, ge=0.1, le=1.0, description="m: the controller's belief of the body's "
+                             "0.325 m, within about x1/3 to x3 of it; the steering it computes, psi = atan(L w / v), "
+                             "is off by that factor")
+    track: float = Field(default=0.2, ge=0.05, le=0.6, description="m: the controller's belief of the body's 0.2 m "
+                         "(the body's own track drives its wheels), within about x1/4 to x3")
+    wheel_radius: float = Field(default=0.05, ge=0.01, le=0.2, description="m: the controller's belief of the body's "
+                                "0.05 m wheels, within x1/5 to x4")
+    v_max: float = Field(default=0.5, gt=0.0, le=2.5, description="speed limit (m/s; paper: 0.5): at most 2.5 m/s, "
+                         "where a full-lock turn's lateral acceleration v^2 tan(psi_max) / wheelbase (1.45 /m at "
+                         "0.44 rad) reaches the floor's grip mu g = 9.8 m/s^2: faster, the tyres slide, which the "
+                         "no-slip bicycle model of the laws and the odometry does not describe")
+    psi_max: float = Field(default=0.44, gt=0.0, lt=math.pi / 2, description="steering limit (rad; paper: 0.44): "
+                           "below pi/2 (a wheel turned across the car)")
     # Cameras 0.55 m high pitched 30 deg down: the optical axis meets the ground ~0.95 m away and the
     # image spans ~0.45–3.5 m of ground ahead (behind for the rear camera).
-    front_camera: CameraMount = CameraMount(xyz=(0.40, 0.0, 0.55), rpy=(0.0, _PITCH, 0.0))
-    rear_camera: CameraMount = CameraMount(xyz=(-0.10, 0.0, 0.55), rpy=(0.0, _PITCH, math.pi))
-    lidar: LidarMount = LidarMount(xyz=(0.20, 0.0, 1.10))
+    front_camera: CameraMount = Field(default=CameraMount(xyz=(0.40, 0.0, 0.55), rpy=(0.0, _PITCH, 0.0)),
+                                      description="the forward RGB-D camera c1")
+    rear_camera: CameraMount = Field(default=CameraMount(xyz=(-0.10, 0.0, 0.55), rpy=(0.0, _PITCH, math.pi)),
+                                     description="the backward RGB-D camera c2")
+    lidar: LidarMount = Field(default=LidarMount(xyz=(0.20, 0.0, 1.10)), description="the 16-layer LiDAR")
 
 
 @register_robot("racecar")

@@ -18,7 +18,7 @@ from typing import Any, ClassVar, cast
 
 import numpy as np
 import pybullet as p
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, model_validator
 
 from taskflow_sim.bodies import BodyOptions, GroundBody, make_body
 from taskflow_sim.car_scene import add_floor, connect
@@ -49,15 +49,29 @@ class FlatGroundParams(StrictModel):
     """Start pose ``[x, y, yaw]`` (m, rad) of the robot frame (the racecar's rear-axle midpoint), physics
     rate, noise and actuators."""
 
-    start: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    start: tuple[float, float, float] = Field(default=(0.0, 0.0, 0.0), description="[x, y, yaw] (m, m, rad); "
+                                              "x and y on the floor (|x|, |y| < floor_half_size)")
     physics_hz: float = Field(default=240.0, ge=100.0, le=10_000.0,
                               description="physics rate (Hz): wheel contact needs ≥ 100 Hz; a whole multiple of rate_hz")
-    odom_noise: float = Field(default=0.0, ge=0.0, description="std of odometry x, y noise (m)")
-    odom_yaw_noise: float = Field(default=0.0, ge=0.0, description="std of odometry yaw noise (rad)")
-    friction: float = Field(default=1.0, gt=0.0, description="floor and tyre lateral friction")
-    speed_tau: float = Field(default=0.05, ge=0.0, description="speed response time constant (s)")
-    steer_tau: float = Field(default=0.05, ge=0.0, description="steering response time constant (s)")
-    floor_half_size: float = Field(default=25.0, gt=0.0)
+    odom_noise: float = Field(default=0.0, ge=0.0, le=0.1, description="std of odometry x, y noise (m): at most 0.1, "
+                              "beyond the missions' waypoint tolerances (3-25 cm) ten times over")
+    odom_yaw_noise: float = Field(default=0.0, ge=0.0, le=0.2, description="std of odometry yaw noise (rad): at most "
+                                  "0.2 (11 deg)")
+    friction: float = Field(default=1.0, gt=0.0, le=2.0, description="floor and tyre lateral friction: at most 2 "
+                            "(rubber on dry concrete is 0.6-1.0)")
+    speed_tau: float = Field(default=0.05, ge=0.0, le=2.0, description="speed response time constant (s): at most 2; "
+                             "the kinematic laws (gains ~1 /s) take the command for the speed, which a lag longer than "
+                             "their own time constant makes them overshoot and oscillate")
+    steer_tau: float = Field(default=0.05, ge=0.0, le=2.0, description="steering response time constant (s): at most 2, "
+                             "as speed_tau")
+    floor_half_size: float = Field(default=25.0, gt=0.0, le=1000.0, description="m: at most 1 km")
+
+    @model_validator(mode="after")
+    def _start_on_the_floor(self) -> "FlatGroundParams":
+        if not max(abs(self.start[0]), abs(self.start[1])) < self.floor_half_size:
+            raise ValueError(f"start ({self.start[0]:g}, {self.start[1]:g}) m is off the floor: |x|, |y| must be "
+                             f"below floor_half_size = {self.floor_half_size:g} m")
+        return self
 
 
 @register_world("flat_ground")

@@ -65,33 +65,39 @@ class KeyframeSpec(StrictModel):
     """One keyframe of a visual path: its index and the pose ``[x, y, z, yaw]`` (m, rad) it was
     taught at.  The pose is ground truth for the summary; the task sees only the image."""
 
-    id: int = Field(ge=0)
-    pose: tuple[float, float, float, float]
-    sigma: float | None = Field(default=None, description="used by the control law, not by the world")
+    id: int = Field(ge=0, description="its index on the path: 0, 1, 2, ... in order")
+    pose: tuple[float, float, float, float] = Field(description="[x, y, z, yaw] it was taught at (m, rad), inside the room")
+    sigma: float | None = Field(default=None, gt=0.0, le=2.0, description="the obstacle reference width the "
+                                "collision task uses at this keyframe (normalised), as its profile's sigma: 0 < sigma ≤ 2; "
+                                "used by the control law, not by the world")
 
 
 class RoomSpec(StrictModel):
-    x0: float = -1.5
-    x1: float = 6.0
-    y0: float = -3.0
-    y1: float = 3.0
-    height: float = Field(default=3.0, gt=0.5)
+    """The room's walls (m): ``x0 < x1``, ``y0 < y1``, each side 1-100 m, and its height."""
+
+    x0: float = Field(default=-1.5, description="m: the wall behind the start")
+    x1: float = Field(default=6.0, description="m: beyond x0 by 1-100 m")
+    y0: float = Field(default=-3.0, description="m: the right wall")
+    y1: float = Field(default=3.0, description="m: beyond y0 by 1-100 m")
+    height: float = Field(default=3.0, gt=0.5, le=20.0, description="m: above 0.5 (the drone and its camera fit), at most 20")
 
     @model_validator(mode="after")
     def _ordered(self) -> RoomSpec:
         if not (self.x1 - self.x0 > 1.0 and self.y1 - self.y0 > 1.0):
             raise ValueError("room must be at least 1 m in x and y (x0 < x1, y0 < y1)")
+        if not (self.x1 - self.x0 <= 100.0 and self.y1 - self.y0 <= 100.0):
+            raise ValueError("room must be at most 100 m in x and y (a room the textured walls can cover)")
         return self
 
 
 class ObstacleSpec(StrictModel):
     """A column: a box ``width`` x ``depth`` (m), or a cylinder of diameter ``width`` if ``depth`` = 0."""
 
-    x: float
-    y: float
-    width: float = Field(gt=0.0, le=2.0)
-    depth: float = Field(default=0.0, ge=0.0, le=2.0)
-    yaw: float = 0.0
+    x: float = Field(description="m, world frame")
+    y: float = Field(description="m, world frame")
+    width: float = Field(gt=0.0, le=2.0, description="m: a column at most 2 m wide")
+    depth: float = Field(default=0.0, ge=0.0, le=2.0, description="m: 0 (a cylinder) to 2")
+    yaw: float = Field(default=0.0, ge=-2.0 * math.pi, le=2.0 * math.pi, description="rad: one turn either way")
 
 
 def load_keyframe_dir(path: str | Path) -> tuple[list[NDArray[np.uint8]], dict[str, Any]]:
@@ -128,34 +134,45 @@ class QuadRoomParams(Fidelity):
     """Room, obstacles, start pose, visual path, sensor faults, and the drone's response and latencies
     (fidelity ``paper``: the Bebop 2 of the paper) of the ``quad_room`` world."""
 
-    room: RoomSpec = RoomSpec()
-    obstacles: list[ObstacleSpec] = Field(default_factory=list)
-    start: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 0.0)
-    keyframes: list[KeyframeSpec] = Field(default_factory=list)
+    room: RoomSpec = Field(default=RoomSpec(), description="the walls and height (m)")
+    obstacles: list[ObstacleSpec] = Field(default_factory=list, description="the columns")
+    start: tuple[float, float, float, float] = Field(default=(0.0, 0.0, 1.0, 0.0),
+                                                     description="[x, y, z, yaw] (m, rad): inside the room")
+    keyframes: list[KeyframeSpec] = Field(default_factory=list, description="the taught path, ids 0, 1, 2, ...")
     keyframe_dir: str | None = Field(default=None, description="images written by teach(); None: render on reset")
     texture_seed: int = Field(default=0, ge=0, description="seed of the generated textures (fixed by the taught path)")
-    texture_px_per_m: float = Field(default=160.0, gt=10.0, le=1000.0)
+    texture_px_per_m: float = Field(default=160.0, gt=10.0, le=1000.0, description="texture resolution (px/m): "
+                                    "above 10 (coarser, the walls have no features to track), at most 1000")
     physics_hz: float = Field(default=250.0, ge=25.0, le=10_000.0,
                               description="integration rate of the velocity lag (Hz); a whole multiple of rate_hz")
-    image_noise: float = Field(default=0.0, ge=0.0, le=50.0, description="std of Gaussian pixel noise (grey levels)")
+    image_noise: float = Field(default=0.0, ge=0.0, le=50.0, description="std of Gaussian pixel noise (grey levels): "
+                               "at most 50, a fifth of the 8-bit range")
     blackout: FaultIntervals = Field(default=[], description="[t0, t1] intervals of black frames (s)")
-    obstacle_height: float = Field(default=3.0, gt=0.0)
+    obstacle_height: float = Field(default=3.0, gt=0.0, le=20.0, description="m: at most 20 (the highest room)")
     perception: Literal["rendered", "geometric"] = Field(
         default="rendered", description="rendered frames (faithful) or projected landmarks (fast)")
     landmark_density: float = Field(default=20.0, gt=0.0, le=1000.0,
                                     description="landmarks per m² of wall, floor and ceiling (geometric mode)")
-    pixel_noise: float = Field(default=0.5, ge=0.0, le=20.0, description="std of each landmark pixel coordinate (geometric mode)")
+    pixel_noise: float = Field(default=0.5, ge=0.0, le=20.0, description="std of each landmark pixel coordinate "
+                               "(geometric mode): at most 20 px, a twelfth of the default 240 px image height")
     command_response: Literal["velocity", "relative_move"] = Field(
         default="velocity", description="velocity: the body velocity tracks each command with the robot's lag tau; "
         "relative_move: each command is a move of nu * control period from where the drone is (ViSP's Bebop 2 "
         "setVelocity), executed by a position loop of time constant move_tau until the next one replaces it")
     move_tau: float = Field(default=0.1, gt=0.0, le=10.0,
                             description="time constant of the position loop executing a relative move (s)")
-    command_delay_s: float = Field(default=0.0, ge=0.0, le=2.0, description="transport delay of each command (s)")
-    frame_latency_s: float = Field(default=0.0, ge=0.0, le=2.0,
-                                   description="age of the frame an observation carries (s): the view of the pose then")
-    camera_rate_hz: float | None = Field(default=None, gt=0.0, le=1000.0,
-                                         description="frame rate (Hz); None: the robot camera's rate_hz")
+    command_delay_s: float = Field(default=0.0, ge=0.0, le=0.5, description="transport delay of each command (s): "
+                                   "with frame_latency_s at most 0.5 s; the visual-servo loop with the laws' largest "
+                                   "default gain (lambda_0 = 2.8 /s) and a delay tau is stable only while lambda tau < "
+                                   "pi/2 (0.56 s)")
+    frame_latency_s: float = Field(default=0.0, ge=0.0, le=0.5,
+                                   description="age of the frame an observation carries (s): the view of the pose then; "
+                                   "with command_delay_s at most 0.5 s: the visual-servo loop with the laws' largest "
+                                   "default gain (lambda_0 = 2.8 /s) and a delay tau is stable only while lambda tau < "
+                                   "pi/2 (0.56 s)")
+    camera_rate_hz: float | None = Field(default=None, ge=1.0, le=120.0,
+                                         description="frame rate (Hz); None: the robot camera's rate_hz; 1-120 (the "
+                                         "Bebop 2 streams 30 fps)")
 
     FIDELITY: ClassVar[dict[str, dict[str, Sourced]]] = {"paper": {
         "command_response": Sourced("relative_move", "Toro-Arcila et al. §5: commands are sent with ViSP's "
@@ -174,6 +191,14 @@ class QuadRoomParams(Fidelity):
         if [k.id for k in v] != list(range(len(v))):
             raise ValueError(f"keyframe ids must be 0, 1, 2, ... in order, got {[k.id for k in v]}")
         return v
+
+    @model_validator(mode="after")
+    def _delays(self) -> QuadRoomParams:
+        if self.command_delay_s + self.frame_latency_s > 0.5:
+            raise ValueError(f"command_delay_s + frame_latency_s = {self.command_delay_s + self.frame_latency_s:g} s: "
+                             "the visual-servo loop sees both, and with lambda_0 = 2.8 /s it is stable only while "
+                             "lambda x delay < pi/2 — keep the sum at most 0.5 s")
+        return self
 
     @model_validator(mode="after")
     def _inside_the_room(self) -> QuadRoomParams:

@@ -85,7 +85,7 @@ from typing import Any, ClassVar, Literal, Mapping, cast
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
 from taskflow_sim import screw_scene as sc
@@ -127,44 +127,88 @@ class ScrewWorldParams(Fidelity):
         },
     }
 
-    motion: Literal["conveyor", "trolley"] = "conveyor"
-    speed: float = Field(default=0.05, ge=0.0, le=0.5, description="nominal part speed (m/s)")
-    direction: float = Field(default=0.0, description="heading of the motion in the world (rad)")
-    trolley_speed_sigma: float = Field(default=0.3, ge=0.0, description="trolley speed fluctuation (fraction of speed)")
-    trolley_heading_sigma: float = Field(default=0.06, ge=0.0, description="trolley heading fluctuation (rad)")
-    trolley_tau: float = Field(default=1.5, gt=0.0, description="correlation time of the fluctuations (s)")
-    trolley_yaw_gain: float = Field(default=0.5, ge=0.0, description="part yaw change per heading change")
-    part_start: tuple[float, float, float] = (-0.60, 0.0, 0.0)
+    motion: Literal["conveyor", "trolley"] = Field(default="conveyor", description="conveyor: straight at speed; "
+                                                   "trolley: speed and heading fluctuate (trolley_*)")
+    speed: float = Field(default=0.05, ge=0.0, le=0.5, description="nominal part speed (m/s): at most 0.5, half the "
+                         "platform's 1 m/s limit (it must catch up with the part and follow it)")
+    direction: float = Field(default=0.0, ge=-2.0 * math.pi, le=2.0 * math.pi,
+                             description="heading of the motion in the world (rad): one turn either way")
+    trolley_speed_sigma: float = Field(default=0.3, ge=0.0, le=1.0, description="trolley speed fluctuation (fraction "
+                                       "of speed): at most 1 (the fluctuation as large as the speed itself)")
+    trolley_heading_sigma: float = Field(default=0.06, ge=0.0, le=1.0, description="trolley heading fluctuation "
+                                         "(rad): at most 1 (57 deg)")
+    trolley_tau: float = Field(default=1.5, gt=0.0, le=60.0, description="correlation time of the fluctuations (s): "
+                               "at most 60")
+    trolley_yaw_gain: float = Field(default=0.5, ge=0.0, le=2.0, description="part yaw change per heading change: at most 2")
+    part_start: tuple[float, float, float] = Field(default=(-0.60, 0.0, 0.0), description="(x, y, yaw) of the part at "
+                                                   "the start (m, m, rad)")
     bolts: tuple[tuple[float, float], ...] = Field(
         default=sc.BOLTS_XY,
         description="the part's bolt layout: [[x, y], ...] bolt centres in the part frame P (m; centre of the top face, "
                     "x along the part); at least one, each head on the top face and off the marker, no two closer than two bolt radii")
     robot_offset: tuple[float, float, float] = Field(
         default=(-0.30, 0.10, -0.30),
-        description="platform start relative to its nominal pose beside the part: (along the conveyor, away from it, yaw) m, m, rad")
-    perception: Literal["pose", "rendered"] = "pose"
+        description="platform start relative to its nominal pose beside the part: (along the conveyor, away from it, yaw) m, m, rad; "
+                    "within ±2 m and ±pi rad")
+    perception: Literal["pose", "rendered"] = Field(default="pose", description="pose: the marker pose with "
+                                                    "calibrated noise (fast); rendered: an ArUco detector on rendered frames")
     # pose-mode noise calibrated on the rendered mode (benchmarks/screw_fastening.py prints its RMS error
     # against the truth: 0.10 mm across the view, 0.53 mm along it, 0.12 deg, over two full sequences)
-    noise_xy: float = Field(default=0.00007, ge=0.0, description="pose mode: std across the view, per axis (m)")
-    noise_z: float = Field(default=0.0005, ge=0.0, description="pose mode: std along the view (m)")
-    noise_r: float = Field(default=math.radians(0.068), ge=0.0, description="pose mode: rotation std per axis (rad)")
-    noise_tau: float = Field(default=0.1, ge=0.0, description="pose mode: noise correlation time (s)")
-    latency: float = Field(default=0.025, ge=0.0, description="capture → available to the robot (s)")
-    base_delay: float = Field(default=0.0, ge=0.0, le=1.0,
-                              description="platform: transport delay of a twist command before the platform acts on it (s)")
+    noise_xy: float = Field(default=0.00007, ge=0.0, le=0.01, description="pose mode: std across the view, per axis "
+                            "(m): at most 1 cm, three times the tool's 3 mm coupling tolerance (the measured detector: 0.1 mm)")
+    noise_z: float = Field(default=0.0005, ge=0.0, le=0.05, description="pose mode: std along the view (m): at most "
+                           "5 cm (the measured detector: 0.5 mm)")
+    noise_r: float = Field(default=math.radians(0.068), ge=0.0, le=0.1, description="pose mode: rotation std per axis "
+                           "(rad): at most 0.1 (6 deg; the measured detector: 0.12 deg)")
+    noise_tau: float = Field(default=0.1, ge=0.0, le=10.0, description="pose mode: noise correlation time (s): at most 10")
+    latency: float = Field(default=0.025, ge=0.0, le=0.2, description="capture → available to the robot (s): at most "
+                           "0.2 s; the arm loop with the paper's largest gain (kp = 7 /s, arm_boost) and a delay tau is "
+                           "stable only while kp tau < pi/2 (0.22 s), and the tasks place a pose at its capture time "
+                           "from the last 0.5 s of odometry")
+    base_delay: float = Field(default=0.0, ge=0.0, le=0.7,
+                              description="platform: transport delay of a twist command before the platform acts on it "
+                              "(s): at most 0.7 s, with latency at most 0.75 s; the platform loop with the paper's largest gain (kp = 2 /s, "
+                              "platform_boost) and its delay (this plus latency) is stable only while kp x delay < pi/2 (0.78 s)")
     base_tau: float = Field(default=0.1, gt=0.0, le=5.0,
-                            description="platform: time constant of the first-order lag of its twist behind the command (s)")
-    dropout: float = Field(default=0.01, ge=0.0, lt=1.0, description="probability a frame misses the marker (both modes)")
+                            description="platform: time constant of the first-order lag of its twist behind the command "
+                            "(s): at most 5")
+    dropout: float = Field(default=0.01, ge=0.0, lt=1.0, description="probability a frame misses the marker (both "
+                           "modes): below 1 (a camera that misses every frame sees nothing)")
     image_noise: float = Field(default=2.0, ge=0.0, le=64.0,
-                               description="rendered mode: std of the camera's pixel noise (8-bit grey levels), seeded")
-    roi_px: int = Field(default=224, gt=32, description="rendered mode: region-of-interest side (px)")
-    lost_after: float = Field(default=0.2, gt=0.0, description="no detection for this long → target_lost (s); longer than one camera period")
+                               description="rendered mode: std of the camera's pixel noise (8-bit grey levels), seeded: "
+                               "at most 64, a quarter of the grey range")
+    roi_px: int = Field(default=224, gt=32, le=4096, description="rendered mode: region-of-interest side (px): above "
+                        "32 (the 10 cm marker's cells need pixels), at most 4096 (cropped to the image)")
+    lost_after: float = Field(default=0.2, gt=0.0, le=10.0, description="no detection for this long → target_lost (s); "
+                              "longer than one camera period, at most 10 s")
     occlusions: FaultIntervals = Field(default_factory=list, description="[t0, t1] intervals hiding the marker (s)")
     physics_hz: float = Field(default=100.0, ge=100.0, le=10_000.0, description="physics rate (Hz): one step per 100 Hz control tick; 250 gives the same benchmark errors at twice the cost; a whole multiple of rate_hz")
-    contact_stiffness: float = Field(default=1e4, gt=0.0)
-    contact_damping: float = Field(default=200.0, ge=0.0)
-    ft_noise: float = Field(default=0.05, ge=0.0, description="F/T sensor force noise std (N)")
+    contact_stiffness: float = Field(default=1e4, ge=100.0, le=1e5, description="tool-part contact stiffness "
+                                     "(N/m): 100 to 1e5; the 0.6 kg tool on a stiffer contact oscillates with a period "
+                                     "2 pi sqrt(m / k) under 15 ms, 1.5 steps of the 100 Hz physics, and bounces "
+                                     "instead of resting; softer, the bit sinks centimetres into the part")
+    contact_damping: float = Field(default=200.0, ge=0.0, le=1e4, description="N s/m: at most 1e4")
+    ft_noise: float = Field(default=0.05, ge=0.0, le=10.0, description="F/T sensor force noise std (N): at most 10, "
+                            "a quarter of the missions' 40 N over-force limit (noisier, the contact monitor fires on noise)")
     fasten_s: float = Field(default=3.0, gt=0.0, le=600.0, description="default fastening duration (s)")
+
+    @model_validator(mode="after")
+    def _delays(self) -> "ScrewWorldParams":
+        if max(abs(self.robot_offset[0]), abs(self.robot_offset[1])) > 2.0 or abs(self.robot_offset[2]) > math.pi:
+            raise ValueError(f"robot_offset {list(self.robot_offset)}: the platform starts within 2 m of its nominal "
+                             "pose (along, away) and turned at most pi rad, so the camera can find the marker")
+        if self.latency + self.base_delay > 0.75:
+            raise ValueError(f"latency + base_delay = {self.latency + self.base_delay:g} s: the platform loop sees both "
+                             "delays, and with the paper's largest platform gain (kp = 2 /s) it is stable only while kp x "
+                             "delay < pi/2 — keep the sum at most 0.75 s")
+        return self
+
+    @classmethod
+    def min_rate_hz(cls, speed: float, tol_t: float, motion: str = "conveyor", speed_sigma: float = 0.0) -> float:
+        """The slowest control rate (Hz) at which the part moves at most the tool's coupling tolerance ``tol_t``
+        (m) per tick: ``speed / tol_t`` (the trolley's speed fluctuates: ``speed (1 + 2 sigma)``)."""
+        top = speed * (1.0 + 2.0 * speed_sigma) if motion == "trolley" else speed
+        return top / tol_t
 
     @field_validator("bolts")
     @classmethod
@@ -248,6 +292,26 @@ class ScrewConveyor(SteppedWorld):
     """The mobile iiwa fastening the bolts of a part carried by a conveyor or a trolley."""
 
     Params: ClassVar[type[ScrewWorldParams]] = ScrewWorldParams
+
+    @classmethod
+    def rate_problem(cls, params: BaseModel, robot_params: BaseModel | None, rate_hz: float) -> tuple[str, str] | None:
+        """The part moves ``speed / rate_hz`` between two commands; more than the tool's coupling tolerance
+        ``tol_t`` and the tool cannot stay on its bolt through activation and fastening (the tasks' PIDs and
+        the prediction correct once per tick).  The paper's 40 Hz and the missions' 100 Hz pass at every
+        shipped speed (0.03-0.08 m/s: ≥ 27 Hz needed with the trolley's fluctuation)."""
+        wp = cast(ScrewWorldParams, params)
+        tool = getattr(robot_params, "tool", None)
+        tol_t = float(getattr(tool, "tol_t", 0.0) or 0.0)
+        if tol_t <= 0.0:
+            return None
+        need = ScrewWorldParams.min_rate_hz(wp.speed, tol_t, wp.motion, wp.trolley_speed_sigma)
+        if rate_hz >= need:
+            return None
+        step = 1000.0 * need * tol_t / rate_hz
+        return (f"control rate_hz {rate_hz:g} Hz is too slow for world {cls.name!r}: the part ({wp.motion}, up to "
+                f"{need * tol_t:g} m/s) moves {step:.3g} mm between two commands, more than the tool's coupling "
+                f"tolerance tol_t = {1000.0 * tol_t:g} mm",
+                f"rate_hz of at least {need:.3g} Hz that divides physics_hz, or a slower part")
     events: ClassVar[tuple[str, ...]] = ("target_lost", "target_found")
     metrics: ClassVar[dict[str, str]] = {}
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("base_x", "base_y", "base_yaw", "base_speed", "base_yaw_rate",

@@ -74,37 +74,60 @@ CAMERA_CODE = {None: 0.0, "front": 1.0, "rear": 2.0}
 class VikiGroundParams(Fidelity, FlatGroundParams):
     """Object placement, manipulation-zone goal, perception mode and detector model (see module doc)."""
 
-    object_kind: Literal["can", "bottle", "carton"] = "can"
-    object_distance: float = Field(default=2.2, gt=0.0, description="m from the start rear-axle midpoint")
-    object_bearing: float = Field(default=0.0, description="rad, relative to the start heading (pi: behind)")
+    object_kind: Literal["can", "bottle", "carton"] = Field(default="can", description="the object to approach")
+    object_distance: float = Field(default=2.2, ge=0.5, le=10.0, description="m from the start rear-axle midpoint: "
+                                   "0.5 (nearer, the object is under the car's front, below the cameras' view, which "
+                                   "starts ~0.45 m ahead) to 10, and within the depth camera's range depth_max")
+    object_bearing: float = Field(default=0.0, ge=-2.0 * math.pi, le=2.0 * math.pi,
+                                  description="rad, relative to the start heading (pi: behind): one turn either way")
     object_xy: tuple[float, float] | None = Field(default=None, description="world position; overrides distance/bearing")
-    object_yaw: float = 0.0
+    object_yaw: float = Field(default=0.0, ge=-2.0 * math.pi, le=2.0 * math.pi, description="rad: one turn either way")
     goal: tuple[float, float] = Field(default=(-0.9, 0.0),
-                                      description="manipulation zone: object position in the robot frame (m)")
-    perception: Literal["geometric", "rendered"] = "geometric"
-    initial_camera: Literal["front", "rear", "none"] = "front"
-    image_size: tuple[int, int] | None = Field(default=None, description="(W, H) for every camera; default: the mounts'")
-    camera_rate_hz: float | None = Field(default=None, gt=0.0, description="default: the mounts' rate")
-    depth_max: float = Field(default=5.0, gt=0.0, description="depth camera range (m)")
-    pixel_noise: float = Field(default=0.5, ge=0.0, description="std of each box edge (px), geometric mode")
-    depth_noise: float = Field(default=0.005, ge=0.0, description="relative std of the depth per frame, geometric mode")
-    min_pixels: int = Field(default=4, ge=1, description="fewer visible object pixels: no detection")
-    dropout: float = Field(default=0.0, ge=0.0, lt=1.0, description="fraction of frames the detector misses")
-    dropout_burst: float = Field(default=1.0, ge=1.0, description="mean length of a miss burst (frames)")
-    static_motion_m: float = Field(default=0.001, ge=0.0, description="camera still below this: same image")
-    static_motion_rad: float = Field(default=0.002, ge=0.0)
+                                      description="manipulation zone: object position in the robot frame (m); "
+                                      "within depth_max of the robot (the cameras must measure it there)")
+    perception: Literal["geometric", "rendered"] = Field(default="geometric", description="geometric: boxes "
+                                                         "projected from the truth with the noise below (fast); "
+                                                         "rendered: a colour detector on rendered frames")
+    initial_camera: Literal["front", "rear", "none"] = Field(default="front", description="the camera that runs "
+                                                             "until a task selects its own")
+    image_size: tuple[int, int] | None = Field(default=None, description="(W, H) for every camera; default: the "
+                                               "mounts'; each 8-4096 px (TinyRenderer's largest image)")
+    camera_rate_hz: float | None = Field(default=None, ge=1.0, le=90.0, description="default: the mounts' rate; 1-90 "
+                                         "Hz, what RGB-D cameras deliver (the RealSense D435i: 6 to 90 fps); below 1 Hz "
+                                         "the 20 Hz laws act on one frame for 20 ticks and the car covers v_max x 1 s "
+                                         "between two detections")
+    depth_max: float = Field(default=5.0, gt=0.0, le=10.0, description="depth camera range (m): at most 10, the "
+                             "RealSense D435i's")
+    pixel_noise: float = Field(default=0.5, ge=0.0, le=20.0, description="std of each box edge (px), geometric mode: "
+                               "at most 20 px, a third of the ~60 px box of the object at 2 m in the default 640x360 "
+                               "image (the paper's level: 2 px at 1280x720)")
+    depth_noise: float = Field(default=0.005, ge=0.0, le=0.2, description="relative std of the depth per frame, "
+                               "geometric mode: at most 0.2 (10 times the RealSense's 2 % at 2 m)")
+    min_pixels: int = Field(default=4, ge=1, le=10_000, description="fewer visible object pixels: no detection; "
+                            "1-10000 (the object at 2 m covers ~3000 px of the default image)")
+    dropout: float = Field(default=0.0, ge=0.0, lt=1.0, description="fraction of frames the detector misses: below 1 "
+                           "(a detector that misses every frame sees nothing)")
+    dropout_burst: float = Field(default=1.0, ge=1.0, le=150.0, description="mean length of a miss burst (frames): "
+                                 "1 to 150 (10 s at 15 fps, longer than the tasks' search timeouts: a longer miss is "
+                                 "the object gone, not detector noise)")
+    static_motion_m: float = Field(default=0.001, ge=0.0, le=0.1, description="camera still below this (m): same "
+                                   "image; at most 0.1")
+    static_motion_rad: float = Field(default=0.002, ge=0.0, le=0.1, description="camera still below this (rad); at most 0.1")
     static_flip: float = Field(default=0.01, ge=0.0, le=1.0,
                                description="chance per frame that a still image changes outcome (sensor noise)")
     lidar_fusion: bool = Field(default=True, description="rendered front camera: fuse the LiDAR (eq. 11-15)")
     latency: float = Field(default=0.0, ge=0.0, le=1.0,
-                           description="s from a frame's capture until its detection is delivered (stamped at capture)")
+                           description="s from a frame's capture until its detection is delivered (stamped at capture): "
+                           "at most 1 s; the visual-servo loop with the paper's largest gain (lambda = 1.05 /s) and a "
+                           "delay tau is stable only while lambda tau < pi/2 (1.5 s)")
     box_bias: tuple[float, float, float, float] = Field(
         default=(0.0, 0.0, 0.0, 0.0), description="px added to every detected box's (u0, v0, u2, v2): a systematic "
-        "detector offset (negative u0/v0 and positive u2/v2 make boxes larger)")
-    odom_scale_error: float = Field(default=0.0, gt=-1.0, lt=1.0,
-                                    description="fraction: odometry distance = true distance x (1 + this)")
-    odom_slip: float = Field(default=0.0, ge=0.0, lt=1.0,
-                             description="std of the per-tick relative error of the odometry's travel (fraction)")
+        "detector offset (negative u0/v0 and positive u2/v2 make boxes larger); each within ±50 px")
+    odom_scale_error: float = Field(default=0.0, ge=-0.5, le=0.5,
+                                    description="fraction: odometry distance = true distance x (1 + this); within "
+                                    "±0.5 (F-LOAM's is ~0.01; wheel odometry off by more is broken)")
+    odom_slip: float = Field(default=0.0, ge=0.0, le=0.5,
+                             description="std of the per-tick relative error of the odometry's travel (fraction): at most 0.5")
 
     FIDELITY: ClassVar[Mapping[str, Level]] = {"paper": {
         "image_size": Sourced((1280, 720), "paper section III-A: both RealSense D435i cameras at 1280x720"),
@@ -128,8 +151,16 @@ class VikiGroundParams(Fidelity, FlatGroundParams):
 
     @model_validator(mode="after")
     def _check(self) -> "VikiGroundParams":
-        if self.image_size is not None and min(self.image_size) < 8:
-            raise ValueError(f"image_size must be at least 8x8 pixels, got {self.image_size}")
+        if self.image_size is not None and not (min(self.image_size) >= 8 and max(self.image_size) <= 4096):
+            raise ValueError(f"image_size must be 8 to 4096 pixels each way, got {self.image_size}")
+        if max(abs(b) for b in self.box_bias) > 50.0:
+            raise ValueError(f"box_bias must stay within ±50 px per edge, got {self.box_bias}")
+        if math.hypot(*self.goal) > self.depth_max:
+            raise ValueError(f"goal {list(self.goal)} is {math.hypot(*self.goal):g} m from the robot, beyond the depth "
+                             f"camera's range depth_max ({self.depth_max:g} m)")
+        if self.object_xy is None and self.object_distance > self.depth_max:
+            raise ValueError(f"object_distance ({self.object_distance:g} m) is beyond the depth camera's range "
+                             f"depth_max ({self.depth_max:g} m): the object could never be measured")
         return self
 
 
@@ -148,6 +179,23 @@ class VikiGround(FlatGround):
     """Racecar + one object + front/rear RGB-D cameras (+ LiDAR) with a detector."""
 
     Params: ClassVar[type[VikiGroundParams]] = VikiGroundParams  # type: ignore[assignment]
+
+    @classmethod
+    def rate_problem(cls, params: BaseModel, robot_params: BaseModel | None, rate_hz: float) -> tuple[str, str] | None:
+        """A camera faster than the control rate: frames are taken at control ticks (:class:`SensorSchedule`,
+        one per tick at most), so it would silently run at ``rate_hz`` instead (15 fps with the missions'
+        20 Hz is fine: 3 frames in 4 ticks)."""
+        wp = cast(VikiGroundParams, params)
+        rates = {m: float(wp.camera_rate_hz) if wp.camera_rate_hz is not None else
+                 float(getattr(getattr(robot_params, m, None), "rate_hz", 0.0)) for m in ("front_camera", "rear_camera")}
+        fast = {m: r for m, r in rates.items() if r > rate_hz * (1.0 + 1e-9)}
+        if not fast:
+            return None
+        which = ", ".join(f"{m} {r:g} Hz" for m, r in fast.items())
+        return (f"camera rate above the control rate_hz {rate_hz:g} Hz ({which}): world {cls.name!r} takes at most one "
+                f"frame per control tick, so the camera would run at {rate_hz:g} Hz, not its own rate",
+                f"a camera rate of at most {rate_hz:g} Hz (world.params.camera_rate_hz or the mounts' rate_hz), "
+                "or a control rate_hz at least the camera's")
     events: ClassVar[tuple[str, ...]] = ("target_found", "target_lost")
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "yaw", "v", "obj_x", "obj_y", "err_x", "err_y",
                                                     "detected", "camera")

@@ -12,11 +12,14 @@ Data flow of one control tick (see docs/design.md)::
 
 Units: every metric a task or world publishes declares its unit (``"m"``, ``"rad"``, ``"px"``,
 ``"s"``, ``"m/s"``, ``"N"``, ``""`` for dimensionless).  Values are always in that SI base unit; guard
-expressions may write ``2 cm`` or ``3 deg`` and are converted when the mission loads.
+expressions may write ``2 cm`` or ``3 deg`` and are converted when the mission loads.  A metric with a
+range declares it with :class:`Metric` (``"pos_error": Metric("m", low=0.0, reason="a distance")``): a guard
+whose threshold lies outside it can never hold, and the loader refuses it.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Generic, Mapping, MutableMapping, TypeVar, cast
@@ -28,7 +31,7 @@ from pydantic import BaseModel, ConfigDict
 from .markers import ControlPoint, Marker, TaskScene
 from .specs import ObsSpec, RobotNeeds, array, flag, instance, mapping, message, scalar, sequence, text
 
-__all__ = ["Command", "ControlPoint", "Marker", "MemoryKey", "NO_DEFAULT", "NoParams", "ObsSpec", "Observation", "Robot",
+__all__ = ["AGE", "COUNT", "DISTANCE", "FLAG", "FORCE", "ROTATION_ANGLE", "SPEED", "WEIGHT", "WRAPPED_ANGLE", "Command", "ControlPoint", "Marker", "MemoryKey", "Metric", "NO_DEFAULT", "NoParams", "ObsSpec", "Observation", "Robot",
            "RobotNeeds", "StepResult", "StrictModel", "Task", "TaskContext", "TaskScene", "World", "array", "flag",
            "instance", "mapping", "message", "scalar", "sequence", "text"]
 
@@ -83,6 +86,54 @@ class StepResult:
     events: tuple[str, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
     sensors: tuple[str, ...] | None = None
+
+
+class Metric(str):
+    """The unit of a published metric (or mission-data key) with the range its values can take.
+
+    It *is* the unit string (``Metric("m", low=0.0) == "m"``), so ``metrics = {"speed": "m/s"}`` and
+    ``{"pos_error": Metric("m", low=0.0, reason="a distance")}`` declare alike; ``low``/``high`` bound every
+    value the metric can have (inclusive, in the unit; None: unbounded on that side) and ``reason`` says why
+    (``"a distance"``, ``"an angle wrapped to [-π, π]"``).  The loader refuses a guard comparison that no
+    value in ``[low, high]`` satisfies (``pos_error < -1 mm``; ``abs(x)`` reads ``[0, max(|low|, |high|)]``).
+    """
+
+    low: float | None
+    high: float | None
+    reason: str
+
+    def __new__(cls, unit: str = "", low: float | None = None, high: float | None = None, reason: str = "") -> "Metric":
+        if low is not None and high is not None and not low <= high:
+            raise ValueError(f"Metric range needs low <= high, got [{low}, {high}]")
+        self = super().__new__(cls, unit)
+        self.low, self.high, self.reason = low, high, reason
+        return self
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (Metric, (str(self), self.low, self.high, self.reason))
+
+    def bounds(self) -> str:
+        """The range as the catalogue writes it, without the unit: ``"≥ 0"``, ``"in [-3.14159, 3.14159]"``
+        (empty: unbounded)."""
+        if self.low is None and self.high is None:
+            return ""
+        if self.high is None:
+            return f"≥ {self.low:g}"
+        if self.low is None:
+            return f"≤ {self.high:g}"
+        return f"in [{self.low:g}, {self.high:g}]"
+
+
+DISTANCE = Metric("m", low=0.0, reason="a distance")
+SPEED = Metric("m/s", low=0.0, reason="a speed |v|")
+WRAPPED_ANGLE = Metric("rad", low=-math.pi, high=math.pi, reason="a wrapped angle")
+ROTATION_ANGLE = Metric("rad", low=0.0, high=math.pi, reason="the angle of a rotation")
+FORCE = Metric("N", low=0.0, reason="the magnitude of a force")
+AGE = Metric("s", low=0.0, reason="the time since an earlier instant")
+FLAG = Metric("", low=0.0, high=1.0, reason="1 when true, 0 when false")
+COUNT = Metric("", low=0.0, reason="a count")
+WEIGHT = Metric("", low=0.0, high=1.0, reason="a task weight")
+"""Ranged units of the kinds of metric the shipped tasks publish (declare ``{"pos_error": DISTANCE}``)."""
 
 
 ValueT = TypeVar("ValueT")
@@ -207,7 +258,8 @@ class Task(Generic[ParamsT, RobotParamsT]):
     * ``name`` — the name used in YAML (set by :func:`taskflow.registry.register_task`);
     * ``Params`` — pydantic model of ``task.params``;
     * ``slots`` — profile slot → pydantic model of the profile bound to it (``bind:`` in YAML);
-    * ``metrics`` — metric name → unit of every metric ``step`` publishes;
+    * ``metrics`` — metric name → unit of every metric ``step`` publishes (a :class:`Metric` where the
+      values have a range: errors and norms ≥ 0, wrapped angles in [-π, π], ratios in [0, 1]);
     * ``events`` — events ``step`` may raise;
     * ``command_interface`` — the robot command interface its commands are in (``"ackermann"``,
       ``"unicycle"`` ...; empty: it commands no motion), checked against the mission's robot;
@@ -347,6 +399,13 @@ class World:
         """What the world's (drawn) parameters put in the scene, for figures and viewers: obstacles, the
         object, keyframes, walls, the start pose (:class:`~taskflow.markers.Marker`).  Default: nothing."""
         return []
+
+    @classmethod
+    def rate_problem(cls, params: BaseModel, robot_params: BaseModel | None, rate_hz: float) -> tuple[str, str] | None:
+        """Why the mission's control rate ``rate_hz`` is one this world with these (drawn) parameters and the
+        robot's cannot honour, as ``(what is wrong, what would be valid)``; None: it can.  The loader asks it
+        after checking that ``rate_hz`` divides the physics rate.  Default: any rate."""
+        return None
 
     # --- asynchronous actions ---------------------------------------------------------------
     def start_action(self, name: str, params: Mapping[str, Any]) -> None:

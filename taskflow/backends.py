@@ -52,7 +52,12 @@ class WorkerLost(BackendError):
 
 
 class TrialInterrupted(Exception):
-    """The trial run in the batch's own process saw Ctrl-C / SIGTERM and stopped itself."""
+    """The trial run in the batch's own process saw Ctrl-C / SIGTERM and stopped itself; :attr:`signum`
+    says which."""
+
+    def __init__(self, signum: int = signal.SIGINT) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
 
 @dataclass(frozen=True)
@@ -106,7 +111,7 @@ class InProcessBackend:
         for i, job in enumerate(jobs):
             summary, timing = run_trial(job)
             if summary.get("reason") in (INTERRUPTED, TERMINATED):
-                raise TrialInterrupted()
+                raise TrialInterrupted(signal.SIGINT if summary["reason"] == INTERRUPTED else signal.SIGTERM)
             on_result(i, (summary, timing))
 
     def close(self) -> None:
@@ -240,8 +245,15 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
 
 
 def _write_files(root: Path, files: dict[str, bytes]) -> None:
+    """A remote trial's run directory written under ``root``; a name leading outside it (``..``, an
+    absolute path: a node is not trusted to say where the driver writes) is a :class:`BackendError`."""
+    from .record_io import RunDirError, inside
+
     for rel, data in files.items():
-        path = root / rel
+        try:
+            path = inside(root, rel)
+        except RunDirError as exc:
+            raise BackendError(f"a remote trial sent a file outside its run directory: {exc}") from None
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(data)
 

@@ -16,7 +16,12 @@ Ctrl-C or SIGTERM stops a batch at once: unfinished trials are cancelled, runnin
 terminated, and ``batch.json`` is written with the trials that finished (``interrupted: true``); so
 does a worker that dies (:class:`~taskflow.backends.WorkerLost`, raised once ``batch.json`` is written);
 :func:`resume_batch` then runs only the missing trials and writes the ``batch.json`` an uninterrupted
-run would have written.
+run would have written.  :class:`BatchStopped` says which signal stopped it (``taskflow batch``
+exits 130 after Ctrl-C, 143 after SIGTERM, as ``taskflow run`` does).
+
+While it runs, :class:`BatchProgress` reports each finished trial on stderr (the command line passes
+one): on a terminal one line rewritten in place — trials done / total, successes so far, the estimated
+time left — otherwise one line per finished trial.  It writes nothing into the campaign's files.
 """
 
 from __future__ import annotations
@@ -25,9 +30,10 @@ import json
 import math
 import os
 import signal
+import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -39,6 +45,77 @@ from .stats import mean_interval, wilson_interval
 
 class BatchInterrupted(Exception):
     """Raised inside the parent on SIGTERM so the batch ends like on Ctrl-C."""
+
+    signum = signal.SIGTERM
+
+
+class BatchStopped(KeyboardInterrupt):
+    """A batch stopped by a signal once its partial ``batch.json`` is written: ``str()`` is that file's
+    path, :attr:`signum` the signal (``SIGINT`` for Ctrl-C, ``SIGTERM``)."""
+
+    def __init__(self, batch_file: str, signum: int) -> None:
+        super().__init__(batch_file)
+        self.signum = signum
+
+
+class BatchProgress:
+    """Reports a batch's finished trials on ``stream`` (stderr by default).  ``tty`` (default: whether
+    the stream is a terminal) rewrites one line in place: ``batch NAME: 3/10 trials, 3 succeeded, ETA
+    12 s``; otherwise one line per trial, with its condition, seed and outcome.  The time left is the
+    wall-clock time per trial so far times the trials left — a display only, never recorded."""
+
+    def __init__(self, stream: TextIO | None = None, tty: bool | None = None) -> None:
+        self.stream: TextIO = stream if stream is not None else sys.stderr
+        self.tty = self.stream.isatty() if tty is None else tty
+        self.name, self.total, self.done, self.ok, self.new = "", 0, 0, 0, 0
+        self.t0 = 0.0
+        self._open_line = False
+
+    def start(self, name: str, total: int, done: int, succeeded: int) -> None:
+        """A campaign of ``total`` trials of which ``done`` (``succeeded`` of them) are already recorded."""
+        self.name, self.total, self.done, self.ok, self.new = name, total, done, succeeded, 0
+        self.t0 = time.perf_counter()
+        if self.tty:
+            self._write(f"\r{self._fit(f'batch {name}: {done}/{total} trials, {succeeded} succeeded, running …')}\x1b[K")
+            self._open_line = True
+
+    def trial(self, condition: int, seed: int, outcome: str) -> None:
+        """One more finished trial."""
+        self.done, self.new = self.done + 1, self.new + 1
+        self.ok += outcome == "succeeded"
+        left = self.total - self.done
+        eta = (time.perf_counter() - self.t0) / self.new * left
+        status = (f"{self.done}/{self.total} trials, {self.ok} succeeded"
+                  + (f", ETA {_duration(eta)}" if left else ""))
+        if self.tty:
+            self._write(f"\r{self._fit(f'batch {self.name}: {status}')}\x1b[K")
+            self._open_line = True
+        else:
+            self._write(f"batch {self.name}: {status} (condition {condition} seed {seed}: {outcome})\n")
+
+    def finish(self) -> None:
+        """End the terminal's progress line (before the table, or an interruption's message)."""
+        if self._open_line:
+            self._write("\n")
+            self._open_line = False
+
+    def _fit(self, line: str) -> str:
+        """``line`` cut to the terminal's width, so that ``\\r`` rewrites it instead of leaving a wrapped
+        remainder behind."""
+        try:
+            width = os.get_terminal_size(self.stream.fileno()).columns
+        except (OSError, ValueError, AttributeError):
+            return line
+        return line if width <= 1 or len(line) < width else line[:width - 2] + "…"
+
+    def _write(self, text: str) -> None:
+        self.stream.write(text)
+        self.stream.flush()
+
+
+def _duration(seconds: float) -> str:
+    s = int(round(seconds))
+    return f"{s} s" if s < 60 else f"{s // 60} min {s % 60:02d} s" if s < 3600 else f"{s // 3600} h {s % 3600 // 60:02d} min"
 
 
 def _metric_stats(vals: np.ndarray) -> dict[str, Any]:
@@ -90,14 +167,16 @@ def aggregate(summaries: list[dict[str, Any]]) -> dict[str, Any]:
 def run_batch(path: str, *, trials: int, workers: int | None = None, seed: int = 0,
               overrides: list[str] | None = None, out: str | Path | None = None,
               max_time: float | None = None, keep_runs: bool = False, sweep: list[str] | None = None,
-              backend: str = "pool", address: str | None = None) -> dict[str, Any]:
+              backend: str = "pool", address: str | None = None,
+              progress: BatchProgress | None = None) -> dict[str, Any]:
     """Start a campaign in ``out`` (a new directory, or one without a campaign), run it, write
     ``batch.json`` and return its content with the wall-clock ``timing`` and ``batch_file``.
 
     ``sweep`` holds ``KEY=V1,V2,...`` items (:func:`taskflow.campaign.parse_sweep`); ``backend`` is
     ``pool`` (``workers`` local processes) or ``ray`` (the cluster at ``address``, or a local one of
-    ``workers`` CPUs).  On Ctrl-C / SIGTERM the partial ``batch.json`` is written and
-    :class:`KeyboardInterrupt` is raised again, its message the ``batch.json`` path."""
+    ``workers`` CPUs).  ``progress`` reports each finished trial.  On Ctrl-C / SIGTERM the partial
+    ``batch.json`` is written and :class:`BatchStopped` (a :class:`KeyboardInterrupt`) is raised, its
+    message the ``batch.json`` path."""
     if trials < 1:
         raise ValueError(f"trials must be at least 1, got {trials}")
     if workers is not None and workers < 1:
@@ -107,17 +186,17 @@ def run_batch(path: str, *, trials: int, workers: int | None = None, seed: int =
                         max_time=max_time, keep_runs=keep_runs)
     name = check_conditions(spec)
     out_dir = Path(out) if out is not None else Path("runs") / f"batch-{name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    return _run(Campaign.create(out_dir, spec), name, workers, backend, address)
+    return _run(Campaign.create(out_dir, spec), name, workers, backend, address, progress)
 
 
 def resume_batch(directory: str | Path, *, workers: int | None = None, backend: str = "pool",
-                 address: str | None = None) -> dict[str, Any]:
+                 address: str | None = None, progress: BatchProgress | None = None) -> dict[str, Any]:
     """Run the trials of the campaign in ``directory`` that have no record yet and rewrite its
     ``batch.json``: the same file an uninterrupted run writes."""
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     campaign = Campaign.open(directory)
-    return _run(campaign, check_conditions(campaign.spec), workers, backend, address)
+    return _run(campaign, check_conditions(campaign.spec), workers, backend, address, progress)
 
 
 def check_conditions(spec: CampaignSpec) -> str:
@@ -145,7 +224,8 @@ def _as_sweep(message: str, swept: list[str]) -> str:
     return message
 
 
-def _run(campaign: Campaign, name: str, workers: int | None, backend: str, address: str | None) -> dict[str, Any]:
+def _run(campaign: Campaign, name: str, workers: int | None, backend: str, address: str | None,
+         progress: BatchProgress | None = None) -> dict[str, Any]:
     spec = campaign.spec
     todo = campaign.missing()
     n_workers = max(1, min(workers or os.cpu_count() or 1, max(1, len(todo))))
@@ -154,6 +234,8 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
 
     def on_result(i: int, result: tuple[dict[str, Any], dict[str, Any]]) -> None:
         campaign.record(todo[i][0].index, todo[i][1], *result)
+        if progress is not None:
+            progress.trial(todo[i][0].index, todo[i][1], str(result[0].get("outcome")))
 
     t0, started = time.perf_counter(), time.time()
     interrupted: BaseException | None = None
@@ -168,6 +250,10 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
                 raise BackendError(f"{exc} (the campaign waits in {campaign.root}: taskflow batch --resume "
                                    f"{campaign.root} runs it)") from None
             old_term = _on_sigterm()  # after the backend starts: Ray's own handler must not win
+            if progress is not None:  # once the backend is up: a backend that cannot start is one line
+                recorded = campaign.records()
+                progress.start(name, spec.trials * len(spec.conditions()), len(recorded),
+                               sum(r["summary"].get("outcome") == "succeeded" for r in recorded.values()))
             runner.run(jobs, on_result)
     except (KeyboardInterrupt, BatchInterrupted, TrialInterrupted) as exc:
         interrupted = exc
@@ -178,6 +264,8 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
             signal.signal(signal.SIGTERM, old_term)
         if runner is not None:
             runner.close()
+        if progress is not None:
+            progress.finish()
     wall = time.perf_counter() - t0
     result, timing_trials = campaign_result(campaign, name)
     batch_file = campaign.root / "batch.json"
@@ -189,7 +277,8 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
     timing["per_trial_wall_s"] = wall / max(1, timing["trials_run"])
     write_json(campaign.root / "timing.json", timing)
     if interrupted is not None:
-        raise KeyboardInterrupt(str(batch_file)) from None
+        signum = getattr(interrupted, "signum", signal.SIGINT)  # BatchInterrupted: SIGTERM; a trial's: its own
+        raise BatchStopped(str(batch_file), signum) from None
     if lost is not None:
         raise WorkerLost(f"{lost}: the trials that finished are recorded in {batch_file}; run the rest with "
                          f"taskflow batch --resume {campaign.root}")

@@ -22,13 +22,13 @@ A sweep is the grid of every combination of its keys' values (:func:`parse_sweep
 from __future__ import annotations
 
 import itertools
-import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from .record_io import NotJSONError, RunDirError, check_summary, read_json
 from .records import clean_floats, write_json
 from .yamlsrc import MissionLoader
 
@@ -193,9 +193,12 @@ class Campaign:
             what = "no such directory" if not root.is_dir() else f"not a campaign directory (it has no {SPEC_FILE})"
             raise CampaignError(f"{root}: {what}")
         try:
-            spec = CampaignSpec.from_dict(json.loads(spec_file.read_text()))
-        except (ValueError, KeyError, TypeError) as exc:
-            raise CampaignError(f"{spec_file}: not a campaign description ({exc!r})") from None
+            spec = CampaignSpec.from_dict(read_json(root, SPEC_FILE))
+        except RunDirError as exc:
+            raise CampaignError(str(exc)) from None
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            raise CampaignError(f"{spec_file}: not a campaign description ({type(exc).__name__}: "
+                                f"{str(exc)[:80]})") from None
         (root / TRIALS_DIR).mkdir(exist_ok=True)
         return cls(root, spec)
 
@@ -211,8 +214,10 @@ class Campaign:
 
     def records(self) -> dict[tuple[int, int], dict[str, Any]]:
         """The finished trials of this campaign, keyed by (condition, seed); files of other names, of
-        conditions or seeds outside the spec, or unreadable (a record being written when the machine
-        died) are ignored — such a trial runs again."""
+        conditions or seeds outside the spec, or cut short (not whole JSON: a record being written when
+        the machine died) are ignored — such a trial runs again.  A record that is hostile or was not
+        written by taskflow — a link out of the folder, too large, whole JSON with a field of the wrong
+        type — is a :class:`CampaignError` naming it (:mod:`taskflow.record_io`)."""
         wanted = {record_name(c.index, s): (c.index, s) for c in self.spec.conditions() for s in self.spec.seeds()}
         out = {}
         for f in sorted((self.root / TRIALS_DIR).glob("c*-s*.json")):
@@ -220,10 +225,15 @@ class Campaign:
             if key is None:
                 continue
             try:
-                rec = json.loads(f.read_text())
-                out[key] = {"summary": rec["summary"], "timing": rec["timing"]}
-            except (ValueError, KeyError, TypeError):
-                continue
+                try:
+                    rec = read_json(self.root, f"{TRIALS_DIR}/{f.name}")
+                except NotJSONError:
+                    continue  # cut short: the trial runs again
+                if not isinstance(rec, dict) or not isinstance(rec.get("timing"), dict):
+                    raise RunDirError(f"{f}: a trial record is an object with summary and timing objects")
+                out[key] = {"summary": check_summary(rec.get("summary"), f"{f}: summary", require=("outcome", "sim_time_s")), "timing": rec["timing"]}
+            except RunDirError as exc:
+                raise CampaignError(f"{exc} (move it away to run that trial again)") from None
         return out
 
     def missing(self) -> list[tuple[Condition, int]]:

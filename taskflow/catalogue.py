@@ -37,8 +37,9 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined, to_jsonable_python
 
+from . import api
 from .api import ObsSpec, Robot, Task, World
-from .contracts import hosts, robot_params_problem, task_problem
+from .contracts import hosts, task_problem
 from .fidelity import Fidelity
 from .registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError, describe_choices
 from .units import UNITS, suffix_unit
@@ -89,10 +90,19 @@ class Slot:
 
 @dataclass(frozen=True)
 class Metric:
-    """A metric guards can read, in its base ``unit`` (``""``: dimensionless)."""
+    """A metric guards can read, in its base ``unit`` (``""``: dimensionless), with the range its values
+    take where the task or world declares one (``bounds`` ``"≥ 0"``, empty: none; ``reason``: why)."""
 
     name: str
     unit: str
+    bounds: str = ""
+    reason: str = ""
+
+
+def _metrics(declared: dict[str, str]) -> tuple[Metric, ...]:
+    """The catalogue's view of a ``metrics`` declaration (plain unit strings or :class:`taskflow.api.Metric`)."""
+    return tuple(Metric(k, str(u), u.bounds(), u.reason) if isinstance(u, api.Metric) else Metric(k, str(u))
+                 for k, u in declared.items())
 
 
 @dataclass(frozen=True)
@@ -389,10 +399,11 @@ def _readers(key: str, spec: ObsSpec, tasks: dict[str, type]) -> tuple[str, ...]
     return tuple(f"task {n}" for n, t in tasks.items() if key in t.requires and spec.satisfies(t.requires[key]))
 
 
-def _drives(task: type[Task], robot: type[Robot]) -> bool:
-    """Whether ``task`` can command ``robot`` (its interface and the robot parameters it reads), on some world."""
-    interface_fits = not task.command_interface or task.command_interface == robot.command_interface
-    return interface_fits and robot_params_problem(task, robot) is None
+def _worlds_for(task: type[Task], robot: type[Robot], worlds: dict[str, type]) -> tuple[str, ...]:
+    """The worlds on which ``task`` can run with ``robot``: each hosts the robot, and the task's interface,
+    the robot parameters it reads and the observations it requires are there (the compiler's rule,
+    :func:`taskflow.contracts.task_problem`)."""
+    return tuple(n for n, w in worlds.items() if hosts(w, robot) and task_problem(task, robot, w) is None)
 
 
 def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type]) -> Entry:
@@ -400,12 +411,11 @@ def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type
     slots = tuple(Slot(name=s, profile_kind=getattr(m, "kind", None) or s, model=m.__name__,
                        required=_slot_required(m), summary=summary_of(_own_doc(m)), fields=params_of(m))
                   for s, m in task.slots.items())
-    works = tuple(f"{r.name} on {w.name}" for r in robots.values() if _drives(task, r) for w in worlds.values()
-                  if hosts(w, r) and task_problem(task, r, w) is None)
+    works = tuple(f"{r.name} on {w}" for r in robots.values() for w in _worlds_for(task, r, worlds))
     return Entry(
         kind="task", name=task.name, summary=summary_of(doc), doc=doc, source=_source(task),
         params_doc=_own_doc(task.Params), params=params_of(task.Params), slots=slots,
-        metrics=tuple(Metric(k, u) for k, u in task.metrics.items()), events=tuple(task.events),
+        metrics=_metrics(task.metrics), events=tuple(task.events),
         requires=tuple(Stream(k, str(s), _providers(k, s, robots, worlds)) for k, s in task.requires.items()),
         command_interface=task.command_interface, robot_params=params_of(task.robot_params),
         works_with=works, types=_nested_models([task.Params, *task.slots.values(), task.robot_params]))
@@ -413,7 +423,7 @@ def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type
 
 def robot_entry(robot: type[Robot], tasks: dict[str, type], worlds: dict[str, type]) -> Entry:
     doc = _class_doc(robot)
-    drivers = [f"task {n}" for n, t in tasks.items() if _drives(t, robot)]
+    drivers = [f"task {n}" for n, t in tasks.items() if _worlds_for(t, robot, worlds)]
     hosting = [f"world {n}" for n, w in worlds.items() if hosts(w, robot)]
     return Entry(
         kind="robot", name=robot.name, summary=summary_of(doc), doc=doc, source=_source(robot),
@@ -432,7 +442,7 @@ def world_entry(world: type[World], tasks: dict[str, type], robots: dict[str, ty
     return Entry(
         kind="world", name=world.name, summary=summary_of(doc), doc=doc, source=_source(world),
         params_doc=_own_doc(world.Params), params=params_of(world.Params),
-        metrics=tuple(Metric(k, u) for k, u in world.metrics.items()), events=tuple(world.events),
+        metrics=_metrics(world.metrics), events=tuple(world.events),
         actions=tuple(Action(a, tuple(ends), params_of(world.action_params.get(a)))
                       for a, ends in world.actions.items()),
         provides=tuple(Stream(k, str(s), _readers(k, s, tasks)) for k, s in world.observations.items()),

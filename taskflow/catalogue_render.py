@@ -61,7 +61,8 @@ def sections(e: Entry) -> list[Section]:
             add(f"profile kind {sl.profile_kind} ({sl.model}) fields", _params(sl.fields), sl.summary)
     if e.kind in ("task", "world"):
         add("metrics (guards: `when: NAME < 2 cm`)",
-            [f"{m.name}: {m.unit or '(dimensionless)'}" for m in e.metrics] or ["(none)"])
+            [f"{m.name}: {m.unit or '(dimensionless)'}" + (f", {m.bounds}" if m.bounds else "")
+             + (f" ({m.reason})" if m.reason else "") for m in e.metrics] or ["(none)"])
         add("events (`on: NAME`)", list(e.events) or ["(none)"])
     if e.actions:
         add("actions (`action: {name, params}`)", [f"{a.name}: ends with {', '.join(a.ends_with)}" for a in e.actions])

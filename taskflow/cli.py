@@ -2,7 +2,7 @@
 describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
-130 interrupted.
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM) — ``run`` and ``batch`` alike, once the record is written.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
@@ -71,18 +72,73 @@ def _positive(flag: str, value: int | None) -> int | None:
     return value
 
 
+def _seed(flag: str, value: int | None, count: int = 1) -> int | None:
+    """``--seed`` as a mission's ``seed:`` takes it (0 to 2**63 - 1), with room for ``count`` seeds from it."""
+    from .schema import SEED_MAX
+
+    if value is not None and not 0 <= value <= SEED_MAX - (count - 1):
+        top = f"{SEED_MAX - (count - 1)} (trial i of {count} runs seed + i)" if count > 1 else f"{SEED_MAX}"
+        raise UsageError(f"{flag} {value}: a seed is a whole number from 0 to {top}")
+    return value
+
+
+def _check_batch_options(args: argparse.Namespace) -> None:
+    """What ``batch`` can refuse before importing the statistics and the backends (seconds of imports):
+    the numbers, the syntax of ``--sweep`` and ``--set``, the mission, and each swept value on it."""
+    from .campaign import CampaignError, parse_sweep
+
+    _positive("--workers", args.workers)
+    if args.resume is not None or args.mission is None or args.trials is None:
+        return  # cmd_batch says what is missing, or --resume checks the campaign's own
+    _positive("--trials", args.trials)
+    _seed("--seed", args.seed, args.trials)
+    _max_time(args.max_time)
+    try:
+        sweep = parse_sweep(args.sweep, args.set)
+    except CampaignError as exc:
+        raise UsageError(str(exc)) from None
+    _load(args.mission, args.set)
+    for key, values in sweep:  # each value once (not the grid): a bad one is named as the --sweep it is
+        for v in values:
+            item = f"{key}={v}"
+            try:
+                _load(args.mission, [*args.set, item])
+            except MissionError as exc:
+                raise MissionError([replace(p, message=p.message.replace(f"--set {item}", f"--sweep {item}"))
+                                    for p in exc.problems]) from None
+
+
 def _load(path: str, overrides: list[str] | None = None):  # type: ignore[no-untyped-def]
     from .loader import load_mission
 
     return load_mission(path, overrides)
 
 
-def cmd_run(args: argparse.Namespace) -> int:
-    from .runtime import Progress, print_progress, run_mission
+def _check_display(gui: bool) -> None:
+    """``--gui`` opens an X11 window on Linux: without a display PyBullet dies in C, after the run started."""
+    import os
 
-    path = args.mission or str(default_mission())
+    if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+        raise UsageError("--gui: no display (DISPLAY is not set) — run without --gui (headless), or under a "
+                         "display (xvfb-run taskflow run --gui …)")
+
+
+def signal_exit_code(signum: int) -> int:
+    """The exit status of a command a signal stopped after it wrote its record: the shell's ``128 + signum``
+    (130 for Ctrl-C, 143 for SIGTERM), for ``run`` and ``batch`` alike."""
+    return 128 + int(signum)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    import signal
+
+    _seed("--seed", args.seed)  # the options first: no simulator import for a bad number
     max_time = _max_time(args.max_time)
     frames_hz = _frames_hz(args.frames)
+    _check_display(args.gui)
+    from .runtime import INTERRUPTED, TERMINATED, Progress, print_progress, run_mission
+
+    path = args.mission or str(default_mission())
     mission = _load(path, args.set)
     progress = Progress(print_progress) if sys.stderr.isatty() and not args.quiet else None
     control, operator = _operator_options(args, mission)
@@ -105,30 +161,29 @@ def cmd_run(args: argparse.Namespace) -> int:
         from .telemetry import export_run
 
         print(f"telemetry: {export_run(result.run_dir, args.record)}")
-    if s["outcome"] == "aborted" and "interrupted" in s.get("reason", ""):
-        return 130
+    if s["outcome"] == "aborted" and s.get("reason") in (INTERRUPTED, TERMINATED):
+        return signal_exit_code(signal.SIGINT if s["reason"] == INTERRUPTED else signal.SIGTERM)
     return 0 if result.succeeded else 1
 
 
 def _operator_options(args: argparse.Namespace, mission):  # type: ignore[no-untyped-def]
     """The control endpoint (bound now, so a port in use is a usage error) and the operator script of ``run``."""
-    from .control import ControlError, check_script, load_operator_script
+    from .control import ControlError, load_operator_script
     from .control_http import ControlServer
 
-    operator = load_operator_script(args.operator_script, mission) if args.operator_script else None
-    try:
-        check_script(operator or [], live=not args.no_control)
-    except ControlError as exc:
-        raise UsageError(f"--operator-script {args.operator_script}: {exc}") from None
+    operator = (load_operator_script(args.operator_script, mission, live=not args.no_control)
+                if args.operator_script else None)
     if args.no_control:
         if args.view:
             raise UsageError("--view needs the control endpoint: drop --no-control")
         return None, operator
 
-    def announce(url: str, run_dir: Path | None) -> None:
-        print(f"control: {url}  (taskflow ctl {run_dir} state|pause|hold|resume|preempt|inject)", file=sys.stderr)
+    def announce(url: str, run_dir: Path | None, token: str | None) -> None:
+        # the token is printed once: with the page's address, or beside the endpoint's without --view
+        print(f"control: {url}  (taskflow ctl {run_dir} state|pause|hold|resume|preempt|inject"
+              + (")" if args.view else f"; token {token})"), file=sys.stderr)
         if args.view:
-            print(f"view: {url}/  (open it in a browser)", file=sys.stderr)
+            print(f"view: {url}/?token={token}  (open it in a browser)", file=sys.stderr)
 
     try:
         return ControlServer(args.control, announce, view=args.view), operator
@@ -137,9 +192,13 @@ def _operator_options(args: argparse.Namespace, mission):  # type: ignore[no-unt
 
 
 def cmd_ctl(args: argparse.Namespace) -> int:
+    import os
+
     from .control import ControlError
     from .control_http import ControlClient
 
+    if args.token is not None and args.url is None:
+        raise UsageError("--token goes with --url: with RUN_DIR the token is read from RUN_DIR/control.json")
     words = list(args.words)
     try:
         if args.url is None:
@@ -147,7 +206,7 @@ def cmd_ctl(args: argparse.Namespace) -> int:
                 raise UsageError("give the run directory and an action: taskflow ctl RUN_DIR pause (or --url URL pause)")
             client = ControlClient.for_run(words.pop(0))
         else:
-            client = ControlClient(args.url)
+            client = ControlClient(args.url, token=args.token or os.environ.get("TASKFLOW_TOKEN") or None)
         action, rest = words[0] if words else "", words[1:]
         extra: dict[str, str] = {}
         if action == "inject":
@@ -185,12 +244,15 @@ def _print_run(result) -> None:  # type: ignore[no-untyped-def]
 
 
 def cmd_view(args: argparse.Namespace) -> int:
+    if not 0 <= args.port <= 65535:
+        raise UsageError(f"--port {args.port}: a TCP port — valid: 0 to 65535 (0: any free port)")
     from .control import ControlError
     from .view import ViewError
     from .view_http import serve_replay, wait_forever
 
-    def announce(url: str, run_dir: Path | None) -> None:
-        print(f"view: {url}/  (replay of {args.run_dir}; Ctrl-C stops)", file=sys.stderr)
+    def announce(url: str, run_dir: Path | None, token: str | None) -> None:
+        page = f"{url}/?token={token}" if token else f"{url}/"
+        print(f"view: {page}  (replay of {args.run_dir}; Ctrl-C stops)", file=sys.stderr)
 
     try:
         server = serve_replay(args.run_dir, f"{args.host}:{args.port}", announce)
@@ -229,8 +291,9 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 
 def cmd_batch(args: argparse.Namespace) -> int:
+    _check_batch_options(args)
     from .backends import BackendError
-    from .batch import format_table, resume_batch, run_batch
+    from .batch import BatchProgress, BatchStopped, format_table, resume_batch, run_batch
     from .campaign import CampaignError
 
     _positive("--workers", args.workers)
@@ -247,7 +310,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
             if given:
                 raise UsageError(f"--resume {args.resume} runs the campaign as its campaign.json says: drop "
                                  + ", ".join(given))
-            result = resume_batch(args.resume, workers=args.workers, backend=args.backend, address=args.address)
+            result = resume_batch(args.resume, workers=args.workers, backend=args.backend, address=args.address,
+                                  progress=BatchProgress())
         else:
             if args.mission is None:
                 raise UsageError("name a mission file, or --resume DIR to finish a campaign")
@@ -259,11 +323,14 @@ def cmd_batch(args: argparse.Namespace) -> int:
             result = run_batch(args.mission, trials=args.trials, workers=args.workers,
                                seed=0 if args.seed is None else args.seed, overrides=args.set, out=args.out,
                                max_time=max_time, keep_runs=args.keep_runs, sweep=args.sweep,
-                               backend=args.backend, address=args.address)
-    except KeyboardInterrupt as exc:
-        print(f"interrupted: finished trials recorded in {exc}; finish with taskflow batch --resume "
-              f"{Path(str(exc)).parent}", file=sys.stderr)
-        return 130
+                               backend=args.backend, address=args.address, progress=BatchProgress())
+    except BatchStopped as exc:  # a Ctrl-C before the campaign starts is main's plain "interrupted"
+        import signal
+
+        signum = exc.signum
+        print(f"{'terminated' if signum == signal.SIGTERM else 'interrupted'}: finished trials recorded in {exc}; "
+              f"finish with taskflow batch --resume {Path(str(exc)).parent}", file=sys.stderr)
+        return signal_exit_code(signum)
     except (CampaignError, BackendError) as exc:
         raise UsageError(str(exc)) from None
     print(format_table(result))
@@ -299,6 +366,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_teach(args: argparse.Namespace) -> int:
+    _seed("--seed", args.seed)
     mission = _load(args.mission, args.set)
     if not mission.world_cls.teaches:
         print(f"{args.mission}: world {mission.world_cls.name!r} has nothing to teach "
@@ -312,18 +380,27 @@ def cmd_teach(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from .plots import plot_run
-    from .recorded import RunDirError
+    from .recorded import RunDirError, load_run
 
     run_dir = Path(args.run_dir)
     if (run_dir / "campaign.json").is_file() and (run_dir / "batch.json").is_file():
+        from .campaign import CampaignError
         from .campaign_plots import plot_campaign  # a batch directory: the campaign's figures
 
-        for f in plot_campaign(run_dir):
-            print(f)
+        try:
+            for f in plot_campaign(run_dir):
+                print(f)
+        except CampaignError as exc:
+            raise UsageError(str(exc)) from None
         return 0
     try:
-        for f in plot_run(args.run_dir):
+        run = load_run(args.run_dir)  # a folder that is not a run is refused before matplotlib loads
+    except RunDirError as exc:
+        raise UsageError(str(exc)) from None
+    from .plots import plot_recorded
+
+    try:
+        for f in plot_recorded(run):
             print(f)
     except RunDirError as exc:
         raise UsageError(str(exc)) from None
@@ -346,25 +423,44 @@ def cmd_export(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     import yaml
 
-    from .conformance import check_all
+    from .conformance import MAX_STEPS, check_all, no_pair_reason, param_problem
     from .registry import UnknownName
+    from .yamlsrc import MissionLoader
 
+    if not 1 <= args.steps <= MAX_STEPS:
+        raise UsageError(f"--steps {args.steps}: ticks per seeded rollout — valid: 1 to {MAX_STEPS}")
     params: dict[str, dict[str, object]] = {}
+    given: dict[tuple[str, str], str] = {}
     for item in args.param:
         key, sep, value = item.partition("=")
         world, dot, name = key.partition(".")
         if not (sep and dot and world and name):
             raise UsageError(f"--param {item!r}: expected WORLD.KEY=VALUE, e.g. quad_room.perception=geometric")
-        params.setdefault(world, {})[name] = yaml.safe_load(value)
+        try:
+            params.setdefault(world, {})[name] = yaml.load(value, Loader=MissionLoader)  # noqa: S506 - a SafeLoader
+        except yaml.YAMLError:
+            raise UsageError(f"--param {item}: the value is not valid YAML") from None
+        given[(world, name)] = item
     try:
+        for world, values in params.items():
+            bad = param_problem(world, values)
+            if bad is not None:
+                item = given.get((world, bad[0]), next(i for (w, _), i in given.items() if w == world))
+                raise UsageError(f"--param {item}: {bad[1]}" + (f" — {bad[2]}" if bad[2] else ""))
         results = check_all(params, args.world or None, args.robot or None, steps=args.steps)
+        if not results:
+            flags = " ".join([f"--world {w}" for w in args.world] + [f"--robot {r}" for r in args.robot])
+            raise UsageError(f"{flags or 'the registries'}: nothing to check: {no_pair_reason(args.world, args.robot)}")
     except UnknownName as exc:
-        raise UsageError(str(exc)) from None
+        flag = "--world" if exc.kind == "world" else "--robot"
+        if exc.name in params:
+            raise UsageError(f"--param {next(i for (w, _), i in given.items() if w == exc.name)}: {exc}") from None
+        raise UsageError(f"{flag} {exc.name}: {exc}") from None
     for r in results:
         print(r)
     bad = sum(not r.ok for r in results)
     print(f"{len(results) - bad}/{len(results)} world x robot pairings conform")
-    return 1 if bad or not results else 0
+    return 1 if bad else 0
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -452,6 +548,8 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("words", nargs="+", metavar="[RUN_DIR] ACTION [EVENT]",
                    help="the run directory (unless --url), then the action; inject takes the event name")
     o.add_argument("--url", default=None, help="the endpoint's address instead of RUN_DIR/control.json")
+    o.add_argument("--token", default=None, help="with --url: the run's token (default: $TASKFLOW_TOKEN; "
+                   "with RUN_DIR it is read from control.json)")
     o.add_argument("--to", default=None, metavar="STATE_PATH", help="preempt: the state to go to (default: abort the run)")
     o.add_argument("--who", default=_user(), help="who asks (recorded in transitions.jsonl; default: your user name)")
     o.set_defaults(fn=cmd_ctl)

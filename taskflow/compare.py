@@ -6,8 +6,10 @@ swept the same grid; or the single condition of one campaign against each of the
 * mission success: both rates with their Wilson 95 % intervals, Fisher's exact test (two-sided p) and
   the pooled two-proportion z test;
 * item success per foreach loop both campaigns have (screws, waypoints): the same, over items;
-* each numeric final metric both have (or the ones asked for): means with their t 95 % intervals and the
-  two-sided Mann–Whitney U test, which assumes nothing about the errors' distribution.
+* each numeric aggregate both have (or the ones asked for): every numeric final metric of the trials and
+  the run's own numbers :mod:`taskflow.batch` aggregates beside them (``sim_time_s``, from each trial's
+  summary): means with their t 95 % intervals and the two-sided Mann–Whitney U test, which assumes
+  nothing about the errors' distribution.
 
 ``p < alpha`` (0.05) is reported as a difference.  With many metrics some will pass that by chance;
 the table says how many were tested.
@@ -15,31 +17,90 @@ the table says how many were tested.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from .campaign import CampaignError
+from .record_io import RunDirError, SummaryFields, problem, read_json
 from .stats import fisher_exact, mann_whitney, mean_interval, two_proportion_z, wilson_interval
 
 ALPHA = 0.05
 
 
+class _Items(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    attempted: int
+    succeeded: int
+
+
+class _Stats(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    mean: float | None = None
+    n: int = 0
+    ci95: list[float] | None = None
+
+
+class _Aggregate(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    success_rate: float | None = None
+    success_ci95: list[float] | None = None
+    items: dict[str, _Items] = {}
+    metrics: dict[str, _Stats] = {}
+
+
+class _Condition(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    index: int
+    label: str
+    values: dict[str, Any] = {}
+    aggregate: _Aggregate
+
+
+class _Trial(SummaryFields):
+    outcome: str
+    condition: int = 0
+
+
+class BatchFields(BaseModel):
+    """The fields of ``batch.json`` the readers (:func:`compare`, :mod:`taskflow.campaign_plots`) use, with
+    their types: the trials (each a run summary, :class:`~taskflow.record_io.SummaryFields`, with its
+    ``condition``), the aggregate and the conditions with theirs."""
+
+    model_config = ConfigDict(extra="allow", strict=True)
+    mission: str = ""
+    sweep: dict[str, list[Any]] | None = None
+    trials: list[_Trial]
+    aggregate: _Aggregate
+    conditions: list[_Condition] | None = None
+
+
 def load_batch(path: str | Path) -> dict[str, Any]:
-    """``batch.json`` of a batch directory (or the file itself)."""
+    """``batch.json`` of a batch directory (or the file itself), read as untrusted input
+    (:mod:`taskflow.record_io`: inside its folder, bounded, its fields' types checked); a
+    :class:`CampaignError` of one line naming the file and what is wrong otherwise."""
     p = Path(path)
-    f = p / "batch.json" if p.is_dir() else p
-    if not f.is_file():
+    root, name = (p, "batch.json") if p.is_dir() else (p.parent, p.name)
+    if not (root / name).is_file():
         raise CampaignError(f"{path}: {'no such file or directory' if not p.exists() else 'has no batch.json'}")
     try:
-        data = json.loads(f.read_text())
-        data["trials"], data["aggregate"]  # noqa: B018 - the keys every batch.json has
-    except (ValueError, KeyError, TypeError):
-        raise CampaignError(f"{f}: not a batch.json written by taskflow batch") from None
-    if "conditions" not in data:  # written before sweeps: one condition
+        data = read_json(root, name)
+        if not isinstance(data, dict):
+            raise RunDirError(f"{root / name}: a JSON object was expected, got {type(data).__name__}")
+        try:
+            fields = BatchFields.model_validate(data)
+        except ValidationError as exc:
+            raise RunDirError(f"{root / name}: {problem(exc)} — not a batch.json written by taskflow batch") from None
+        for c in fields.conditions or []:
+            if set(c.values) != set(fields.sweep or {}):
+                raise RunDirError(f"{root / name}: condition {c.index} sets {', '.join(sorted(c.values)) or 'nothing'}"
+                                  f" — the keys its sweep names: {', '.join(sorted(fields.sweep or {})) or 'none'}")
+    except RunDirError as exc:
+        raise CampaignError(str(exc)) from None
+    if data.get("conditions") is None:  # written before sweeps: one condition
         data["conditions"] = [{"index": 0, "label": "all", "aggregate": data["aggregate"]}]
     return dict(data)
 
@@ -59,10 +120,26 @@ def _trials(batch: dict[str, Any], condition: dict[str, Any]) -> list[dict[str, 
     return [t for t in batch["trials"] if t.get("condition", 0) == condition["index"]]
 
 
+RUN_NUMBERS = ("sim_time_s",)
+"""The numbers of a trial's summary itself (not of its ``metrics``) that :func:`taskflow.batch.aggregate`
+aggregates, and so that a comparison compares."""
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _value(trial: dict[str, Any], metric: str) -> Any:
+    """A trial's value of ``metric``: its final metric of that name, else its summary's own number."""
+    metrics = trial.get("metrics", {})
+    if metric in metrics:
+        return metrics[metric]
+    return trial.get(metric) if metric in RUN_NUMBERS else None
+
+
 def _values(trials: list[dict[str, Any]], metric: str) -> np.ndarray:
-    vals = [t.get("metrics", {}).get(metric) for t in trials]
-    return np.array([v for v in vals if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)],
-                    dtype=float)
+    vals = [_value(t, metric) for t in trials]
+    return np.array([v for v in vals if _number(v)], dtype=float)
 
 
 def _proportions(k1: int, n1: int, k2: int, n2: int) -> dict[str, Any]:
@@ -74,8 +151,9 @@ def _proportions(k1: int, n1: int, k2: int, n2: int) -> dict[str, Any]:
 
 
 def _metric_names(trials: list[dict[str, Any]]) -> set[str]:
-    return {k for t in trials for k, v in t.get("metrics", {}).items()
-            if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    """Every numeric final metric of the trials and every :data:`RUN_NUMBERS` entry a trial has."""
+    return {k for t in trials for k, v in [*t.get("metrics", {}).items(), *((n, t.get(n)) for n in RUN_NUMBERS)]
+            if _number(v)}
 
 
 def compare(a: dict[str, Any], b: dict[str, Any], metrics: list[str] | None = None) -> list[dict[str, Any]]:

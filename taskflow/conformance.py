@@ -27,8 +27,11 @@ from typing import Any, Mapping
 import numpy as np
 
 from .api import Observation, ObsSpec, Robot, World
-from .contracts import hosts, provided
+from .contracts import hosts, provided, world_problem
 from .registry import ROBOTS, WORLDS, RegistryError
+
+MAX_STEPS = 10_000
+"""Ticks a seeded rollout of ``taskflow check`` may take (a conformance check is a short rollout)."""
 
 
 @dataclass
@@ -190,3 +193,32 @@ def check_all(params: Mapping[str, Mapping[str, Any]] | None = None, worlds: lis
     except RegistryError as exc:
         return [PairResult("(registry)", "", [str(exc)])]
     return [check_pair(w, r, params.get(w.name), **kw) for w, r in todo]
+
+
+def param_problem(world: str, values: Mapping[str, Any]) -> tuple[str, str, str] | None:
+    """``(key, message, hint)`` of the first of ``values`` that world ``world``'s parameters refuse (None: they
+    take them all); an unknown world raises :class:`~taskflow.registry.UnknownName`."""
+    from pydantic import ValidationError
+
+    from .diagnostics import pydantic_problems
+    from .yamlsrc import SourceMap
+
+    params = WORLDS.get(world).Params
+    try:
+        params.model_validate(dict(values))
+    except ValidationError as exc:
+        key = str(exc.errors()[0]["loc"][0]) if exc.errors() and exc.errors()[0]["loc"] else ""
+        p = pydantic_problems(exc, SourceMap("--param"), (), params)[0]
+        return key, p.message, p.hint
+    return None
+
+
+def no_pair_reason(worlds: list[str], robots: list[str]) -> str:
+    """Why no pairing of ``worlds`` x ``robots`` (registered names; empty: every one) is checked: what keeps
+    the first world from hosting the first robot, and where that robot can go."""
+    for wname in worlds or WORLDS.names():
+        for rname in robots or ROBOTS.names():
+            why = world_problem(WORLDS.get(wname), ROBOTS.get(rname))
+            if why is not None:
+                return f"{why[0]} — {why[1]}"
+    return "no registered world hosts a registered robot"

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pydantic import BaseModel
 
 from .api import ObsSpec, Robot, Task, World
-from .registry import BODIES, ROBOTS, TASKS, RegistryError
+from .registry import BODIES, ROBOTS, TASKS, WORLDS, RegistryError
 
 Problem = tuple[str, str]
 
@@ -49,22 +49,37 @@ def hosts(world: type[World], robot: type[Robot]) -> bool:
 
 
 def world_problem(world: type[World], robot: type[Robot], hint: bool = True) -> Problem | None:
-    """Why ``world`` cannot host ``robot`` (None: it can)."""
+    """Why ``world`` cannot host ``robot`` (None: it can); the hint names the worlds that do host it, then
+    what would make this one host it."""
+    why = _unhosted(world, robot)
+    if why is None or not hint:
+        return None if why is None else (why, "")
+    needs = world.needs
+    if needs.interfaces and robot.command_interface not in needs.interfaces:
+        fix = f"robots it can host: {', '.join(_names_where(ROBOTS, lambda r: hosts(world, r))) or '(none)'}"
+    elif any(robot.sensors.get(m) != k for m, k in needs.sensors.items()):
+        fix = f"the robot carries: {', '.join(f'{m} ({k})' for m, k in robot.sensors.items()) or 'none'}"
+    else:
+        fix = (f"or register a body under the entry point group 'taskflow.bodies' named {robot.name!r} "
+               f"(robots with a body: {', '.join(BODIES.names()) or '(none)'})")
+    elsewhere = _names_where(WORLDS, lambda w: hosts(w, robot))
+    return why, f"worlds that host it: {', '.join(elsewhere) or '(none)'}; {fix}"
+
+
+def _unhosted(world: type[World], robot: type[Robot]) -> str | None:
+    """The reason ``world`` cannot host ``robot``, without hints (None: it can)."""
     needs = world.needs
     if needs.interfaces and robot.command_interface not in needs.interfaces:
         return (f"world {world.name!r} cannot host robot {robot.name!r}: it actuates "
-                f"{', '.join(needs.interfaces)} commands, the robot takes {interface_label(robot)}",
-                f"robots it can host: {', '.join(_names_where(ROBOTS, lambda r: hosts(world, r)))}" if hint else "")
+                f"{', '.join(needs.interfaces)} commands, the robot takes {interface_label(robot)}")
     missing = {m: k for m, k in needs.sensors.items() if robot.sensors.get(m) != k}
     if missing:
         want = ", ".join(f"{m} ({k})" for m, k in missing.items())
-        has = ", ".join(f"{m} ({k})" for m, k in robot.sensors.items()) or "none"
         return (f"world {world.name!r} cannot host robot {robot.name!r}: it renders sensors {want} the robot "
-                f"does not carry", f"the robot carries: {has}")
+                f"does not carry")
     if needs.body and robot.name not in BODIES:
-        return (f"world {world.name!r} cannot host robot {robot.name!r}: the robot has no simulator body",
-                f"register one under the entry point group 'taskflow.bodies' named {robot.name!r}; "
-                f"robots with a body: {', '.join(BODIES.names()) or '(none)'}")
+        return (f"world {world.name!r} cannot host robot {robot.name!r}: it simulates the bodies registered "
+                "under 'taskflow.bodies', and the robot has none")
     return None
 
 

@@ -54,7 +54,7 @@ class OperatorAction(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    t: float = Field(default=0.0, ge=0.0)
+    t: float = Field(default=0.0, ge=0.0, allow_inf_nan=False)
     action: Literal["pause", "hold", "resume", "preempt", "inject"]
     args: dict[str, str] = Field(default_factory=dict)
     who: str = Field(default="operator", min_length=1)
@@ -88,38 +88,81 @@ def check_action(action: OperatorAction, mission: CompiledMission) -> None:
                            "and tasks) — " + describe_choices(event, sorted(mission.events)))
 
 
+def unended_pause(script: Sequence[OperatorAction]) -> int | None:
+    """The index in ``script`` of a pause that no later action (in sim-time order, as the channel applies
+    them) resumes, holds or pre-empts; None if every pause is ended."""
+    order = sorted(range(len(script)), key=lambda i: script[i].t)  # stable: equal times keep their order
+    for n, i in enumerate(order):
+        if script[i].action == "pause" and not any(script[j].action in ("resume", "hold", "preempt")
+                                                   for j in order[n + 1:]):
+            return i
+    return None
+
+
+def _never_resumed(a: OperatorAction) -> str:
+    return (f"pause at t={a.t:g} s is never resumed, held or pre-empted and no control endpoint is open — the run "
+            "would wait for ever")
+
+
 def check_script(script: Sequence[OperatorAction], live: bool) -> None:
     """Without a live endpoint (``live=False``) a scripted pause must be ended by the script itself."""
-    if live:
-        return
-    for i, a in enumerate(script):
-        if a.action == "pause" and not any(b.action in ("resume", "hold", "preempt") for b in script[i + 1:]):
-            raise ControlError(f"operator script item {i}: pause at t={a.t:g} s is never resumed, held or pre-empted "
-                               "and no control endpoint is open — the run would wait for ever")
+    i = None if live else unended_pause(script)
+    if i is not None:
+        raise ControlError(f"operator script item {i}: {_never_resumed(script[i])}")
 
 
-def load_operator_script(path: str | Path, mission: CompiledMission) -> list[OperatorAction]:
+# what each field of a script item holds, for the messages about a bad one
+_FIELD_HINTS = {
+    "t": "t is the sim time in seconds from which the action applies: a finite number >= 0",
+    "args": "args: {to: STATE_PATH} for preempt (none: abort the run), {event: EVENT} for inject, none otherwise",
+    "who": "who: a non-empty name, recorded with the action",
+}
+
+
+def load_operator_script(path: str | Path, mission: CompiledMission, live: bool = True) -> list[OperatorAction]:
     """Read an operator script file (YAML, a list of ``{t, action, args, who}``) and check it against
-    ``mission``; every problem is a :class:`~taskflow.errors.MissionError` with ``FILE:LINE:COL``."""
-    from .diagnostics import pydantic_problems
+    ``mission`` (and, with ``live=False``, that every pause is ended by the script); every problem is a
+    :class:`~taskflow.errors.MissionError` with the script's ``FILE:LINE:COL``."""
+    from dataclasses import replace
+
+    from .diagnostics import clean_loc, pydantic_problems
     from .yamlsrc import load_yaml_file
 
-    data, smap, _ = load_yaml_file(path)
+    example = "write a list of actions, e.g. - {t: 2.0, action: pause, who: me}"
+    try:
+        data, smap, _ = load_yaml_file(path)
+    except MissionError as exc:  # the reader's message for an empty file speaks of missions
+        raise MissionError([replace(p, message="the operator script is empty", hint=example)
+                            if p.message == "the file is empty" else p for p in exc.problems]) from None
     if not isinstance(data, list):
         raise MissionError([smap.problem((), f"an operator script is a list of actions, got {type(data).__name__}",
-                                         "write - {t: 2.0, action: pause, who: me}")])
+                                         example)])
     try:
         script = _SCRIPT.validate_python(data)
     except ValidationError as exc:
-        raise MissionError(pydantic_problems(exc, smap, (), OperatorAction)) from None
+        found = pydantic_problems(exc, smap, (), OperatorAction)
+        hints: dict[tuple[int, int], str] = {}
+        for err in exc.errors():
+            loc = clean_loc(tuple(err["loc"]))
+            if len(loc) >= 2 and loc[1] in _FIELD_HINTS:
+                hints.setdefault(smap.where(loc), _FIELD_HINTS[str(loc[1])])
+            elif len(loc) == 1:  # the item as a whole: not a mapping, or its args do not fit its action
+                hints.setdefault(smap.where(loc), "an item is {t, action, args, who}, args {to: STATE_PATH} for "
+                                 "preempt, {event: EVENT} for inject (this mission's events: "
+                                 f"{', '.join(sorted(mission.events)) or 'none'}), none for pause, hold, resume")
+        raise MissionError([p if p.hint else replace(p, hint=hints.get((p.line, p.col), "")) for p in found]) from None
     problems: list[Problem] = []
     for i, a in enumerate(script):
         try:
             check_action(a, mission)
         except ControlError as exc:
-            problems.append(smap.problem((i, "args"), str(exc)))
+            key = "to" if a.action == "preempt" else "event"
+            problems.append(smap.problem((i, "args", key), str(exc)))
     if problems:
         raise MissionError(problems)
+    i = None if live else unended_pause(script)
+    if i is not None:
+        raise MissionError([smap.problem((i, "action"), _never_resumed(script[i]))])
     return script
 
 

@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from typing import Any, Iterator, MutableMapping
 
 import numpy as np
 
-from .api import MemoryKey, Task
+from .api import FLAG, MemoryKey, Metric, Task
 from .guards import DATA_PREFIX  # what a guard writes before a key's name (data.viki.object[0]); $data. in a parameter
 from .records import clean_floats
 from .specs import ObsSpec
@@ -106,6 +107,10 @@ def json_value(value: Any) -> Any:
 def from_yaml(spec: ObsSpec, value: Any) -> Any:
     """A value written in a mission (``data:``) as a key of ``spec`` holds it; raises ValueError saying
     what the key takes."""
+    bad = _not_finite_or_bool(value) if spec.kind in ("array", "scalar") else not_finite(value)
+    if bad is not None:
+        raise ValueError(f"holds {bad!r}: a value of the mission's data must be a finite number"
+                         f"{' (not true/false)' if isinstance(bad, bool) else ''}; it takes {spec}")
     if spec.kind == "array":
         try:
             out: Any = np.asarray(value, dtype=np.float64)
@@ -121,6 +126,30 @@ def from_yaml(spec: ObsSpec, value: Any) -> Any:
     if problem is not None:
         raise ValueError(f"{problem}; it takes {spec}")
     return out
+
+
+def _numbers(value: Any) -> Iterator[Any]:
+    """Every scalar inside ``value`` (lists, tuples and mapping values, walked without recursion)."""
+    todo = [value]
+    while todo:
+        v = todo.pop()
+        if isinstance(v, dict):
+            todo.extend(reversed(list(v.values())))
+        elif isinstance(v, (list, tuple)):
+            todo.extend(reversed(v))
+        else:
+            yield v
+
+
+def not_finite(value: Any) -> Any:
+    """The first NaN or infinite number inside ``value`` (None: there is none)."""
+    return next((v for v in _numbers(value) if isinstance(v, float) and not math.isfinite(v)), None)
+
+
+def _not_finite_or_bool(value: Any) -> Any:
+    """As :func:`not_finite`, and a boolean where a number belongs (``[true, false]`` is no array)."""
+    return next((v for v in _numbers(value) if isinstance(v, bool) or (isinstance(v, float) and not math.isfinite(v))),
+                None)
 
 
 def guard_names(key: MemoryKey[Any]) -> list[str]:
@@ -154,8 +183,10 @@ class DataCatalogue:
         return {k: copy.deepcopy(v) for k, v in self.defaults.items()}
 
     def guard_units(self) -> dict[str, str]:
-        """Every ``data.…`` name a guard may read → the unit of its key."""
-        return {n: key.unit for key in self.keys.values() for n in guard_names(key)}
+        """Every ``data.…`` name a guard may read → the unit of its key (a flag key's is
+        :data:`taskflow.api.FLAG`: a guard reads it as 1 or 0, so ``data.KEY > 1`` can never hold)."""
+        return {n: FLAG if key.spec.kind == "flag" and not isinstance(key.unit, Metric) else key.unit
+                for key in self.keys.values() for n in guard_names(key)}
 
     def samples(self) -> dict[str, Any]:
         """Key name → a value of its type in JSON form (its default when it has one), for load-time checks

@@ -60,12 +60,32 @@ def pydantic_problems(exc: ValidationError, smap: SourceMap, base: YPath, model:
         elif etype in ("bool_type", "bool_parsing"):
             msg = f"{err.get('input')!r}: {msg[0].lower()}{msg[1:]}"
             hint = "write true or false (YAML 1.2: yes/no/on/off are strings)"
+        elif etype in _BOUND_ERRORS and model is not None:
+            hint = _bound_reason(model, loc)  # the field's description says what it can be and why
         key = (path, msg)
         if key in seen:
             continue
         seen.add(key)
         problems.append(smap.problem(path, msg, hint))
     return dedupe(problems)
+
+
+_BOUND_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+
+
+def _bound_reason(model: type[BaseModel], loc: tuple[Any, ...]) -> str:
+    """``NAME: its description`` of the field at ``loc`` in ``model`` (the bounds' reason), or empty."""
+    current: Any = model
+    info = None
+    for part in loc:
+        fields = getattr(current, "model_fields", None)
+        if isinstance(part, int) or fields is None:
+            continue
+        info = fields.get(part)
+        if info is None:
+            return ""
+        current = _inner_model(info.annotation)
+    return f"{loc[-1]}: {' '.join(info.description.split())}" if info is not None and info.description else ""
 
 
 def dedupe(problems: list[Problem]) -> list[Problem]:

@@ -24,10 +24,18 @@ class Problem:
 
 
 class MissionError(Exception):
-    """A mission file that cannot be run; carries every :class:`Problem` found."""
+    """A mission file that cannot be run; carries every :class:`Problem` found — once each: a problem in a
+    sub-mission file used several times (one place of that file, reached through several uses) is kept at its
+    first use, so a file used a thousand times through a ladder of uses gives one line, not a thousand."""
 
     def __init__(self, problems: list[Problem]) -> None:
-        self.problems = problems
+        seen: set[tuple[object, ...]] = set()
+        self.problems = []
+        for p in problems:
+            key = (p.file, p.line, p.col) if p.via else (p.file, p.line, p.col, p.message, p.hint)
+            if key not in seen:
+                seen.add(key)
+                self.problems.append(p)
         super().__init__("\n".join(str(p) for p in problems))
 
     @property

@@ -120,19 +120,70 @@ class FrameRecorder:
             self._index = None
 
 
-def read_frames(run_dir: str | Path) -> list[FrameRecord]:
-    """The frames a run recorded, in the order written (empty when it recorded none)."""
-    path = Path(run_dir) / INDEX
-    if not path.is_file():
+_FIELDS: dict[str, tuple[type, ...]] = {"t": (int, float), "tick": (int,), "sensor": (str,), "stamp": (int, float),
+                                       "frame": (str,), "width": (int,), "height": (int,), "file": (str,)}
+
+
+def frame_from_dict(d: Any, run_dir: Path) -> FrameRecord:
+    """One line of ``frames.jsonl`` (parsed JSON) as its :class:`FrameRecord`; :class:`ValueError` when a
+    field is missing or of another type, or ``file`` is not a file inside ``run_dir``
+    (:func:`taskflow.record_io.inside`)."""
+    from .record_io import RunDirError, inside
+
+    if not isinstance(d, dict):
+        raise ValueError(f"a JSON object was expected, got {type(d).__name__}")
+    for key, types in _FIELDS.items():
+        v = d.get(key)
+        if key not in d or isinstance(v, bool) or not isinstance(v, types):
+            raise ValueError(f"{key!r} is {type(v).__name__ if key in d else 'missing'} — "
+                             f"{'a number' if float in types else types[0].__name__} was expected")
+    extra = sorted(set(d) - set(_FIELDS))
+    if extra:
+        raise ValueError(f"unknown field {extra[0][:40]!r} — valid: {', '.join(_FIELDS)}")
+    if not d["file"].endswith(f".{FORMAT}"):
+        raise ValueError(f"file {d['file'][:60]!r} — a frame is a .{FORMAT} file (frames/SENSOR/TICK.{FORMAT})")
+    try:
+        inside(run_dir, d["file"])
+    except RunDirError:
+        raise ValueError(f"file {d['file'][:60]!r} leads outside the run directory — a frame is a file inside "
+                         "it (frames/SENSOR/TICK.png)") from None
+    return FrameRecord(**d)
+
+
+def read_frames(run_dir: str | Path, *, offset: int = 0, first_line: int = 1) -> list[FrameRecord]:
+    """The frames a run recorded, in the order written (empty when it recorded none).  Read as untrusted
+    input (:mod:`taskflow.record_io`): a line of another shape, or one whose ``file`` leads outside the
+    run directory, is a :class:`~taskflow.record_io.RunDirError` naming it; a last line cut short by a
+    crash (no newline) is left out."""
+    return [rec for rec, _, _ in frames_from(Path(run_dir), offset=offset, first_line=first_line)]
+
+
+def frames_from(run_dir: Path, *, offset: int = 0, first_line: int = 1) -> list[tuple[FrameRecord, int, int]]:
+    """:func:`read_frames` from byte ``offset``, each record with its line number and the offset after it."""
+    from .record_io import RunDirError, json_line, lines
+
+    if not (run_dir / INDEX).exists() and not (run_dir / INDEX).is_symlink():
         return []
+    where = run_dir / INDEX
     out = []
-    for line in path.read_text().splitlines():
-        if line.strip():
-            try:
-                out.append(FrameRecord(**json.loads(line)))
-            except (ValueError, TypeError):
-                break  # a line cut short by a crash: the frames before it stand
+    for n, text, end in lines(run_dir, INDEX, offset=offset, first_line=first_line, complete_only=True):
+        if not text.strip():
+            continue
+        try:
+            out.append((frame_from_dict(json_line(f"{where}:{n}", text), run_dir), n, end))
+        except RunDirError:
+            raise
+        except ValueError as exc:
+            raise RunDirError(f"{where}:{n}: {exc}") from None
     return out
+
+
+def read_frame(run_dir: Path, rec: FrameRecord) -> bytes:
+    """The bytes of a recorded frame's file: inside ``run_dir``, at most
+    :data:`~taskflow.record_io.MAX_FRAME_BYTES` (:class:`~taskflow.record_io.RunDirError` otherwise)."""
+    from .record_io import MAX_FRAME_BYTES, read_bytes
+
+    return read_bytes(run_dir, rec.file, MAX_FRAME_BYTES)
 
 
 def nearest(frames: list[FrameRecord], sensor: str, t: float | None) -> FrameRecord | None:
@@ -147,4 +198,5 @@ def nearest(frames: list[FrameRecord], sensor: str, t: float | None) -> FrameRec
     return best
 
 
-__all__ = ["DEFAULT_HZ", "FrameRecord", "FrameRecorder", "encode", "images_in", "nearest", "read_frames"]
+__all__ = ["DEFAULT_HZ", "FrameRecord", "FrameRecorder", "encode", "frame_from_dict", "frames_from", "images_in",
+           "nearest", "read_frame", "read_frames"]

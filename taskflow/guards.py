@@ -311,6 +311,28 @@ def bind_units(guard: Guard, metric_units: Mapping[str, str], params: Mapping[st
     return problems
 
 
+def never_holds(c: Comparison, low: float | None, high: float | None) -> bool:
+    """Whether no value of a metric in ``[low, high]`` (None: unbounded) satisfies the bound comparison
+    ``c`` (its value in base units).  ``abs(metric)`` ranges over ``[0, ...]``: ``abs(x) < 0`` never holds
+    whatever the metric's declared range."""
+    if c.value is None:
+        return False
+    if c.absolute:
+        lo_mag = 0.0 if low is None or high is None or low <= 0.0 <= high else min(abs(low), abs(high))
+        hi_mag = None if low is None or high is None else max(abs(low), abs(high))
+        low, high = lo_mag, hi_mag
+    v = float(c.value)
+    below = low is not None and (v <= low if c.op == "<" else v < low)  # only values under low would do
+    above = high is not None and (v >= high if c.op == ">" else v > high)
+    if c.op in ("<", "<="):
+        return below
+    if c.op in (">", ">="):
+        return above
+    if c.op == "==":
+        return (low is not None and v < low) or (high is not None and v > high)
+    return False  # '!=' holds for any other value
+
+
 def _data_comparison(c: Comparison) -> Predicate:
     """A comparison of a mission-data value: a scalar, a flag (1/0) or one component of an array."""
     fn, (key, index), value, absolute = _OPS[c.op], _data_key(c.metric), float(c.value), c.absolute  # type: ignore[arg-type]

@@ -19,6 +19,7 @@ from pydantic import ValidationError
 from .compile import compile_document
 from .diagnostics import pydantic_problems
 from .errors import MissionError, Problem
+from .registry import describe_choices
 from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, Loop, StateNode,  # noqa: F401
                     TimeoutTransition, Transition, UnknownRef, resolve_refs, with_model_defaults)
 from .schema import Mission
@@ -40,20 +41,28 @@ def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap 
     """``--set a.b.0.c=value``: the value is read as YAML by the same safe YAML 1.2 reader as the file
     (``on:`` stays a key, ``1e3`` is a number).
 
-    With ``smap``, each overridden path is remembered so that a problem inside it names the
-    ``--set`` that caused it instead of a line of the file."""
+    A key path may create keys that the file does not have (``world.params.speed`` on a world given by
+    name), but not a state: a path through ``states:`` (or ``regions:``) must name one that exists, so
+    ``machine.states.patroll.x=1`` is refused with "did you mean 'patrol'".  With ``smap``, each
+    overridden path — and each key it created — is remembered, so that a problem inside it names the
+    ``--set`` that caused it instead of a line of the file.  Every message names the ``--set`` as given."""
     data = copy.deepcopy(data)
     for item in overrides:
         key, sep, text = item.partition("=")
+
+        def refuse(message: str, hint: str = "", item: str = item) -> MissionError:
+            return MissionError([Problem(file, 0, 0, f"--set {item}: {message}", hint)])
+
         if not sep or not key:
             raise MissionError([Problem(file, 0, 0, f"--set {item!r} is not KEY=VALUE", "write e.g. --set world.params.speed=0.05")])
         try:
             value = yaml.load(text, Loader=MissionLoader)  # noqa: S506 - MissionLoader is a SafeLoader (YAML 1.2 scalars)
         except yaml.YAMLError as exc:
-            raise MissionError([Problem(file, 0, 0, f"--set {key}: value is not valid YAML ({exc})")]) from None
+            raise refuse(f"value is not valid YAML ({getattr(exc, 'problem', None) or exc})") from None
         node = data
         parts = key.split(".")
         ypath: list[Any] = []
+        created: list[tuple[Any, ...]] = []
         for i, part in enumerate(parts):
             last = i == len(parts) - 1
             if isinstance(node, list):
@@ -66,17 +75,25 @@ def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap 
                         node = node[idx]
                     continue
                 except (ValueError, IndexError):
-                    raise MissionError([Problem(file, 0, 0, f"--set {key}: {part!r} is not an index of a list of {len(node)}")]) from None
+                    raise refuse(f"{part!r} is not an index of a list of {len(node)}") from None
             if not isinstance(node, dict):
-                raise MissionError([Problem(file, 0, 0, f"--set {key}: {'.'.join(parts[:i])} is not a mapping")])
+                raise refuse(f"{'.'.join(parts[:i])} is not a mapping")
             if not last and isinstance(node.get(part), str) and part in ("robot", "world", "task"):
                 node[part] = {"name": node[part]}  # `robot: racecar` → `{name: racecar}` so params can be set
+            if not last and part not in node and ypath and ypath[-1] in ("states", "regions") and "machine" in ypath[:1]:
+                what = "state" if ypath[-1] == "states" else "region"
+                raise refuse(f"no {what} {part!r} in {'.'.join(map(str, ypath))}",
+                             describe_choices(part, [str(k) for k in node]))
             ypath.append(part)
+            if part not in node:
+                created.append(tuple(ypath))
             if last:
                 node[part] = value
             else:
                 node = node.setdefault(part, {})
         if smap is not None:
+            for made in created[:1]:  # the first key it created holds all the others
+                smap.overrides.setdefault(made, item)
             smap.overrides[tuple(ypath)] = item
     return data
 

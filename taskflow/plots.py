@@ -10,8 +10,10 @@
 * ``metrics.png`` — every other published metric with its unit, each guard's threshold on it as a
   horizontal line.
 
-Every time plot marks each transition with a vertical line and the name of the state entered, and the
-states as faint bands; legends sit outside the axes so they never cover data.
+Every time plot marks each transition with a vertical line and the name of the state entered, each
+operator action (``taskflow ctl``, an operator script) with a purple dash-dotted line named at the foot
+of the top panel (``pause, hold (ann)``), and the states as faint bands; legends sit outside the axes
+so they never cover data.
 """
 
 from __future__ import annotations
@@ -82,11 +84,34 @@ def _transition_labels(run: RecordedRun) -> list[tuple[float, str]]:
     return [(t, " → ".join(names)) for t, names in groups]
 
 
+OPERATOR_COLOUR = "purple"
+"""Colour of the operator's actions on the time plots (their lines carry ``gid="operator"``)."""
+
+
+def operator_labels(run: RecordedRun) -> list[tuple[float, str]]:
+    """(t, text) per tick at which operator actions took effect: ``"pause, hold, resume (ann, script)"``,
+    a pre-emption with its target (``"preempt → home (bob)"``), an injection with its event."""
+    groups: dict[float, list[tuple[str, str]]] = {}
+    for op in run.operator:
+        what = {"preempt": f"preempt → {_short(op.args['to'])}" if op.args.get("to") else "preempt (abort)",
+                "inject": f"inject {op.args.get('event', '')}"}.get(op.action, op.action)
+        groups.setdefault(op.t, []).append((what, op.who))
+    return [(t, ", ".join(w for w, _ in acts) + f" ({', '.join(dict.fromkeys(who for _, who in acts))})")
+            for t, acts in groups.items()]
+
+
 def _transition_lines(ax: Any, run: RecordedRun, label: bool) -> None:
-    """A vertical line at each transition; on the top panel (``label``) the states entered are named."""
+    """A vertical line at each transition and operator action; on the top panel (``label``) the states
+    entered are named above it and the operator's actions at its foot."""
     for rec in run.transitions:
         if rec.cause != "start":
             ax.axvline(rec.t, color="black", lw=0.7, ls=":", alpha=0.8)
+    for t, text in operator_labels(run):
+        ax.axvline(t, color=OPERATOR_COLOUR, lw=1.0, ls="-.", alpha=0.9, gid="operator")
+        if label:
+            ax.annotate(text, xy=(t, 0.0), xycoords=("data", "axes fraction"), xytext=(2, 2),
+                        textcoords="offset points", rotation=90, fontsize=6.5, ha="left", va="bottom",
+                        color=OPERATOR_COLOUR, gid="operator")
     if label:
         for t, text in _transition_labels(run):
             ax.annotate(text, xy=(t, 1.0), xycoords=("data", "axes fraction"), xytext=(2, 2),

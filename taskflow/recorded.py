@@ -8,7 +8,6 @@ scene come from the declarations of the code that reads the record, checked as a
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,22 +17,19 @@ import numpy as np
 from pydantic import BaseModel
 
 from .errors import MissionError
+from .frames import FrameRecord, read_frames
 from .guards import Comparison
 from .model import CompiledMission, EventTransition, GuardTransition
-from .records import TransitionRecord, read_trace
+from .record_io import MAX_FRAME_BYTES, RunDirError, check_summary, inside, read_bytes, read_json
+from .records import OperatorRecord, TransitionRecord, read_trace, read_transitions, record_from_dict
 from .scene import Scene, mission_scene
 
-
-class RunDirError(ValueError):
-    """A folder that is not a readable run record (the message says what it is instead)."""
+__all__ = ["RecordedRun", "RunDirError", "Threshold", "load_run", "transition_from_dict"]
 
 
-def transition_from_dict(d: dict[str, Any]) -> TransitionRecord:
-    """One line of ``transitions.jsonl`` as the :class:`~taskflow.records.TransitionRecord` that wrote it."""
-    return TransitionRecord(t=float(d["t"]), source=d["from"], target=d["to"], cause=d["cause"],
-                            state=d.get("state", ""), label=d.get("label", ""), index=d.get("index"),
-                            metrics=d.get("metrics"), event=d.get("event"), outcome=d.get("outcome"),
-                            item=d.get("item"), resumed=bool(d.get("resumed", False)))
+def transition_from_dict(d: dict[str, Any]) -> TransitionRecord | OperatorRecord:
+    """One line of ``transitions.jsonl`` as the record that wrote it (:func:`taskflow.records.record_from_dict`)."""
+    return record_from_dict(d)
 
 
 @dataclass(frozen=True)
@@ -55,7 +51,10 @@ class RecordedRun:
     """Everything one run directory holds, plus what its mission declares.
 
     ``trace`` maps column → array (:func:`~taskflow.records.read_trace`); ``transitions`` are the records of
-    ``transitions.jsonl`` in order; ``summary`` is ``summary.json``; ``mission`` the recompiled mission,
+    ``transitions.jsonl`` in order that change the active leaf (the operator's pre-emptions included),
+    ``operator`` its operator actions (pause, hold, resume, preempt, inject: :class:`OperatorRecord`) in
+    order; ``frames`` the camera frames ``frames.jsonl`` indexes (:mod:`taskflow.frames`, each file
+    inside the run directory); ``summary`` is ``summary.json``; ``mission`` the recompiled mission,
     ``scene`` its markers and control points; ``metric_units`` metric → base unit; ``command_labels``
     trace column ``cmd.KEY[.i]`` → (component name, unit)."""
 
@@ -68,10 +67,13 @@ class RecordedRun:
     scene: Scene
     metric_units: dict[str, str] = field(default_factory=dict)
     command_labels: dict[str, tuple[str, str]] = field(default_factory=dict)
+    operator: list[OperatorRecord] = field(default_factory=list)
+    frames: list[FrameRecord] = field(default_factory=list)
 
     @property
     def seed(self) -> int:
-        return int(self.summary.get("seed", self.mission.spec.seed))
+        seed = self.summary.get("seed")
+        return int(self.mission.spec.seed if seed is None else seed)
 
     def thresholds(self) -> list[Threshold]:
         """Every metric comparison of every ``when`` guard or event condition, with its bound value."""
@@ -133,11 +135,57 @@ def _command_labels(mission: CompiledMission) -> dict[str, tuple[str, str]]:
     return out
 
 
-def _load_mission(run_dir: Path) -> CompiledMission:
-    from .loader import load_mission
+def _uses(node: Any, path: tuple[Any, ...]) -> tuple[Any, ...] | None:
+    """The key path of the first ``use:`` in the machine ``node``, None when it has none."""
+    if isinstance(node, dict):
+        if "use" in node and "states" in path:
+            return (*path, "use")
+        items: Any = node.items()
+    elif isinstance(node, list):
+        items = enumerate(node)
+    else:
+        return None
+    for key, child in items:
+        found = _uses(child, (*path, key))
+        if found is not None:
+            return found
+    return None
 
+
+EXTERNAL_PARAMS = ("_dir", "_file", "_path")
+"""Endings of the world parameters that name a file or folder outside the record (``quad_room``'s
+``keyframe_dir``): the world reads them when it runs, a reader never needs them, so a record's mission
+is compiled with them null — a reader opens nothing a record names outside itself."""
+
+
+def _without_external_files(data: Any) -> None:
+    world = data.get("world") if isinstance(data, dict) else None
+    params = world.get("params") if isinstance(world, dict) else None
+    if isinstance(params, dict):
+        for key in params:
+            if isinstance(key, str) and key.endswith(EXTERNAL_PARAMS):
+                params[key] = None
+
+
+def _load_mission(run_dir: Path) -> CompiledMission:
+    """The run's own ``mission.yaml`` compiled: a plain file inside ``run_dir`` (:func:`inside`), in
+    which every sub-mission is already expanded — a ``use:`` would read a file outside the record, so it
+    is refused (:class:`RunDirError` ``FILE:LINE:COL``), as is a mission this code cannot compile; world
+    parameters naming files (:data:`EXTERNAL_PARAMS`) are read as null."""
+    from .loader import compile_mission
+    from .yamlsrc import load_yaml_file
+
+    path = inside(run_dir, "mission.yaml")
+    read_bytes(run_dir, "mission.yaml", MAX_FRAME_BYTES)  # there, a plain file, not too large
     try:
-        return load_mission(run_dir / "mission.yaml")
+        data, smap, _ = load_yaml_file(path)
+        use = _uses(data.get("machine") if isinstance(data, dict) else None, ("machine",))
+        if use is not None:
+            where = smap.problem(use, "a run record's mission has its sub-missions expanded: this `use:` would "
+                                 "read a file outside the record", "a mission.yaml written by taskflow run")
+            raise RunDirError(str(where))
+        _without_external_files(data)
+        return compile_mission(data, smap, None)
     except MissionError as exc:
         first = str(exc.problems[0]) if exc.problems else str(exc)
         raise RunDirError(f"{run_dir}: its mission.yaml no longer loads ({first}) — the record was written by "
@@ -145,21 +193,21 @@ def _load_mission(run_dir: Path) -> CompiledMission:
 
 
 def load_run(run_dir: str | Path) -> RecordedRun:
-    """Read ``run_dir``; :class:`RunDirError` (one line) when it is not a run record."""
+    """Read ``run_dir``; :class:`RunDirError` (one line) when it is not a run record, or a malformed or
+    hostile one: every file is read inside ``run_dir`` and bounded (:mod:`taskflow.record_io`)."""
     d = Path(run_dir)
     if not (d / "trace.csv").is_file():
         what = ("no such folder" if not d.exists() else
                 "a batch folder: use one of its trial-NNNNN folders (taskflow batch --keep-runs)"
                 if (d / "batch.json").is_file() else "not a run folder (it has no trace.csv)")
         raise RunDirError(f"{d}: {what}")
-    try:
-        summary = json.loads((d / "summary.json").read_text())
-        lines = (d / "transitions.jsonl").read_text().splitlines()
-        transitions = [transition_from_dict(json.loads(line)) for line in lines if line.strip()]
-    except (OSError, ValueError, KeyError) as exc:
-        raise RunDirError(f"{d}: unreadable run record ({type(exc).__name__}: {exc})") from None
+    summary = check_summary(read_json(d, "summary.json"), d / "summary.json")
+    records = [rec for rec, _, _ in read_transitions(d, complete_only=True)]  # a line cut short by a crash: left out
+    trace = read_trace(d)
     mission = _load_mission(d)
-    world_params = mission.world_params(int(summary.get("seed", mission.spec.seed)))
+    seed = summary.get("seed")
+    world_params = mission.world_params(mission.spec.seed if seed is None else seed)
     scene = mission_scene(mission, world_params)
-    return RecordedRun(d, read_trace(d), transitions, summary, mission, world_params, scene,
-                       dict(mission.metric_units), _command_labels(mission))
+    return RecordedRun(d, trace, [r for r in records if isinstance(r, TransitionRecord)], summary, mission,
+                       world_params, scene, dict(mission.metric_units), _command_labels(mission),
+                       [r for r in records if isinstance(r, OperatorRecord)], read_frames(d))

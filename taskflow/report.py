@@ -1,6 +1,7 @@
 """The terminal summary of a run, from its record (:class:`~taskflow.recorded.RecordedRun`).
 
-What it prints, in order: the outcome and its reason; times; ``foreach`` item counts; for a run that
+What it prints, in order: the outcome and its reason; times; ``foreach`` item counts; the operator's
+actions (pause, hold, resume, inject, preempt: who, when, in which state), whatever the outcome; for a run that
 did not succeed, the chain of transitions that led to the final state, each with its cause (the guard
 with the metric values it fired on, the event, the timeout, the sub-machine's outcome); then every metric
 with its unit in two groups, each saying how many it holds (``-``: dimensionless; ``(no unit)``: a
@@ -25,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from .recorded import RecordedRun
-from .records import TransitionRecord
+from .records import OperatorRecord, TransitionRecord
 from .units import suffix_unit
 
 CHAIN_SHOWN = 12
@@ -61,12 +62,21 @@ def describe_transition(rec: TransitionRecord, units: dict[str, str]) -> str:
     elif rec.cause == "done":
         why = f"sub-machine {rec.state} finished '{rec.outcome}'"
         where = ""
+    elif rec.cause == "operator":
+        why = f"pre-empted by {rec.who} (operator)"
     else:
         why = f"{rec.cause} (item {rec.item}, previous item {rec.outcome})"
     values = ""
     if rec.metrics:
         values = " with " + ", ".join(f"{k} = {_value(v)} {units.get(k, '')}".rstrip() for k, v in rec.metrics.items())
     return f"{head}: {why}{where}{values}"
+
+
+def describe_operator(rec: OperatorRecord) -> str:
+    """One line: when, which operator action with its argument, who asked for it, the state active then."""
+    to = rec.args.get("to")
+    arg = {"preempt": f" --to {to}" if to else " (abort)", "inject": f" {rec.args.get('event', '')}"}.get(rec.action, "")
+    return f"t = {rec.t:8.2f} s  {rec.action}{arg} by {rec.who} (tick {rec.tick}, in {rec.state or '-'})"
 
 
 def _last_values(run: RecordedRun) -> list[tuple[str, float, str, float]]:
@@ -83,14 +93,18 @@ def _last_values(run: RecordedRun) -> list[tuple[str, float, str, float]]:
 def format_report(run: RecordedRun, timing: dict[str, Any] | None = None) -> str:
     """The summary printed after ``taskflow run`` (module docstring)."""
     s = run.summary
-    lines = [f"outcome: {s['outcome']} ({s.get('reason', '')})"]
+    lines = [f"outcome: {s.get('outcome', '')} ({s.get('reason', '')})"]
     wall = f"   wall: {timing.get('wall_time_s', 0):.2f} s   RTF: {timing.get('real_time_factor') or 0:.1f}x" if timing else ""
-    lines.append(f"final state: {s['final_state']}   sim time: {s['sim_time_s']:.2f} s{wall}   ticks: {s['ticks']}")
+    lines.append(f"final state: {s.get('final_state', '')}   sim time: {s.get('sim_time_s') or 0.0:.2f} s{wall}   "
+                 f"ticks: {s.get('ticks', 0)}")
     for loop, c in s.get("items", {}).items():
-        lines.append(f"  items of {loop}: {c['succeeded']}/{c['attempted']} succeeded (rule: {c['rule']}, "
-                     f"{c['required']} required)")
+        lines.append(f"  items of {loop}: {c['succeeded']}/{c['attempted']} succeeded (rule: {c.get('rule', '')}, "
+                     f"{c.get('required', 0)} required)")
+    if run.operator:
+        lines.append(f"operator actions ({len(run.operator)}):")
+        lines += [f"  {describe_operator(r)}" for r in run.operator]
     units = run.metric_units
-    if s["outcome"] != "succeeded" and run.transitions:
+    if s.get("outcome") != "succeeded" and run.transitions:
         chain = run.transitions
         lines.append(f"how it got there ({len(chain)} transition{'s' if len(chain) != 1 else ''}):")
         if len(chain) > CHAIN_SHOWN:

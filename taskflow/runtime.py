@@ -47,14 +47,44 @@ OUTCOMES = ("succeeded", "failed", "aborted", "timeout")
 
 @dataclass
 class RunResult:
+    """What one run returns (:func:`run_mission`, and :func:`taskflow.testing.drive` / ``run_on_world``).
+
+    Everything a test asserts on is in ``summary``, the same dict the run writes to ``summary.json``
+    (record or not); the other fields are the outcome again, where the record went, the machine itself
+    and wall-clock figures. ``summary`` holds:
+
+    - ``mission``, ``file`` (the mission file's resolved path), ``seed``;
+    - ``outcome`` (as below), ``reason`` (why, in words), ``final_state`` (the active leaf at the end,
+      parallel leaves joined with ``|``);
+    - ``states_visited`` (every leaf entered, in order), ``time_in_state_s`` (leaf → simulated seconds
+      spent in it), ``sim_time_s`` (simulated time when the outcome was reached), ``ticks``,
+      ``transitions`` (how many fired), ``stopped_at_s`` (simulated time after the safe stop);
+    - ``iterations`` (one dict per ``foreach`` item: ``state``, ``index``, ``item``, ``outcome``,
+      ``t_start``, ``t_end``, ``ground_truth`` when it ended) and ``items`` (foreach state → ``attempted``,
+      ``succeeded``, ``failed``, ``success_rate``, ``required``, ``rule``);
+    - ``metrics`` (the last value of every metric published on the last tick, then the world's
+      ``summary_metrics()``: ground truth such as ``gt_x_m``, ``final_error_m``), ``outputs`` (the final
+      mission data the mission declares as outputs), ``versions`` (the packages the run used).
+    """
+
+    #: ``"succeeded"``, ``"failed"``, ``"timeout"`` (``max_time`` reached) or ``"aborted"`` (an error,
+    #: Ctrl-C, SIGTERM, an operator's abort); the same as ``summary["outcome"]``
     outcome: str
+    #: the run's summary, as written to ``summary.json`` (see above)
     summary: dict[str, Any]
+    #: the run directory with trace.csv, transitions.jsonl, summary.json, mission.yaml, timing.json;
+    #: None when nothing was recorded (``drive`` and ``run_on_world`` record only with ``out_dir``)
     run_dir: Path | None
-    executor: Executor | None  # None when the run could not start (its world could not be built)
-    timing: dict[str, Any]  # wall-clock figures (timing.json): never part of the summary
+    #: the machine after the run: ``state``, ``path``, ``memory`` (mission data), ``transitions_fired``,
+    #: ``iterations``; None when the run could not start (its world could not be built)
+    executor: Executor | None
+    #: wall-clock figures (what timing.json holds: real-time factor, per-tick and per-part costs); never
+    #: part of the summary, and empty when the run could not start
+    timing: dict[str, Any]
 
     @property
     def succeeded(self) -> bool:
+        """Whether ``outcome`` is ``"succeeded"``."""
         return self.outcome == "succeeded"
 
 
@@ -149,7 +179,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
         gt_keys = world.ground_truth_keys if world is not None else mission.world_cls.ground_truth_keys
         recorder = RunRecorder(run_dir, sorted(mission.metric_units), robot.command_keys, gt_keys)
     frames = FrameRecorder(recorder.dir, frames_hz) if recorder is not None and frames_hz else None
-    summary: dict[str, Any] = {"mission": mission.name, "file": mission.file, "seed": seed, "outcome": "aborted",
+    summary: dict[str, Any] = {"mission": mission.name, "file": recorded_file(mission.file), "seed": seed,
+                               "outcome": "aborted",
                                "reason": "run did not finish", "versions": versions()}
     resolved = dict(mission.raw)
     resolved["seed"] = seed
@@ -324,12 +355,19 @@ def _safe_stop(world: World, executor: Executor, recorder: RunRecorder | None, t
     return t
 
 
+def recorded_file(file: str) -> str:
+    """The mission file as a run records it: its resolved absolute path, the same from any working
+    directory (so a seed reproduces ``summary.json`` byte for byte wherever it is run from); a mission
+    loaded from text keeps its placeholder name (``<string>``)."""
+    return file if file.startswith("<") else str(Path(file).resolve())
+
+
 def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: float,
                   metrics: dict[str, Any], ticks: int) -> dict[str, Any]:
     """What a run did, from the mission, the seed and the simulation only (no wall-clock figure)."""
     return clean_floats({
         "mission": mission.name,
-        "file": mission.file,
+        "file": recorded_file(mission.file),
         "seed": seed,
         "outcome": ex.outcome,
         "reason": ex.reason,

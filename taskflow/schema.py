@@ -15,6 +15,8 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictBool, S
 from .units import UnitError, parse_duration, parse_max_time, parse_rate
 
 OUTCOMES = ("succeeded", "failed", "aborted")
+SEED_MAX = 2**63 - 1
+"""The largest seed (``seed:``, ``--seed``): numpy's and the record's 64-bit signed integers."""
 Outcome = Literal["succeeded", "failed", "aborted"]
 
 
@@ -201,7 +203,7 @@ class Mission(_Model):
     robot: str | ComponentRef
     world: str | ComponentRef
     rate_hz: Rate = Field(description="control rate: 20 or '20 Hz'; must divide the world's physics rate")
-    seed: int = Field(0, ge=0, le=2**63 - 1)
+    seed: int = Field(0, ge=0, le=SEED_MAX)
     max_time: MaxTime = Field(600.0, description="simulated time limit (≤ one simulated day); reaching it ends the run "
                                                  "as 'timeout'")
     parameters: dict[str, Any] = Field(default_factory=dict, description="poses, lists of poses, thresholds ...")
@@ -213,6 +215,17 @@ class Mission(_Model):
     data: dict[str, Any] = Field(default_factory=dict, description="mission-data key (declared by a task of the "
                                  "mission, e.g. viki.object) → the value it holds from the start of the run")
     machine: Machine
+
+    @field_validator("parameters", "data", "profiles", "machine", mode="before")
+    @classmethod
+    def _keys_are_names(cls, value: Any) -> Any:
+        """``1: 2`` or ``~: x`` under a block of names: say so (pydantic says "Input should be a valid string")."""
+        if isinstance(value, dict):
+            odd = next((k for k in value if not isinstance(k, str)), None)
+            if odd is not None or None in value:
+                raise ValueError(f"key {'~ (null)' if odd is None else f'{odd!r} ({type(odd).__name__})'} is not a name: "
+                                 "write the name as text (quote it if it looks like a number)")
+        return value
 
 
 def mission_json_schema() -> dict[str, Any]:

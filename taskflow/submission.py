@@ -27,11 +27,16 @@ would hide is an error.  A ``$name`` the used file does not declare is an error 
 spliced region, so a problem inside a used file is reported at that file's line and column, with
 where it was used from (``Problem.via``).  A file that uses itself, directly or through others, is
 refused with the chain.
+
+Bad input is bounded: a ``use:`` path must be relative and resolve inside the folder of the mission given
+to taskflow; expansion stops at the first budget that runs out (:data:`MAX_USE_DEPTH`, :data:`MAX_USE_FILES`,
+:data:`MAX_EXPANDED_STATES`, :data:`MAX_STATE_DEPTH`), with one problem where it ran out.
 """
 
 from __future__ import annotations
 
 import copy
+import itertools
 import re
 from pathlib import Path
 from typing import Any
@@ -43,6 +48,16 @@ from .errors import MissionError, Problem
 from .model import YPath, has_refs
 from .registry import describe_choices
 from .yamlsrc import Graft, SourceMap, load_yaml_file
+
+MAX_USE_DEPTH = 8
+"""Sub-missions nest at most this deep (a mission using a file that uses another: depth 2)."""
+MAX_USE_FILES = 64
+"""At most this many distinct sub-mission files per mission."""
+MAX_EXPANDED_STATES = 2_000
+"""At most this many states spliced in by all the ``use:`` of a mission together (a file used twice counts
+twice): files that each use the next one twice would otherwise double the mission at every level."""
+MAX_STATE_DEPTH = 32
+"""States nest at most this many levels, sub-missions' included (the passes walk the tree recursively)."""
 
 USE_KEYS = ("use", "with")
 """The keys of a using state that this module consumes (the shape check never sees them)."""
@@ -87,6 +102,9 @@ class _Expander:
         self.data, self.smap = data, smap
         self.problems: list[Problem] = []
         self.files: dict[Path, tuple[Any, SourceMap] | MissionError] = {}
+        self.root = (Path(smap.file).resolve().parent if not smap.file.startswith("<") else Path.cwd().resolve())
+        self.spliced = 0  # states spliced in so far (MAX_EXPANDED_STATES)
+        self.stopped = False  # a budget ran out: stop walking (one problem, not thousands)
         params = data.get("parameters")
         self.params: dict[str, Any] = params if isinstance(params, dict) else {}
 
@@ -105,8 +123,20 @@ class _Expander:
         if not isinstance(states, dict):
             return
         for name, state in states.items():
+            if self.stopped:
+                return
             if isinstance(state, dict):
-                self.state(state, ypath + (name,), scope)
+                where = ypath + (name,)
+                if _level(where) > MAX_STATE_DEPTH:
+                    self.stop(where, f"states nest more than {MAX_STATE_DEPTH} levels deep here (sub-missions "
+                              "included)", f"a mission's states may nest at most {MAX_STATE_DEPTH} levels; flatten it")
+                    return
+                self.state(state, where, scope)
+
+    def stop(self, path: YPath, message: str, hint: str) -> None:
+        """A budget ran out at ``path``: report it once and walk no further."""
+        self.err(path, message, hint)
+        self.stopped = True
 
     def state(self, st: dict[str, Any], ypath: YPath, scope: _Scope) -> None:
         self.rename_state(st, ypath, scope)
@@ -186,16 +216,41 @@ class _Expander:
                      "write `with: {param: value}`")
             return
         base = Path(scope.file).parent if not scope.file.startswith("<") else Path.cwd()
+        if Path(target).is_absolute():
+            self.err(ypath + ("use",), f"`use: {target}` is an absolute path",
+                     "write it relative to the using file, inside the mission's folder (e.g. lib/NAME.yaml)")
+            return
         path = (base / target).resolve()
+        if not path.is_relative_to(self.root):
+            self.err(ypath + ("use",), f"`use: {target}` resolves to {path}, outside the mission's folder {self.root}",
+                     "a sub-mission sits in the folder of the mission given to taskflow or below it (e.g. lib/), "
+                     "so that the folder holds everything the mission runs: copy the file there")
+            return
         if path in scope.chain:
             names = [str(p) for p in scope.chain[scope.chain.index(path):]] + [str(path)]
             self.err(ypath + ("use",), f"a cycle of sub-missions: {' → '.join(names)}",
                      "a file may not use itself, directly or through the files it uses")
             return
+        if len(scope.chain) > MAX_USE_DEPTH:
+            self.stop(ypath + ("use",), f"sub-missions nest more than {MAX_USE_DEPTH} deep here "
+                      f"({' → '.join(p.name for p in scope.chain + (path,))})",
+                      f"a mission may nest at most {MAX_USE_DEPTH} levels of `use:`")
+            return
+        if path not in self.files and len(self.files) >= MAX_USE_FILES:
+            self.stop(ypath + ("use",), f"a mission may use at most {MAX_USE_FILES} sub-mission files; this is one more",
+                      "merge some of them")
+            return
         loaded = self.read(path, target, ypath)
         if loaded is None:
             return
         doc, inner_map = loaded
+        self.spliced += _count_states(doc.machine.get("states"))
+        if self.spliced > MAX_EXPANDED_STATES:
+            self.stop(ypath + ("use",), f"the sub-missions used expand to more than {MAX_EXPANDED_STATES} states "
+                      f"(this use brings the total to {self.spliced})",
+                      f"a mission's `use:` may splice in at most {MAX_EXPANDED_STATES} states in all (a file used "
+                      "twice counts twice): use fewer, or smaller, sub-missions")
+            return
         via = self.via(ypath + ("use",))
         env = self.bind_parameters(doc, inner_map, with_ or {}, ypath, scope, via)
         if env is None:
@@ -212,7 +267,7 @@ class _Expander:
                         "with other values", "rename one of them (profiles share one namespace)"), via))
                 elif pname not in mine:
                     mine[pname] = copy.deepcopy(values)
-                    self.smap.grafts.append(Graft(("profiles", kind, pname), inner_map, ("profiles", kind, pname), via))
+                    self.smap.graft(Graft(("profiles", kind, pname), inner_map, ("profiles", kind, pname), via))
         machine = copy.deepcopy(doc.machine)
         if "task" in machine and "task" in st:
             self.err(ypath + ("task",), "both this state and the used machine give a `task`", "keep one")
@@ -220,12 +275,12 @@ class _Expander:
         for key in ("initial", "states", "task"):
             if key in machine:
                 st[key] = machine[key]
-                self.smap.grafts.append(Graft(ypath + (key,), inner_map, ("machine", key), via))
+                self.smap.graft(Graft(ypath + (key,), inner_map, ("machine", key), via))
         if isinstance(machine.get("bind"), dict):
             own = st.get("bind") if isinstance(st.get("bind"), dict) else {}
             for slot in machine["bind"]:
                 if slot not in own:
-                    self.smap.grafts.append(Graft(ypath + ("bind", slot), inner_map, ("machine", "bind", slot), via))
+                    self.smap.graft(Graft(ypath + ("bind", slot), inner_map, ("machine", "bind", slot), via))
             st["bind"] = {**machine["bind"], **own}
         self.smap.uses[ypath] = target
         inner = _Scope(str(path), scope.chain + (path,), env, set(doc.parameters))
@@ -246,8 +301,12 @@ class _Expander:
         if isinstance(got, MissionError):
             first = got.problems[0]
             if first.line == 0:  # the file itself: missing, a directory, unreadable
-                self.err(ypath + ("use",), f"sub-mission {target!r}: {first.message} ({path})",
-                         "the path is relative to the file that uses it")
+                near = (sorted(f.name for f in itertools.islice(path.parent.glob("*.yaml"), 500))
+                        if path.parent.is_dir() else [])  # a few hundred names are enough for a "did you mean"
+                hint = "the path is relative to the file that uses it"
+                if first.message == "no such file" and near:
+                    hint += "; " + describe_choices(path.name, near)
+                self.err(ypath + ("use",), f"sub-mission {target!r}: {first.message} ({path})", hint)
             else:
                 self.problems.extend(_with_via(p, self.via(ypath + ("use",))) for p in got.problems)
             return None
@@ -271,6 +330,12 @@ class _Expander:
         if odd:
             self.problems.append(_with_via(inner_map.problem(
                 ("machine", odd[0]), f"unknown key {odd[0]!r}", describe_choices(odd[0], list(_MACHINE_KEYS))), via))
+            return None
+        deep = _too_deep(doc.machine.get("states"), ("machine", "states"))
+        if deep is not None:
+            self.problems.append(_with_via(inner_map.problem(deep, f"states nest more than {MAX_STATE_DEPTH} levels "
+                                                             "deep here", f"a mission's states may nest at most "
+                                                             f"{MAX_STATE_DEPTH} levels; flatten it"), via))
             return None
         own = _state_names(doc.machine.get("states"))
         for tpath, to in _targets(doc.machine.get("states"), ("machine", "states")):
@@ -324,7 +389,7 @@ class _Expander:
                 ok = False
                 continue
             self.params[scoped] = copy.deepcopy(value)
-            self.smap.grafts.append(Graft(("parameters", scoped), where.smap, where.base, where.via))
+            self.smap.graft(Graft(("parameters", scoped), where.smap, where.base, where.via))
             env[name] = scoped
         return env if ok else None
 
@@ -359,7 +424,13 @@ def expand_uses(data: dict[str, Any], smap: SourceMap) -> dict[str, Any]:
     """``data`` with every ``use:`` resolved into its state tree (a copy; ``data`` is left as it was).
     Grafts and uses are recorded in ``smap``; every problem found is raised together."""
     machine = data.get("machine")
-    if not isinstance(machine, dict) or not _has_use(machine.get("states")):
+    if not isinstance(machine, dict):
+        return data
+    deep = _too_deep(machine.get("states"), ("machine", "states"))
+    if deep is not None:
+        raise MissionError([smap.problem(deep, f"states nest more than {MAX_STATE_DEPTH} levels deep here",
+                                         f"a mission's states may nest at most {MAX_STATE_DEPTH} levels; flatten it")])
+    if not _has_use(machine.get("states")):
         return data
     data = copy.deepcopy(data)
     ex = _Expander(data, smap)
@@ -402,3 +473,31 @@ def _has_use(states: Any) -> bool:
     return isinstance(states, dict) and any(
         isinstance(st, dict) and (any(k in st for k in USE_KEYS) or any(_has_use(sub) for sub, _ in _sub_machines(st, ())))
         for st in states.values())
+
+
+def _level(ypath: YPath) -> int:
+    """How many states deep ``ypath`` (``machine, states, a, states, b`` or ``…regions, r, states, b``) is."""
+    return sum(1 for i in range(2, len(ypath)) if ypath[i - 1] == "states")
+
+
+def _too_deep(states: Any, ypath: YPath) -> YPath | None:
+    """The first state under ``states`` nested more than :data:`MAX_STATE_DEPTH` levels deep (found without
+    recursion, so a document nested hundreds of levels deep gets this answer instead of a ``RecursionError``)."""
+    todo: list[tuple[Any, YPath, int]] = [(states, ypath, 1)]
+    while todo:
+        here, where, level = todo.pop()
+        if not isinstance(here, dict):
+            continue
+        for name, st in here.items():
+            if not isinstance(st, dict):
+                continue
+            if level > MAX_STATE_DEPTH:
+                return where + (name,)
+            todo += [(sub, w, level + 1) for sub, w in _sub_machines(st, where + (name,))]
+    return None
+
+
+def _count_states(states: Any) -> int:
+    """How many states, at any depth, ``states`` holds (depth already bounded by :func:`_too_deep`)."""
+    return sum(1 + sum(_count_states(sub) for sub, _ in _sub_machines(st, ()))
+               for st in (states.values() if isinstance(states, dict) else []) if isinstance(st, dict))

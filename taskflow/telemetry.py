@@ -14,8 +14,12 @@ Topics:
 * ``/metrics``, ``/commands``, ``/ground_truth`` — one flat JSON object per tick (``taskflow.Metrics`` …):
   ``state`` (the active leaf), then one number per metric / command component / ground-truth column
   (null where it has no value); each property's schema ``description`` gives its unit;
-* ``/transitions`` — ``taskflow.Transition``: one message per record of ``transitions.jsonl``, the same
-  fields (``t``, ``from``, ``to``, ``cause``, ``label``, ``metrics`` …);
+* ``/transitions`` — ``taskflow.Transition``: one message per change of the active leaf in
+  ``transitions.jsonl``, the same fields (``t``, ``from``, ``to``, ``cause``, ``label``, ``metrics``,
+  ``who`` of a pre-emption …);
+* ``/operator`` — ``taskflow.OperatorAction``: one message per operator action of ``transitions.jsonl``
+  (:class:`~taskflow.records.OperatorRecord`: ``t``, ``tick``, ``action``, ``who``, ``state``, ``args``),
+  logged at the tick it took effect;
 * ``/scene`` — ``foxglove.SceneUpdate`` at t = 0: the markers of :mod:`taskflow.scene` (goals, waypoints,
   keyframes as spheres; obstacles and walls as line loops);
 * ``/camera/SENSOR`` — ``foxglove.CompressedImage``: the camera frames the run recorded (rendered modes,
@@ -32,8 +36,8 @@ from pathlib import Path
 from typing import IO, Any
 
 
-from .frames import FrameRecord, read_frames
-from .recorded import RecordedRun, load_run
+from .frames import FrameRecord, read_frame
+from .recorded import RecordedRun, RunDirError, load_run
 from .records import clean_floats
 
 FORMATS = ("mcap",)
@@ -75,7 +79,13 @@ TRANSITION_SCHEMA = {
     "properties": {"t": {"type": "number", "description": "s"}, "from": {"type": "string"}, "to": {"type": "string"},
                    "cause": {"type": "string"}, "state": {"type": "string"}, "label": {"type": "string"},
                    "index": {"type": "integer"}, "metrics": {"type": "object"}, "event": {"type": "string"},
-                   "outcome": {"type": "string"}, "item": {"type": "integer"}, "resumed": {"type": "boolean"}}}
+                   "outcome": {"type": "string"}, "item": {"type": "integer"}, "resumed": {"type": "boolean"},
+                   "who": {"type": "string"}}}
+OPERATOR_SCHEMA = {
+    "title": "taskflow.OperatorAction", "type": "object",
+    "properties": {"t": {"type": "number", "description": "s"}, "tick": {"type": "integer"},
+                   "cause": {"type": "string"}, "action": {"type": "string"}, "who": {"type": "string"},
+                   "state": {"type": "string"}, "args": {"type": "object"}}}
 
 _ROLE_COLOUR = {"goal": (0.86, 0.08, 0.24), "waypoint": (0.86, 0.08, 0.24), "keyframe": (1.0, 0.55, 0.0),
                 "object": (0.1, 0.1, 0.1), "start": (0.4, 0.4, 0.4), "obstacle": (0.18, 0.55, 0.34),
@@ -162,7 +172,7 @@ def write_mcap(run: RecordedRun, out: str | Path) -> Path:
     bodies = {b: run.pose_track(b) for b in run.scene.poses}
     tracks = {b: v for b, v in bodies.items() if v is not None}
     cx, cy = run.control_track()
-    frames = read_frames(run.dir)
+    frames = run.frames
     with open(out, "wb") as f:
         mc = _Mcap(f, run)
         mc.channel("/tf", FRAME_TRANSFORM_SCHEMA)
@@ -175,14 +185,18 @@ def write_mcap(run: RecordedRun, out: str | Path) -> Path:
                                              {k: run.command_labels.get(c, ("", ""))[1] for k, c in commands.items()}))
         mc.channel("/ground_truth", _flat_schema("taskflow.GroundTruth", {c[3:]: "" for c in gts}))
         mc.channel("/transitions", TRANSITION_SCHEMA)
+        mc.channel("/operator", OPERATOR_SCHEMA)
         mc.channel("/scene", SCENE_UPDATE_SCHEMA)
         for sensor in dict.fromkeys(fr.sensor for fr in frames):
             mc.channel(f"/camera/{sensor}", COMPRESSED_IMAGE_SCHEMA)
         mc.write("/scene", 0.0, _scene_update(run))
         pending = list(run.transitions)
+        operator = list(run.operator)
         images = list(frames)
         for i in range(t.size):
             ti = float(t[i])
+            while operator and operator[0].t <= ti + 1e-9:
+                mc.write("/operator", operator[0].t, operator.pop(0).as_dict())
             while pending and pending[0].t <= ti + 1e-9:
                 mc.write("/transitions", pending[0].t, clean_floats(pending.pop(0).as_dict()))
             while images and images[0].t <= ti + 1e-9:
@@ -203,6 +217,8 @@ def write_mcap(run: RecordedRun, out: str | Path) -> Path:
             mc.write("/metrics", ti, {"state": state, **{m: _num(tr[f"m.{m}"][i]) for m in metrics}})
             mc.write("/commands", ti, {"state": state, **{k: _num(tr[c][i]) for k, c in commands.items()}})
             mc.write("/ground_truth", ti, {"state": state, **{c[3:]: _num(tr[c][i]) for c in gts}})
+        for op in operator:
+            mc.write("/operator", op.t, op.as_dict())
         for rec in pending:
             mc.write("/transitions", rec.t, clean_floats(rec.as_dict()))
         for fr in images:
@@ -213,7 +229,7 @@ def write_mcap(run: RecordedRun, out: str | Path) -> Path:
 
 def _write_image(mc: _Mcap, run: RecordedRun, fr: FrameRecord) -> None:
     """One recorded frame as ``foxglove.CompressedImage`` on ``/camera/SENSOR`` at its capture time."""
-    data = (run.dir / fr.file).read_bytes()
+    data = read_frame(run.dir, fr)
     mc.write(f"/camera/{fr.sensor}", fr.stamp, {"timestamp": _stamp(fr.stamp), "frame_id": fr.frame,
                                                "data": base64.b64encode(data).decode("ascii"),
                                                "format": Path(fr.file).suffix[1:]})
@@ -224,7 +240,12 @@ def export_run(run_dir: str | Path, fmt: str = "mcap", out: str | Path | None = 
     if fmt not in FORMATS:
         raise ValueError(f"unknown export format {fmt!r} — valid: {', '.join(FORMATS)}")
     run = load_run(run_dir)
-    return write_mcap(run, Path(out) if out is not None else run.dir / f"telemetry.{fmt}")
+    path = Path(out) if out is not None else run.dir / f"telemetry.{fmt}"
+    try:
+        return write_mcap(run, path)
+    except RunDirError:  # a recorded frame refused half-way (record_io): no partial export stays
+        path.unlink(missing_ok=True)
+        raise
 
 
 __all__ = ["FORMATS", "export_run", "write_mcap"]

@@ -9,8 +9,9 @@ Two ways to drive a mission in a test:
 * :func:`run_on_world` — the mission on its real registered world (PyBullet), recording nothing
   unless asked.  Checks the *behaviour*.
 
-Both return a :class:`~taskflow.runtime.RunResult`; assert on it with :func:`assert_path`,
-:func:`assert_outcome` and :func:`time_in` ::
+Both return a :class:`~taskflow.runtime.RunResult` (``outcome``, ``summary`` — the dict of
+``summary.json``, recorded or not —, ``run_dir``, ``executor``, ``timing``; its docstring lists the
+summary's keys); assert on it with :func:`assert_path`, :func:`assert_outcome` and :func:`time_in` ::
 
     from taskflow.testing import Script, drive, assert_path
 
@@ -203,6 +204,7 @@ def _path_diff(got: list[str], expected: list[str]) -> str:
 
 
 def assert_outcome(result: RunResult, outcome: str) -> None:
+    """``result.outcome`` is ``outcome``; otherwise fail with the run's ``reason``."""
     if result.outcome != outcome:
         raise AssertionError(f"outcome {result.outcome!r} ({result.summary.get('reason')}), expected {outcome!r}")
 

@@ -21,20 +21,28 @@ loop — so serving it costs the loop nothing per tick: the routes read ``trace.
 ``GET /view/frame?sensor=S&t=T``  the PNG of camera entry ``S`` captured nearest sim time ``T`` (without
                             ``t``: its latest), its capture time in the header ``X-Frame-Stamp`` (s) and
                             its tick's in ``X-Frame-T``; 404 with ``{error}`` when there is none
+
+The record is untrusted input (it may be a colleague's run or a CI artifact): every route reads files
+only inside the run directory, bounded (:mod:`taskflow.record_io`), and answers a malformed or hostile
+record — a frame whose ``file`` leads outside the folder or is a link out of it, a line too long, a field
+of the wrong type — with 422 and ``{error}``, one line naming the file and line, serving nothing of it.
 """
 
 from __future__ import annotations
 
-import json
+import csv
 import math
 from pathlib import Path
 from typing import Any
 
-from .frames import INDEX as FRAMES_INDEX, FrameRecord, nearest
+from .frames import INDEX as FRAMES_INDEX, FrameRecord, frames_from, nearest, read_frame
 from .guards import Guard, Node
 from .markers import Marker
 from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode,
                     TimeoutTransition, Transition)
+from .record_io import RunDirError, check_summary, lines, read_json
+from .records import (OperatorRecord, TransitionRecord, check_trace_header, parse_trace_row,
+                      read_transitions)
 from .scene import Scene, mission_scene
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
@@ -140,51 +148,64 @@ def machine_json(mission: CompiledMission, scene: Scene, gt_names: list[str]) ->
 # -- the record, read as it is written ------------------------------------------------------------------
 
 
-def _number(text: str) -> float | None:
-    try:
-        x = float(text)
-    except ValueError:
-        return None
-    return x if math.isfinite(x) else None
+def _json_number(x: Any) -> Any:
+    return None if isinstance(x, float) and not math.isfinite(x) else x
 
 
 class RecordReader:
     """Reads a run directory's ``trace.csv``, ``transitions.jsonl`` and ``frames.jsonl`` incrementally: each call reads only
     the complete lines written since the last one (the recorder may be half-way through a line).  Used
-    from the server's one event-loop thread."""
+    from the server's one event-loop thread.
+
+    The record is untrusted input (:mod:`taskflow.record_io`): files are read inside the run directory
+    only, a line at most :data:`~taskflow.record_io.MAX_LINE_BYTES` long, and every line is parsed by
+    the readers' one parse (:func:`taskflow.records.parse_trace_row`,
+    :func:`taskflow.records.record_from_dict`, :func:`taskflow.frames.frame_from_dict`); a malformed or
+    hostile one is a :class:`~taskflow.record_io.RunDirError` naming its file and line (the routes answer
+    it with 422), and is read again, not skipped, on the next call."""
 
     def __init__(self, run_dir: Path) -> None:
         self.dir = Path(run_dir)
         self.columns: list[str] = []
         self.rows: list[list[Any]] = []
-        self.records: list[dict[str, Any]] = []
+        self.records: list[TransitionRecord | OperatorRecord] = []
         self.frames: list[FrameRecord] = []
         self._offsets = {"trace.csv": 0, "transitions.jsonl": 0, FRAMES_INDEX: 0}
+        self._lines = {"trace.csv": 1, "transitions.jsonl": 1, FRAMES_INDEX: 1}
 
-    def _new_lines(self, name: str) -> list[str]:
-        try:
-            with open(self.dir / name, "rb") as f:
-                f.seek(self._offsets[name])
-                data = f.read()
-        except FileNotFoundError:
-            return []
-        end = data.rfind(b"\n") + 1
-        self._offsets[name] += end
-        return data[:end].decode().splitlines()
+    def present(self, name: str) -> bool:
+        """Whether ``name`` is in the run directory (a link counts: reading it decides)."""
+        path = self.dir / name
+        return path.exists() or path.is_symlink()  # a dangling link is read, and refused, by record_io
+
+    def _trace_lines(self) -> None:
+        name = "trace.csv"
+        if not self.present(name):
+            return
+        where = self.dir / name
+        for n, text, end in lines(self.dir, name, offset=self._offsets[name], first_line=self._lines[name],
+                                  complete_only=True):
+            if text:
+                cells = next(csv.reader([text]))
+                if not self.columns:
+                    self.columns = check_trace_header(cells, f"{where}:{n}")
+                else:
+                    self.rows.append([_json_number(x) for x in parse_trace_row(self.columns, cells, f"{where}:{n}")])
+            self._offsets[name], self._lines[name] = end, n + 1
 
     def refresh(self) -> None:
-        lines = self._new_lines("trace.csv")
-        if lines and not self.columns:
-            self.columns = lines.pop(0).split(",")
-        for line in lines:
-            cells = line.split(",")
-            self.rows.append([float(cells[0]), cells[1], cells[2], *map(_number, cells[3:])])
-        for line in self._new_lines("transitions.jsonl"):
-            if line.strip():
-                self.records.append(json.loads(line))
-        for line in self._new_lines(FRAMES_INDEX):
-            if line.strip():
-                self.frames.append(FrameRecord(**json.loads(line)))
+        self._trace_lines()
+        name = "transitions.jsonl"
+        if self.present(name):
+            for rec, n, end in read_transitions(self.dir, offset=self._offsets[name], first_line=self._lines[name],
+                                                complete_only=True):
+                self.records.append(rec)
+                self._offsets[name], self._lines[name] = end, n + 1
+        if self.present(FRAMES_INDEX):
+            for frame, n, end in frames_from(self.dir, offset=self._offsets[FRAMES_INDEX],
+                                             first_line=self._lines[FRAMES_INDEX]):
+                self.frames.append(frame)
+                self._offsets[FRAMES_INDEX], self._lines[FRAMES_INDEX] = end, n + 1
 
     def trace(self, since: int) -> dict[str, Any]:
         self.refresh()
@@ -193,29 +214,30 @@ class RecordReader:
                 "done": since + len(rows) >= len(self.rows)}
 
     def transitions(self, since: int) -> dict[str, Any]:
+        """``transitions.jsonl`` records ``since …`` as their objects (state changes and operator actions)."""
         self.refresh()
-        return {"records": self.records[since:], "next": len(self.records)}
+        return {"records": [r.as_dict() for r in self.records[since:]], "next": len(self.records)}
 
     def frame_records(self, since: int) -> dict[str, Any]:
         self.refresh()
         return {"records": [f.as_dict() for f in self.frames[since:]], "next": len(self.frames)}
 
     def frame(self, sensor: str, t: float | None) -> tuple[FrameRecord, bytes] | None:
-        """The frame of ``sensor`` nearest sim time ``t`` (its latest when None) and its file's bytes."""
+        """The frame of ``sensor`` nearest sim time ``t`` (its latest when None) and its file's bytes; None
+        when the sensor has none; a file outside the run directory or too large is a
+        :class:`~taskflow.record_io.RunDirError` (:func:`taskflow.frames.read_frame`)."""
         self.refresh()
         rec = nearest(self.frames, sensor, t)
         if rec is None:
             return None
-        try:
-            return rec, (self.dir / rec.file).read_bytes()
-        except OSError:
-            return None
+        return rec, read_frame(self.dir, rec)
 
     def summary(self) -> dict[str, Any]:
-        try:
-            return dict(json.loads((self.dir / "summary.json").read_text()))
-        except (OSError, ValueError):
+        """``summary.json`` (empty until it is on disk), its fields checked
+        (:func:`~taskflow.record_io.check_summary`)."""
+        if not self.present("summary.json"):
             return {}
+        return check_summary(read_json(self.dir, "summary.json"), self.dir / "summary.json")
 
     def gt_names(self) -> list[str]:
         """The trace's ground-truth columns (``gt.NAME``); empty until its header is on disk."""
@@ -237,25 +259,31 @@ class RunView:
         first block of rows; until then the ground-truth columns are unknown: ``columns_known`` false).
         The scene is the mission's with the world parameters drawn for the run's seed (its summary's)."""
         if self._machine is None or not self._machine["columns_known"]:
-            seed = int(self.reader.summary().get("seed", self.mission.spec.seed))
+            seed = self.reader.summary().get("seed")
+            seed = self.mission.spec.seed if seed is None else seed
             scene = mission_scene(self.mission, self.mission.world_params(seed))
             self._machine = {**machine_json(self.mission, scene, self.reader.gt_names()),
                              "columns_known": bool(self.reader.columns)}
         return {**self._machine, "live": self.live}
 
     def replay_state(self) -> dict[str, Any]:
-        """``GET /state`` of a replay: the run's end as its summary tells it (nothing runs)."""
-        s = self.reader.summary()
+        """``GET /state`` of a replay: the run's end as its summary tells it (nothing runs); a summary
+        that has turned unreadable gives no outcome and its error as the reason."""
+        try:
+            s = self.reader.summary()
+        except RunDirError as exc:
+            s = {"reason": str(exc)}
         return {"mission": self.mission.name, "state": s.get("final_state", ""), "t": s.get("sim_time_s", 0.0),
                 "tick": s.get("ticks", 0), "paused": False, "held": False, "outcome": s.get("outcome"),
                 "reason": s.get("reason", ""), "running": False, "replay": True}
 
 
 def open_run(run_dir: str | Path) -> RunView:
-    """The view of a finished run directory: its mission is compiled from the record's ``mission.yaml``
-    (else from the file the summary names).  Raises :class:`ViewError` saying what is missing."""
-    from .errors import MissionError
-    from .loader import load_mission
+    """The view of a finished run directory: its mission is compiled from the record's own
+    ``mission.yaml`` (never from a file elsewhere, as the summary's ``file``: the record is untrusted
+    input), and the record is read once whole.  Raises :class:`ViewError` (one line) saying what is
+    missing or what is wrong, with the file and line."""
+    from .recorded import _load_mission
 
     d = Path(run_dir)
     if not d.is_dir():
@@ -264,16 +292,13 @@ def open_run(run_dir: str | Path) -> RunView:
         what = ("a batch folder: view one of its trial-NNNNN folders (taskflow batch --keep-runs)"
                 if (d / "batch.json").is_file() else "not a run folder (it has no trace.csv)")
         raise ViewError(f"{d}: {what}")
-    tried: list[str] = []
-    candidates = [d / "mission.yaml"]
-    file = RecordReader(d).summary().get("file")
-    if file:
-        candidates.append(Path(file))
-    for path in candidates:
-        if not path.is_file():
-            continue
-        try:
-            return RunView(load_mission(path), d, live=False)
-        except MissionError as exc:
-            tried.append(f"{path}: {exc.problems[0] if exc.problems else exc}")
-    raise ViewError(f"{d}: the run's mission does not load ({'; '.join(tried) or 'no mission.yaml'})")
+    try:
+        view = RunView(_load_mission(d), d, live=False)
+        for name in ("summary.json", "transitions.jsonl"):
+            if not view.reader.present(name):
+                raise RunDirError(f"{d / name}: missing — a run record has it")
+        view.reader.refresh()  # the whole record read once: a malformed or hostile one is refused here
+        view.reader.summary()
+    except RunDirError as exc:
+        raise ViewError(str(exc)) from None
+    return view

@@ -12,11 +12,27 @@ import threading
 from pathlib import Path
 from typing import Any, Callable
 
+from .record_io import RunDirError
 from .view import WEB_DIR, RunView, open_run
 
 
+def _refusing_bad_records(endpoint: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    """``endpoint``, answering a malformed or hostile record (:class:`~taskflow.record_io.RunDirError`:
+    a file outside the run folder, a line too long, a field of the wrong type) with 422 ``{error}`` —
+    one line naming the file and line — instead of serving it."""
+    from starlette.responses import JSONResponse
+
+    async def guarded(request: Any) -> Any:
+        try:
+            return await endpoint(request)
+        except RunDirError as exc:
+            return JSONResponse({"error": str(exc)}, status_code=422)
+
+    return guarded
+
+
 def view_routes(view: RunView) -> list[Any]:
-    """The page, its files and the JSON the page polls."""
+    """The page, its files and the JSON the page polls (a bad record: 422, :func:`_refusing_bad_records`)."""
     from starlette.requests import Request
     from starlette.responses import FileResponse, JSONResponse, Response
     from starlette.routing import Mount, Route
@@ -63,18 +79,20 @@ def view_routes(view: RunView) -> list[Any]:
         rec, data = found
         return Response(data, media_type=f"image/{Path(rec.file).suffix[1:]}",
                         headers={"X-Frame-Stamp": repr(rec.stamp), "X-Frame-T": repr(rec.t),
-                                 "Cache-Control": "no-store"})
+                                 "Cache-Control": "no-store", "X-Content-Type-Options": "nosniff"})
 
-    return [Route("/", page), Route("/view/machine", machine), Route("/view/trace", trace),
-            Route("/view/transitions", transitions), Route("/view/summary", summary),
-            Route("/view/frames", frames), Route("/view/frame", frame),
+    guard = _refusing_bad_records
+    return [Route("/", page), Route("/view/machine", guard(machine)), Route("/view/trace", guard(trace)),
+            Route("/view/transitions", guard(transitions)), Route("/view/summary", guard(summary)),
+            Route("/view/frames", guard(frames)), Route("/view/frame", guard(frame)),
             Mount("/web", app=StaticFiles(directory=WEB_DIR), name="web")]
 
 
 def serve_replay(run_dir: str | Path, address: str,
-                 announce: Callable[[str, Path | None], None] | None = None) -> "Any":
+                 announce: Callable[[str, Path | None, str | None], None] | None = None) -> "Any":
     """Start serving the finished run ``run_dir`` on ``address`` (``HOST:PORT``) from a daemon thread and
-    return its :class:`~taskflow.control_http.ControlServer` (``.url``; ``.stop()``).  Raises
+    return its :class:`~taskflow.control_http.ControlServer` (``.url``; ``.token``: None on loopback, else
+    the secret every request must carry; ``.stop()``).  Raises
     :class:`~taskflow.view.ViewError` or :class:`~taskflow.control.ControlError` with the reason."""
     from .control_http import ControlServer
 

@@ -23,6 +23,7 @@ from typing import ClassVar, Mapping, cast
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
 
+from taskflow.api import DISTANCE, SPEED, WRAPPED_ANGLE
 from taskflow.api import (ControlPoint, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext,
                           TaskScene, array, scalar)
 from taskflow.registry import register_task
@@ -70,7 +71,7 @@ class CarGoto(Task[CarGotoParams, CarGeometry]):
 
     Params: ClassVar[type[CarGotoParams]] = CarGotoParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": CarGains}
-    metrics: ClassVar[dict[str, str]] = {"pos_error": "m", "heading_error": "rad", "speed": "m/s"}
+    metrics: ClassVar[dict[str, str]] = {"pos_error": DISTANCE, "heading_error": WRAPPED_ANGLE, "speed": SPEED}
     command_interface: ClassVar[str] = "ackermann"
     robot_params: ClassVar[type[BaseModel]] = CarGeometry
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}

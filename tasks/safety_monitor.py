@@ -19,6 +19,7 @@ from typing import ClassVar
 
 from pydantic import BaseModel
 
+from taskflow.api import AGE, FORCE
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, message
 from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import register_task
@@ -46,7 +47,7 @@ class ContactMonitor(Task[MonitorParams, None]):
     """Watches the wrist F/T sensor and the marker; commands nothing (``command_interface`` empty)."""
 
     Params: ClassVar[type[BaseModel]] = MonitorParams
-    metrics: ClassVar[dict[str, str]] = {"tool_force": "N", "marker_age": "s"}
+    metrics: ClassVar[dict[str, str]] = {"tool_force": FORCE, "marker_age": AGE}
     requires: ClassVar[dict[str, ObsSpec]] = {"sensors.wrench": message(Wrench), "sensors.marker": message(MarkerPose)}
 
     def __init__(self, ctx: TaskContext[MonitorParams, None]) -> None:

@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator
 
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
+from taskflow.api import DISTANCE, FORCE, ROTATION_ANGLE, Metric
 from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, instance,
                           message, scalar, sequence)
 from taskflow.messages import MarkerPose, Wrench
@@ -70,7 +71,8 @@ ODOM_T: MemoryKey[list[float]] = MemoryKey("screw.odom_t", sequence(), unit="s",
                                            doc="odometry history (prediction): times ...")
 ODOM_P: MemoryKey[list[tuple[float, float, float]]] = MemoryKey("screw.odom_p", sequence(), output=False,
                                                                 doc="... and poses (x m, y m, yaw rad)")
-OBJ_SEQ: MemoryKey[int] = MemoryKey("screw.obj_seq", scalar(), doc="the last marker used (prediction)")
+OBJ_SEQ: MemoryKey[int] = MemoryKey("screw.obj_seq", scalar(), unit=Metric("", low=1.0, reason="a marker sequence number"),
+                                   doc="the last marker used (prediction)")
 OBJ_HIST: MemoryKey[list[tuple[float, float, float, float]]] = MemoryKey(
     "screw.obj_hist", sequence(), output=False, doc="(t, x, y, yaw) of the part (prediction)")
 OBJ_FIT: MemoryKey[tuple[float, NDArray[np.float64], NDArray[np.float64]]] = MemoryKey(
@@ -157,7 +159,8 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
     Params: ClassVar[type[BaseModel]] = PlatformParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {
         "platform": PidProfile, "arm": PidProfile, "impedance": ImpedanceProfile, "prediction": Prediction}
-    metrics: ClassVar[dict[str, str]] = {"camera_error.t": "m", "camera_error.r": "rad", "contact_force": "N"}
+    metrics: ClassVar[dict[str, str]] = {"camera_error.t": DISTANCE, "camera_error.r": ROTATION_ANGLE,
+                                         "contact_force": FORCE}
     command_interface: ClassVar[str] = "base_arm"
     robot_params: ClassVar[type[BaseModel]] = MobileIiwaParams
     requires: ClassVar[dict[str, ObsSpec]] = {"state.odom": array(3), "state.q": array(7), "state.q_ref": array(7),
@@ -349,7 +352,8 @@ class PbvsArm(MobilePbvs):
     ``H_bc H_co H*_ot [H_tp]`` (eqs. 21–23; eq. 12 ends it)."""
 
     Params = ArmParams
-    metrics: ClassVar[dict[str, str]] = {**MobilePbvs.metrics, "ee_error.t": "m", "ee_error.r": "rad", "tool_force_z": "N"}
+    metrics: ClassVar[dict[str, str]] = {**MobilePbvs.metrics, "ee_error.t": DISTANCE, "ee_error.r": ROTATION_ANGLE,
+                                         "tool_force_z": "N"}
 
     def _arm_target(self, params: Any) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
         return params.target.matrix(), (params.approach.matrix() if params.approach is not None else None)
@@ -383,7 +387,7 @@ class ArmHome(Task[HomeParams, HomePose]):
     distance to home."""
 
     Params: ClassVar[type[BaseModel]] = HomeParams
-    metrics: ClassVar[dict[str, str]] = {"joint_error": "rad"}
+    metrics: ClassVar[dict[str, str]] = {"joint_error": Metric("rad", low=0.0, reason="the largest |joint angle error|")}
     command_interface: ClassVar[str] = "base_arm"
     robot_params: ClassVar[type[BaseModel]] = HomePose
     requires: ClassVar[dict[str, ObsSpec]] = {"state.q": array(7), "state.q_ref": array(7)}

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 
+from taskflow.api import DISTANCE, SPEED, WRAPPED_ANGLE
 from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, TaskScene, array, scalar
 from taskflow.registry import register_task
 from taskflow.spatial import wrap_angle
@@ -81,7 +82,7 @@ class UnicycleGoto(Task[UnicycleGotoParams, UnicycleLimits]):
 
     Params: ClassVar[type[UnicycleGotoParams]] = UnicycleGotoParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": UnicycleGains}
-    metrics: ClassVar[dict[str, str]] = {"pos_error": "m", "heading_error": "rad", "speed": "m/s"}
+    metrics: ClassVar[dict[str, str]] = {"pos_error": DISTANCE, "heading_error": WRAPPED_ANGLE, "speed": SPEED}
     command_interface: ClassVar[str] = "unicycle"
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}
     robot_params: ClassVar[type[BaseModel]] = UnicycleLimits

@@ -75,6 +75,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from taskflow_robots.racecar import CameraMount
+from taskflow.api import AGE, DISTANCE, FLAG, SPEED, Metric
 from taskflow.api import (ControlPoint, MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext,
                           TaskScene, array, mapping, message)
 from taskflow.messages import Detection
@@ -182,8 +183,9 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
     Params: ClassVar[type[ViKiHyCoParams]] = ViKiHyCoParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": ViKiGains}
     metrics: ClassVar[dict[str, str]] = {
-        "feature_error": "px", "pos_error": "m", "detected": "", "detection_age": "s",
-        "object_x": "m", "object_y": "m", "v_cmd": "m/s", "speed": "m/s", "goal_error": "m", "view_shift": "m",
+        "feature_error": Metric("px", low=0.0, reason="the largest |feature error| component"), "pos_error": DISTANCE,
+        "detected": FLAG, "detection_age": AGE, "object_x": "m", "object_y": "m", "v_cmd": "m/s", "speed": SPEED,
+        "goal_error": DISTANCE, "view_shift": DISTANCE,
         "cam_vx": "m/s", "cam_vy": "m/s", "cam_vz": "m/s", "cam_wx": "rad/s", "cam_wy": "rad/s", "cam_wz": "rad/s",
     }
     events: ClassVar[tuple[str, ...]] = ("no_target",)

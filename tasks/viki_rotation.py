@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 
+from taskflow.api import COUNT, DISTANCE, SPEED, WRAPPED_ANGLE
 from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, TaskScene,
                           array)
 from taskflow.registry import register_task
@@ -111,7 +112,8 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
 
     Params: ClassVar[type[ViKiRotateParams]] = ViKiRotateParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": CarGains}
-    metrics: ClassVar[dict[str, str]] = {"pos_error": "m", "leg": "", "heading_error": "rad", "speed": "m/s"}
+    metrics: ClassVar[dict[str, str]] = {"pos_error": DISTANCE, "leg": COUNT, "heading_error": WRAPPED_ANGLE,
+                                         "speed": SPEED}
     events: ClassVar[tuple[str, ...]] = ("no_target",)
     command_interface: ClassVar[str] = "ackermann"
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3)}

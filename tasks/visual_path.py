@@ -105,6 +105,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
 
 from taskflow_robots.quadcopter import QuadCamera
+from taskflow.api import COUNT, FLAG, WEIGHT, Metric
 from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, instance, message,
                           scalar, sequence)
 from taskflow.messages import FeatureView, Image, Silhouette
@@ -423,21 +424,21 @@ OBSTACLE_MEMORY: MemoryKey[ObstacleMemory] = MemoryKey(
     "visual_path.obstacle", instance(ObstacleMemory), output=False,
     doc="the obstacle the collision task remembers in the body frame until it is behind the drone")
 
-_METRICS = {
-    "epsilon": "px",
+_METRICS: dict[str, str] = {
+    "epsilon": Metric("px", low=0.0, reason="a mean pixel distance"),
     "epsilon_margin": "px",
-    "epsilon_rising": "",
+    "epsilon_rising": Metric("", low=0.0, reason="a count of ticks"),
     "epsilon_progress": "px",
-    "task_error": "",
+    "task_error": Metric("", low=0.0, reason="a norm"),
     "e_a": "",
-    "e_m": "",
-    "h_a": "",
-    "h_m": "",
-    "h_t": "",
-    "n_points": "",
-    "keyframe": "",
-    "last_keyframe": "",
-    "obstacle": "",
+    "e_m": Metric("", low=0.0, reason="a norm"),
+    "h_a": WEIGHT,
+    "h_m": WEIGHT,
+    "h_t": WEIGHT,
+    "n_points": COUNT,
+    "keyframe": Metric("", low=0.0, reason="a keyframe index"),
+    "last_keyframe": FLAG,
+    "obstacle": FLAG,
 }
 
 
@@ -878,7 +879,7 @@ class VisualPathRematch(Task[RematchParams, ForwardCamera]):
     ``min_points`` RANSAC-consistent matches are back."""
 
     Params: ClassVar[type[RematchParams]] = RematchParams
-    metrics: ClassVar[dict[str, str]] = {"n_points": "", "keyframe": ""}
+    metrics: ClassVar[dict[str, str]] = {"n_points": _METRICS["n_points"], "keyframe": _METRICS["keyframe"]}
     events: ClassVar[tuple[str, ...]] = ("features_found",)
     command_interface: ClassVar[str] = "body_velocity"
     robot_params: ClassVar[type[BaseModel]] = ForwardCamera

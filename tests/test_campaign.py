@@ -222,7 +222,8 @@ def test_a_lost_worker_leaves_the_finished_trials_and_the_campaign_resumes(tmp_p
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 1 and "Traceback" not in stderr, stdout + stderr
     assert "a worker process died" in stderr and f"taskflow batch --resume {out}" in stderr
-    assert len(stderr.strip().splitlines()) == 1
+    errors = [line for line in stderr.strip().splitlines() if not line.startswith("batch viki_forward: ")]  # progress
+    assert len(errors) == 1
     partial = json.loads((out / "batch.json").read_text())
     assert partial["interrupted"] is True and 1 <= len(partial["trials"]) < 6
     assert main(["batch", "--resume", str(out), "--workers", "1"]) in (0, 1)

@@ -103,7 +103,7 @@ def test_describe_task_shows_parameters_units_slots_metrics_events(capsys: pytes
                  "state.pose: array[3] (robot husky, robot racecar)",
                  "sensors.detection: Detection? (world viki_ground)",
                  "racecar on viki_ground",
-                 "rate_hz: float, default 15.0, unit Hz, > 0"):  # CameraMount, a type its robot parameters name
+                 "rate_hz: float, default 15.0, unit Hz, ≥ 1, ≤ 90"):  # CameraMount, a type its robot parameters name
         assert f"  {line}" in out.splitlines() or any(line_.startswith(f"  {line}") for line_ in out.splitlines()), line
     # the class docstring sends the reader to the module's, so the description includes it
     assert "Kinematic target (eq. 25's fallback" in out
@@ -130,6 +130,28 @@ def test_describe_robot_shows_command_interface_and_mounts(capsys: pytest.Captur
         assert f"  {line}" in out.splitlines(), line
 
 
+def _task_specs(node: Any) -> list[dict[str, Any]]:
+    """Every ``task: {name: ...}`` in a machine tree."""
+    if isinstance(node, dict):
+        own = [node["task"]] if isinstance(node.get("task"), dict) else []
+        return own + [t for v in node.values() for t in _task_specs(v)]
+    return [t for v in node for t in _task_specs(v)] if isinstance(node, list) else []
+
+
+def test_a_robot_is_driven_only_by_tasks_some_world_that_hosts_it_can_run(capsys: pytest.CaptureFixture[str]) -> None:
+    """``contact_monitor`` reads a wrench that no world hosting the Husky provides: not listed for the Husky."""
+    code, out, _ = _run(capsys, "describe", "husky", "--kind", "robot")
+    assert code == 0
+    lines = out.splitlines()
+    assert "  task unicycle_goto" in lines and "  task contact_monitor" not in lines
+    catalogue = build()
+    for path in sorted((ROOT / "missions").glob("*.yaml")):  # and every task a shipped mission runs is listed
+        doc = load_yaml_file(path)[0]
+        tasks = {t["name"] for t in _task_specs(doc["machine"])}
+        listed = {w.removeprefix("task ") for w in catalogue.find(doc["robot"], "robot").works_with}
+        assert tasks and tasks <= listed, (path.name, tasks - listed)
+
+
 def test_describe_sensor_by_short_name(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = _run(capsys, "describe", "marker")
     assert code == 0
@@ -142,7 +164,7 @@ def test_describe_sensor_by_short_name(capsys: pytest.CaptureFixture[str]) -> No
 def test_describe_markdown_of_one_name(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = _run(capsys, "describe", "car_goto", "--markdown")
     assert code == 0
-    for line in ("### task `car_goto`", "- pos_error: m", "- k1: [float, float], default [2.0, 1.0]"):
+    for line in ("### task `car_goto`", "- pos_error: m, ≥ 0 (a distance)", "- k1: [float, float], default [2.0, 1.0]"):
         assert line in out.splitlines(), line
 
 

@@ -21,7 +21,20 @@ NAMES = ["max-time-nan", "max-time-inf", "max-time-huge", "max-time-negative", "
          "physics-1-hz", "rates-do-not-divide", "rate-with-wrong-unit", "distribution-support",
          "distribution-normal-bounded", "guard-syntax-in-set", "guard-deep-parentheses", "guard-not-chain",
          "device-file", "too-many-states", "history-yes", "quad-start-outside-room", "batch-zero-trials",
-         "batch-zero-workers", "batch-negative-workers", "plot-missing-folder", "plot-batch-folder"]
+         "batch-zero-workers", "batch-negative-workers", "plot-missing-folder", "plot-batch-folder",
+         # the "ops" block: malformed operator scripts
+         "ops-yaml-syntax", "ops-empty", "ops-not-a-list", "ops-unknown-action", "ops-unknown-argument",
+         "ops-argument-not-text", "ops-negative-t", "ops-infinite-t", "ops-preempt-unknown-state",
+         "ops-inject-undeclared-event", "ops-pause-never-resumed",
+         # issue 20, "load"
+         "use-fan-out", "use-depth", "use-huge-file", "states-200-deep", "use-outside-folder", "use-directory",
+         "sweep-not-key-values", "sweep-empty-value", "sweep-bad-value", "sweep-not-a-mapping", "set-unknown-state",
+         "set-creates-a-key", "set-bad-yaml", "run-seed-negative", "run-seed-too-big", "batch-seed-negative",
+         "batch-seed-overflows", "teach-seed-negative", "check-steps-zero", "check-param-typo",
+         "check-param-bad-value", "check-param-unknown-world", "view-port-out-of-range", "check-world-cannot-host",
+         # issue 20, "bounds"
+         "bound-racecar-v-max", "bound-screw-rate", "bound-guard-negative-distance", "bound-viki-camera-rate",
+         "bound-viki-pixel-noise"]
 
 
 def test_the_table_is_the_list_below(table: dict[str, BadInput]) -> None:
@@ -59,3 +72,17 @@ def test_set_reads_values_as_yaml_1_2_like_the_file(capsys: pytest.CaptureFixtur
     assert main(["validate", CAR, "--set", item]) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"{CAR}: --set {item}: unknown event 'stuck'"), err
+
+
+@pytest.mark.parametrize("sweep", ["rate_hz", "rate_hz=20,,40", "rate_hz=20,7", "rate_hz.x=1,2"])
+def test_batch_refuses_a_bad_sweep_before_importing_the_statistics(sweep: str, tmp_path: Path) -> None:
+    """A bad --sweep is answered before scipy and the backends load (main imported them first: 2-8 s)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from taskflow.cli import main; rc = main(sys.argv[1:]); "
+            "print(rc, sorted(m for m in ('scipy', 'taskflow.batch', 'taskflow.backends') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code, "batch", CAR, "--trials", "2", "--sweep", sweep],
+                          capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert done.stdout.strip() == "1 []", (done.stdout, done.stderr)
+    assert len(done.stderr.splitlines()) == 1 and "--sweep" in done.stderr, done.stderr

@@ -222,9 +222,12 @@ def test_an_injected_event_fires_its_transition_at_that_tick(live, tmp_path):
 # -- bad requests ------------------------------------------------------------------------------------------
 
 
-def _post(url: str, body: dict[str, Any], headers: dict[str, str] | None = None) -> tuple[int, dict[str, Any]]:
-    req = urllib.request.Request(url, data=json.dumps(body).encode(), method="POST",
-                                 headers={"Content-Type": "application/json"} if headers is None else headers)
+def _post(url: str, body: dict[str, Any], headers: dict[str, str] | None = None,
+          token: str | None = None) -> tuple[int, dict[str, Any]]:
+    headers = {"Content-Type": "application/json"} if headers is None else headers
+    if token is not None:
+        headers = {**headers, "Authorization": f"Bearer {token}"}
+    req = urllib.request.Request(url, data=json.dumps(body).encode(), method="POST", headers=headers)
     try:
         with urllib.request.urlopen(req, timeout=10) as resp:
             return resp.status, json.loads(resp.read())
@@ -236,23 +239,23 @@ def _post(url: str, body: dict[str, Any], headers: dict[str, str] | None = None)
 def test_unknown_state_or_undeclared_event_is_a_400_and_ctl_exits_non_zero(live, tmp_path, capsys):
     run = toy_run(live, tmp_path)
     run.wait(lambda s: s["paused"])
-    url = run.client.url
-    code, body = _post(url + "/preempt", {"to": "operate.vist", "who": "x"})
+    url, token = run.client.url, run.client.token
+    code, body = _post(url + "/preempt", {"to": "operate.vist", "who": "x"}, token=token)
     assert code == 400 and "no state 'operate.vist'" in body["error"] and "did you mean 'operate.visit'" in body["error"]
-    code, body = _post(url + "/inject", {"event": "operator_confirmed"})
+    code, body = _post(url + "/inject", {"event": "operator_confirmed"}, token=token)
     assert code == 400 and "'operator_confirmed' is not declared" in body["error"]
     assert "valid: arrived, target_found, target_lost, tool_done, tool_failed" in body["error"]
-    code, body = _post(url + "/pause", {"to": "search"})
+    code, body = _post(url + "/pause", {"to": "search"}, token=token)
     assert code == 400 and "unknown argument 'to'" in body["error"]
     # what a page of another origin could send without a CORS preflight, or through DNS rebinding
-    code, body = _post(url + "/preempt", {}, {"Content-Type": "text/plain"})
+    code, body = _post(url + "/preempt", {}, {"Content-Type": "text/plain"}, token=token)
     assert code == 415 and "application/json" in body["error"]
-    code, body = _post(url + "/preempt", {}, {"Content-Type": "application/json", "Host": "evil.example:80"})
+    code, body = _post(url + "/preempt", {}, {"Content-Type": "application/json", "Host": "evil.example:80"}, token=token)
     assert code == 400 and body == {"text": "Invalid host header"}
 
     assert main(["ctl", str(tmp_path / "run"), "inject", "bogus"]) == 1
     assert "inject: event 'bogus' is not declared" in capsys.readouterr().err
-    assert main(["ctl", "--url", url, "preempt", "--to", "nowhere"]) == 1
+    assert main(["ctl", "--url", url, "--token", str(token), "preempt", "--to", "nowhere"]) == 1
     assert "no state 'nowhere'" in capsys.readouterr().err
     assert main(["ctl", str(tmp_path / "run"), "state"]) == 0
     assert json.loads(capsys.readouterr().out)["paused"] is True
@@ -394,12 +397,14 @@ def test_taskflow_run_opens_the_endpoint_by_default_and_ctl_drives_it(tmp_path, 
             if json.loads(seen.out)["paused"]:
                 break
             time.sleep(0.01)
-        assert main(["ctl", "--url", url, "preempt", "--to", "operate.home", "--who", "ivy"]) == 0
+        token = json.loads((out / "control.json").read_text())["token"]
+        assert main(["ctl", "--url", url, "--token", token, "preempt", "--to", "operate.home", "--who", "ivy"]) == 0
     finally:
         thread.join(30)
     assert codes == [0]  # home reached: the run succeeds from the state it was sent to
     captured = capsys.readouterr()
     assert f"control: {url}  (taskflow ctl {out} " in err + captured.err and "outcome: succeeded" in captured.out
+    assert f"; token {token})" in err + captured.err  # printed once, at start
     op = [r for r in operator_records(out) if "from" in r]
     assert op == [{"t": 1.0, "from": "operate.visit.approach", "to": "operate.home", "cause": "operator", "state": "",
                    "label": "preempt --to operate.home", "who": "ivy"}]

@@ -2,8 +2,8 @@
 never imports tasks/ or the framework's machinery (loader, compiler, executor): the plugins see the framework
 only through its public modules (:data:`PUBLIC_API`).
 
-The folders install as ``taskflow_tasks``, ``taskflow_robots`` and ``taskflow_sim`` (pyproject.toml's
-``package-dir``), so a user's own ``tasks`` or ``sim`` package is never shadowed."""
+The folders install as ``taskflow_tasks``, ``taskflow_robots`` and ``taskflow_sim`` (setup.py
+maps them), so a user's own ``tasks`` or ``sim`` package is never shadowed."""
 
 from __future__ import annotations
 

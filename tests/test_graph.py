@@ -1,14 +1,16 @@
-"""Graph output: initial states marked, no stray nodes on cluster borders, top-to-bottom layout with
-wrapped labels, Mermaid labels that render as written."""
+"""Graph output: every diagram accepted by its own parser (Mermaid's, Graphviz's), initial states marked,
+no stray nodes on cluster borders, top-to-bottom layout with wrapped labels, Mermaid labels that render as
+written."""
 
 from __future__ import annotations
 
 import re
-import shutil
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
+from diagram_parsers import ParserMissing, dot_errors, mermaid_errors
 
 from taskflow.graph import WRAP, mermaid_text, start_id, to_dot, to_mermaid
 from taskflow.loader import load_mission
@@ -16,6 +18,125 @@ from taskflow.loader import load_mission
 ROOT = Path(__file__).resolve().parents[1]
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
 REGIONS = Path(__file__).parent / "machine" / "missions" / "toy_regions.yaml"  # drive (owns v), watch
+EVERY_FEATURE = Path(__file__).parent / "graph" / "every_feature.yaml"  # nested regions, history, use:, keywords
+DIAGRAMMED = MISSIONS + sorted((Path(__file__).parent / "machine" / "missions").glob("*.yaml")) + [EVERY_FEATURE]
+"""Every shipped mission and the test missions with regions, nested regions, history, foreach and sub-missions."""
+
+
+def _name(path: Path) -> str:
+    return str(path.relative_to(ROOT))
+
+
+def test_every_mermaid_diagram_is_accepted_by_mermaids_own_parser() -> None:
+    texts = [to_mermaid(load_mission(p)) for p in DIAGRAMMED]
+    t0 = time.perf_counter()
+    errors = mermaid_errors(texts)  # one Node process for all of them
+    took = time.perf_counter() - t0
+    bad = [f"{_name(p)}: {e.splitlines()[0]} {' '.join(e.splitlines()[1:3])}" for p, e in zip(DIAGRAMMED, errors) if e]
+    assert not bad, "\n".join(bad)
+    print(f"Mermaid's parser accepted {len(texts)} diagrams in {took:.2f} s (one node process)")
+
+
+def test_every_dot_diagram_is_accepted_by_graphviz() -> None:
+    bad = [f"{_name(p)}: {e}" for p in DIAGRAMMED if (e := dot_errors(to_dot(load_mission(p))))]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_parsers_reject_what_they_should() -> None:
+    # the check has teeth: Graphviz's lines inside Mermaid (what main drew for regions), a state id that is a
+    # Mermaid keyword, and a label broken over two lines are refused; a broken digraph is refused by dot
+    good = "stateDiagram-v2\n    [*] --> a\n    a --> b : go\n"
+    errors = mermaid_errors([good, good + '    "a" -> "b" [style=invis, weight=0];\n',
+                             "stateDiagram-v2\n    [*] --> note\n    state \"n\" as note\n"])
+    assert errors[0] is None and errors[1] is not None and errors[2] is not None
+    assert "Lexical error" in errors[1] or "Parse error" in errors[1]
+    assert dot_errors('digraph "x" { "a" -> "b" [label="ok"]; }') is None
+    assert dot_errors('digraph "x" { "a" -> [label="no head"]; }') is not None
+
+
+TRICKY_NAMES = ["note", "state", "class", "classDef", "style", "click", "scale", "default", "as", "href",
+                "stateDiagram", "stateDiagram-v2", "Note", "STATE", "end", "direction", "hide", "fork", "ä_größe",
+                "1st", "x-y", "root"]
+"""State names a mission may use (letters, digits, '_', '-') that Mermaid's lexer reads as keywords, or
+that look like syntax."""
+
+
+def test_state_names_that_are_mermaid_keywords_draw_in_both_formats() -> None:
+    from taskflow.loader import load_mission_text
+
+    states = "\n".join(f"    {n}:\n      transitions: [{{to: {nxt}, after: 1 s}}]"
+                       for n, nxt in zip(TRICKY_NAMES, TRICKY_NAMES[1:] + ["fin"]))
+    comp = "\n".join(f"        {n}:\n          transitions: [{{to: {nxt}, after: 1 s}}]"
+                     for n, nxt in zip(TRICKY_NAMES, TRICKY_NAMES[1:] + ["ok"]))
+    text = (f"mission: tricky\nrobot: toy_point\nworld: toy_line\nrate_hz: 20\nmax_time: 30 s\nmachine:\n  initial: {TRICKY_NAMES[0]}\n  states:\n"
+            f"{states}\n    fin:\n      history: true\n      initial: {TRICKY_NAMES[0]}\n"
+            f"      transitions: [{{to: done, done: true}}]\n      states:\n{comp}\n        ok: {{final: true}}\n"
+            "    done: {final: succeeded}\n")
+    m = load_mission_text(text, "tricky.yaml")
+    assert len(m.states) == 2 * len(TRICKY_NAMES) + 3
+    (error,) = mermaid_errors([to_mermaid(m)])
+    assert error is None, error
+    assert dot_errors(to_dot(m)) is None
+
+
+def test_states_whose_ids_would_clash_stay_apart() -> None:
+    from taskflow.loader import load_mission_text
+
+    # `a-b` beside `a_b`, the composite `p`'s child `q` beside a top-level `p__q`, and `note` beside `note_`
+    text = """mission: clash
+robot: toy_point
+world: toy_line
+rate_hz: 20
+max_time: 30 s
+machine:
+  initial: a-b
+  states:
+    a-b: {transitions: [{to: a_b, after: 1 s}]}
+    a_b: {transitions: [{to: p, after: 1 s}]}
+    p:
+      initial: q
+      states:
+        q: {transitions: [{to: r, after: 1 s}]}
+        r: {final: true}
+      transitions: [{to: p__q, done: true}]
+    p__q: {transitions: [{to: note, after: 1 s}]}
+    note: {transitions: [{to: note_, after: 1 s}]}
+    note_: {final: succeeded}
+"""
+    m = load_mission_text(text, "clash.yaml")
+    mer, dot = to_mermaid(m), to_dot(m)
+    declared = re.findall(r'state "[^"]*" as (\S+)', mer)
+    assert len(declared) == len(set(declared)) == len(m.states) == 8
+    assert declared[:2] == ["a_b", "a_b_2"] and "p__q_2" in declared and declared[-2:] == ["note_", "note__2"]
+    assert len(_nodes(dot)) == len(set(_nodes(dot))) == 7 + 2  # 7 leaves, the machine's and p's start nodes
+    assert '"a_b" -> "a_b_2" [label="after 1 s"];' in dot
+    assert mermaid_errors([mer]) == [None] and dot_errors(dot) is None
+
+
+def test_a_missing_parser_is_an_error_that_says_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PATH", "/nonexistent")  # neither node nor dot can be found: fail, never skip
+    with pytest.raises(ParserMissing, match="node is not on PATH: install Node.js"):
+        mermaid_errors(["stateDiagram-v2\n    [*] --> a\n"])
+    with pytest.raises(ParserMissing, match="install graphviz"):
+        dot_errors("digraph x {}")
+
+
+def test_mermaid_ids_that_are_keywords_and_labels_over_several_lines_stay_mermaid() -> None:
+    m = load_mission(EVERY_FEATURE)
+    mer = to_mermaid(m)
+    # states named `note`, `state` and `class` (Mermaid keywords) get a trailing `_`; other ids are the dot ids
+    assert '    state "note" as note_\n' in mer and 'state "state [H]" as state_ {' in mer
+    assert "    note_ --> class_ : on target_lost when visible #lt; 1 and not (visible #gt;= 2)" in mer
+    assert 'state "default [foreach goal in goals] [use lib/part.yaml]" as state__default {' in mer
+    # the guard written over three lines is drawn on one
+    assert (": (pos_error #lt; $tol or abs(pos_error) #lt;= 2 mm) and not pos_error != 0 m for 0.1 s\n"
+            in mer + "\n")
+    # nested regions: the inner parallel state's regions are separated inside the outer region
+    assert re.search(r'state "inner \[parallel\]" as state__both__watch__inner \{\n(.*\n)+? {20}--\n', mer)
+    assert " -> " not in mer and "[style=" not in mer  # no Graphviz inside Mermaid
+    assert mer.splitlines()[1] == "    %% mission every_feature #quot;quoted#quot; #123;braces#125; #37;%"
+    dot = to_dot(m)
+    assert dot.startswith('digraph "every_feature \\"quoted\\" {braces} %%" {')
 
 
 def _nodes(dot: str) -> dict[str, str]:
@@ -88,7 +209,6 @@ def test_dot_labels_are_wrapped_so_wide_machines_stay_narrow() -> None:
     assert "ee_error.t < $eps_t and\\nee_error.r <= $eps_r" in dot
 
 
-@pytest.mark.skipif(shutil.which("dot") is None, reason="graphviz (dot) is not installed: layout not measured")
 def test_the_screw_graph_is_at_most_2000_px_wide() -> None:
     # 5,554 px before the top-to-bottom layout; 1,196 px for the machine without its safety region; the
     # operation and safety regions (parallel) now stack top to bottom: 1,841 px (side by side: 2,207 px)
@@ -109,6 +229,7 @@ def test_parallel_states_get_an_invisible_anchor_and_each_region_its_start() -> 
     assert 'label="drive (region: v)";' in dot.replace(" labeljust=l;", "")
     mer = to_mermaid(m)
     assert "state work__drive {" not in mer and "\n        --\n" in mer
+    assert " -> " not in mer  # regions are stacked in dot only: Mermaid has no invisible edges
 
 
 def _decode(text: str) -> str:
@@ -116,13 +237,13 @@ def _decode(text: str) -> str:
     return re.sub(r"#(\w+);", lambda mm: names.get(mm.group(1)) or chr(int(mm.group(1))), text)
 
 
-@pytest.mark.parametrize("path", MISSIONS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", MISSIONS + [EVERY_FEATURE], ids=lambda p: p.stem)
 def test_mermaid_labels_render_as_written(path: Path) -> None:
     m = load_mission(path)
     mer = to_mermaid(m)
     assert "&lt;" not in mer and "&gt;" not in mer and "&amp;" not in mer
     arrows = [line for line in mer.splitlines() if " --> " in line and " : " in line]
-    assert [_decode(a.split(" : ", 1)[1]) for a in arrows] == [t.label for t in m.transitions]
+    assert [_decode(a.split(" : ", 1)[1]) for a in arrows] == [" ".join(t.label.split()) for t in m.transitions]
     for a in arrows:
         bare = re.sub(r"#\w+;", "", a.split(" : ", 1)[1])  # what is left once every entity code is taken out
         assert not set("<>:;#\"{}") & set(bare)
@@ -130,3 +251,5 @@ def test_mermaid_labels_render_as_written(path: Path) -> None:
 
 def test_mermaid_text_escapes_with_entity_codes() -> None:
     assert mermaid_text('a < 2 px: "x" #1') == "a #lt; 2 px#58; #quot;x#quot; #35;1"
+    assert mermaid_text("[[fork]] 5 %%\n\tb", quoted=True) == "#91;[fork#93;] 5 #37;%  b".replace("  ", " ")
+    assert _decode(mermaid_text("[[fork]] %%{init}")) == "[[fork]] %%{init}"

@@ -71,8 +71,8 @@ def _until(pred: Callable[[], Any], what: str, timeout: float = 15.0) -> Any:
         time.sleep(0.02)
 
 
-def _open(browser: Any, url: str) -> None:
-    browser.get(url + "/")
+def _open(browser: Any, url: str, token: str | None = None) -> None:
+    browser.get(url + "/" + (f"?token={token}" if token else ""))  # as the run prints it
     _until(lambda: browser.execute_script("return document.body.dataset.ready || document.body.dataset.error"),
            "the page to load")
     assert browser.execute_script("return document.body.dataset.error || ''") == ""
@@ -119,7 +119,7 @@ def test_live_view_follows_the_record_and_its_buttons_resume_and_pause_the_run(b
     try:
         _until(lambda: (out / "control.json").is_file(), "the control endpoint")
         client = ControlClient.for_run(out)
-        _open(browser, client.url)
+        _open(browser, client.url, client.token)
         seen: list[dict[str, Any]] = []
         for t_pause in pauses:
             _until(lambda: client.state()["paused"] and client.state()["t"] == t_pause, f"the pause at {t_pause}")

@@ -25,7 +25,7 @@ from .context import Compilation
 from .dataflow import check_dataflow, data_catalogue
 from .structure import check_structure, finishing_outcomes
 from .transitions import compile_transitions
-from .tree import build_tree, catalogue, check_region_metrics
+from .tree import build_tree, catalogue, check_region_metrics, check_region_names
 
 __all__ = ["compile_document", "finishing_outcomes", "profile_kind"]
 
@@ -37,6 +37,7 @@ def compile_document(data: dict[str, Any], spec: Mission, smap: SourceMap) -> Co
     assert c.robot_cls is not None and c.world_cls is not None and c.robot_params is not None
     root = build_tree(c)
     check_region_metrics(c, root)
+    check_region_names(c, root)
     c.fail_if_problems()
     metric_units, events = catalogue(c, root)
     mission_data = data_catalogue(c, root)

@@ -8,6 +8,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
+from ..data import not_finite
 from ..diagnostics import clean_loc
 from ..model import StateNode, UnknownRef, YPath, resolve_refs, with_model_defaults
 from ..registry import describe_choices
@@ -73,6 +74,10 @@ def _bind_leaf(c: Compilation, n: StateNode, profiles: dict[str, dict[str, dict[
 
 
 def check_parameters(c: Compilation, root: StateNode) -> None:
+    for name, value in c.spec.parameters.items():  # NaN/inf mean nothing to a task, a guard or a loop
+        bad = not_finite(value)
+        if bad is not None:
+            c.err(("parameters", name), f"parameter {name!r} holds {bad!r}", "a mission parameter's numbers are finite")
     for n in root.walk():
         if n.action is not None:
             _check_action(c, n)

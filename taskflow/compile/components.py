@@ -75,11 +75,16 @@ def _check_support(c: Compilation, world_cls: type[World], raw: dict[str, Any], 
 
 
 def _check_rates(c: Compilation, world_cls: type[World], wparams: BaseModel, wpath: YPath) -> None:
-    """The control period must be a whole number of physics steps, so every tick lasts the same."""
+    """The control period must be a whole number of physics steps, so every tick lasts the same, and a rate
+    the world can honour (:meth:`World.rate_problem`, reported at ``rate_hz``)."""
     physics = float(getattr(wparams, "physics_hz", world_cls.physics_hz))
     rate = float(c.spec.rate_hz)
     ratio = physics / rate
     if ratio >= 1.0 - 1e-9 and abs(ratio - round(ratio)) <= 1e-9 * ratio:
+        problem = world_cls.rate_problem(wparams, c.robot_params, rate)
+        if problem is not None:  # blame a --set of the world's or robot's parameters when rate_hz is the file's
+            sets = [p for p in c.smap.overrides if p[:1] in (("world",), ("robot",))]
+            c.err(sets[-1] if sets and ("rate_hz",) not in c.smap.overrides else ("rate_hz",), *problem)
         return
     world_raw = c.data.get("world")
     given = isinstance(world_raw, dict) and "physics_hz" in (world_raw.get("params") or {})

@@ -4,7 +4,8 @@ where it is declared, converted to base units and compiled, its event known, its
 
 from __future__ import annotations
 
-from ..guards import Guard, GuardSyntaxError, Predicate, bind_units, compile_guard, parse_guard
+from ..api import Metric
+from ..guards import Comparison, Guard, GuardSyntaxError, Predicate, bind_units, compile_guard, never_holds, parse_guard
 from ..model import DoneTransition, EventTransition, GuardTransition, StateNode, TimeoutTransition, Transition, YPath
 from ..registry import describe_choices
 from ..schema import SINCE_ENTRY, SINCE_FIRST_ENTRY, State
@@ -179,4 +180,36 @@ def _compile_guard(c: Compilation, n: StateNode, text: str, where: YPath, quanti
         c.err(where, f"guard {text!r}: {msg}")
     if any(cmp.value is None for cmp in guard.comparisons()):
         return None
+    if not _reachable(c, guard, available, where):
+        return None
     return guard, compile_guard(guard)
+
+
+def _reachable(c: Compilation, guard: Guard, units: dict[str, str], where: YPath) -> bool:
+    """Report every comparison of ``guard`` that no value in its metric's declared range (:class:`Metric`)
+    satisfies — ``pos_error < -1 mm``, ``heading_error > 4 rad``, ``abs(x) < 0`` — and say whether none was."""
+    ok = True
+    for cmp in guard.comparisons():
+        unit = units.get(cmp.metric, "")
+        low, high = (unit.low, unit.high) if isinstance(unit, Metric) else (None, None)
+        if not never_holds(cmp, low, high):
+            continue
+        ok = False
+        shown = f"abs({cmp.metric})" if cmp.absolute else cmp.metric
+        rng = f"{unit.reason or 'declared'}: {unit.bounds()}{' ' + unit if unit else ''}" \
+            if isinstance(unit, Metric) and unit.bounds() else ""
+        if cmp.absolute:
+            why = "an absolute value is never negative" + (f"; {cmp.metric} is {rng}" if rng else "")
+        else:
+            why = f"{cmp.metric} is {rng}"
+        given = ("parameters", cmp.param)  # a threshold a --set gave: name the --set, not the file's guard
+        at = given if cmp.param is not None and given in c.smap.overrides else where
+        c.err(at, f"guard {guard.text!r}: {shown} {cmp.op} {_threshold(cmp, unit)} can never hold ({why})",
+              "a threshold inside the metric's range (`taskflow describe TASK` lists each metric's range)")
+    return ok
+
+
+def _threshold(cmp: Comparison, unit: str) -> str:
+    """The compared value as the guard gave it, in base units (``-0.001 m``, ``$eps_t = -0.001 m``)."""
+    text = f"{cmp.value:g}" + (f" {unit}" if str(unit) else "")
+    return f"${cmp.param} = {text}" if cmp.param is not None else text

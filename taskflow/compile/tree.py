@@ -40,6 +40,9 @@ def _build(c: Compilation, node: StateNode, spec: State | Machine | Region, ypat
         node.bind[slot] = ("", ref, ypath + ("bind", slot))
     if isinstance(spec, State):
         _state_keys(c, node, spec, ypath)
+    if isinstance(spec, State) and "regions" in spec.model_fields_set and not spec.regions:
+        c.err(ypath + ("regions",), "`regions:` is empty: a parallel state needs at least two regions",
+              "give it two or more regions, or drop `regions:` (one region is an ordinary composite)")
     if isinstance(spec, State) and spec.regions:
         _build_regions(c, node, spec, ypath)
     elif spec.states:
@@ -60,8 +63,9 @@ def _build(c: Compilation, node: StateNode, spec: State | Machine | Region, ypat
             _build(c, child, child_spec, ypath + ("states", name))
     elif isinstance(spec, State) and spec.initial is not None:
         c.err(ypath + ("initial",), "`initial` given but the state has no sub-states")
-    elif isinstance(spec, Machine):
-        c.err(ypath + ("states",), "the machine has no states", "declare at least one state and a final one")
+    elif isinstance(spec, (Machine, Region)):
+        c.err(ypath + ("states",), f"the {'machine' if isinstance(spec, Machine) else 'region'} has no states",
+              "declare at least one state and a final one")
 
 
 def _build_regions(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> None:
@@ -193,3 +197,22 @@ def sibling_metrics(node: StateNode) -> dict[str, tuple[str, str]]:
                         out.setdefault(m, (unit, sibling.path))
         region = parallel.region
     return out
+
+
+def check_region_names(c: Compilation, root: StateNode) -> None:
+    """A region may not have the name of a state its transitions could name: a transition inside the region
+    finds a bare name in the nearest enclosing machine first, so a region ``done`` next to a state ``done``
+    would take ``to: done`` from inside it to the region (which no transition may enter) instead."""
+    for p in root.walk():
+        if not p.parallel:
+            continue
+        for region in p.children.values():
+            scope = p.parent
+            while scope is not None:
+                other = scope.children.get(region.name)
+                if other is not None:
+                    c.err(region.ypath, f"region {region.name!r} has the name of state {other.path!r}, which it hides "
+                          "from the transitions inside it (a bare name is looked up in the nearest machine first)",
+                          "rename the region")
+                    break
+                scope = scope.parent

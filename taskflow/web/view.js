@@ -12,8 +12,13 @@ const within = (path, p) => p === "" || path === p || path.startsWith(p + ".");
 const leavesOf = (row) => (row ? row[1].split("|").filter(Boolean) : []);
 const fmt = (x) => (x === null || x === undefined || Number.isNaN(x) ? "–" : Math.abs(x) >= 1e4 || (Math.abs(x) < 1e-3 && x !== 0) ? x.toExponential(3) : (+x.toPrecision(4)).toString());
 
+// the run's token, from the address the run printed (…/?token=…): sent with every request
+const TOKEN = new URLSearchParams(window.location.search).get("token") || "";
+const authHeaders = () => (TOKEN ? { Authorization: `Bearer ${TOKEN}` } : {});
+const withToken = (url) => (TOKEN ? `${url}${url.includes("?") ? "&" : "?"}token=${encodeURIComponent(TOKEN)}` : url);
+
 async function getJSON(url) {
-  const r = await fetch(url, { cache: "no-store" });
+  const r = await fetch(url, { cache: "no-store", headers: authHeaders() });
   if (!r.ok) throw new Error(`${url}: HTTP ${r.status}`);
   return r.json();
 }
@@ -552,7 +557,7 @@ function renderCameras(t, latest) {
     if (!f || f.file === cam.file) continue;
     cam.file = f.file;
     cam.img.dataset.stamp = String(f.stamp);
-    cam.img.src = `/view/frame?sensor=${encodeURIComponent(sensor)}&t=${f.stamp}`;
+    cam.img.src = withToken(`/view/frame?sensor=${encodeURIComponent(sensor)}&t=${f.stamp}`);
     cam.cap.textContent = `${sensor} (${f.frame}, ${f.width}×${f.height}) captured at t = ${f.stamp.toFixed(3)} s, tick ${f.tick}`;
   }
 }
@@ -624,7 +629,7 @@ async function operate(action) {
   if (action === "preempt" && $("preempt-to").value) body.to = $("preempt-to").value;
   if (action === "inject") body.event = $("inject-event").value;
   try {
-    const r = await fetch(`/${action}`, { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
+    const r = await fetch(`/${action}`, { method: "POST", headers: { "Content-Type": "application/json", ...authHeaders() }, body: JSON.stringify(body) });
     const j = await r.json();
     $("op-msg").textContent = r.ok ? `${j.queued} queued by ${j.who}` : `refused: ${j.error}`;
   } catch (e) {

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -68,3 +69,29 @@ def test_same_seed_reproduces_the_pybullet_run_bit_for_bit(tmp_path):
     assert trace_a != (tmp_path / "c" / "trace.csv").read_bytes()  # the seed drives the odometry noise
     assert a.summary["metrics"] == b.summary["metrics"]
     del c
+
+
+def _strings(node: object) -> list[str]:
+    """Every string in a YAML tree, keys included."""
+    if isinstance(node, dict):
+        return [s for k, v in node.items() for s in (*_strings(k), *_strings(v))]
+    if isinstance(node, list):
+        return [s for v in node for s in _strings(v)]
+    return [node] if isinstance(node, str) else []
+
+
+@pytest.mark.parametrize("file", sorted(p.name for p in (ROOT / "missions").glob("*.yaml")))
+def test_every_parameter_a_shipped_mission_declares_is_used(file: str) -> None:
+    raw = load_mission(ROOT / "missions" / file).raw
+    used = " ".join(_strings({k: v for k, v in raw.items() if k != "parameters"}))
+    foreach = set(re.findall(r"'in': '(\w+)'", str(raw.get("machine"))))
+    unused = [p for p in raw.get("parameters", {}) if p not in foreach and not re.search(rf"\${p}\b", used)]
+    assert unused == [], f"{file}: parameters nothing refers to: {unused}"
+
+
+@pytest.mark.parametrize("file", ["car_waypoints.yaml", "husky_waypoints.yaml"])
+def test_the_waypoint_missions_describe_the_settle_guard_they_have(file: str) -> None:
+    raw = load_mission(ROOT / "missions" / file).raw
+    (tolerance, dwell) = re.findall(r"within (\d+ cm) for ([\d.]+ s)", raw["description"])[0]
+    settle = raw["machine"]["states"]["drive"]["states"]["settle"]["transitions"]
+    assert {"to": "reached", "when": f"pos_error < {tolerance}", "for": dwell} in settle

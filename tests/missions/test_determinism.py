@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -42,3 +43,19 @@ def test_two_runs_with_one_seed_write_the_same_bytes(tmp_path: Path, file: str, 
     header = trace.splitlines()[0]
     assert "time" not in header.replace("t,", "", 1) and "_ms" not in header  # no wall-clock column
     assert (tmp_path / "a" / "timing.json").exists()
+
+
+def test_one_seed_from_two_working_directories_writes_the_same_bytes(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """The mission named as a user types it, relative to two different working directories: the record
+    (``summary.json``'s ``file`` included, as the resolved path) is the same."""
+    from taskflow.cli import main
+
+    root = MISSIONS.parent
+    for cwd, typed, out in ((root, "missions/car_waypoints.yaml", tmp_path / "a"),
+                            (MISSIONS, "car_waypoints.yaml", tmp_path / "b")):
+        monkeypatch.chdir(cwd)
+        assert main(["run", typed, "--seed", "3", "--max-time", "2", "--out", str(out), "--quiet"]) == 1  # timeout
+    for name in RECORDS:
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+    assert json.loads((tmp_path / "a" / "summary.json").read_text())["file"] == str(MISSIONS / "car_waypoints.yaml")
