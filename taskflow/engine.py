@@ -18,6 +18,9 @@ its ``state_cls`` and ``transition_cls`` hooks — rather than keeping a paralle
   ``to_state`` helper does, instead of dispatching a trigger through the state tree: guards are
   evaluated by the executor's per-leaf tables, so the library is asked only to change state.
 
+The library's private members this relies on (checked by ``tests/machine/test_engine.py``):
+``NestedTransition._resolve_transition``, ``_enter_nested`` and ``_final_check`` (overridden to do nothing).
+
 What was tried and left unused: the library's ``final`` states and ``on_final`` callbacks (0.9.3) fire
 on the parent of a final leaf, but a ``foreach`` parent must decide between its next item and its
 ``require`` rule, and the callback runs inside the transition that entered the final leaf (so a
@@ -88,6 +91,13 @@ class ExternalTransition(NestedTransition):
         below.clear()
         below.update(new_states)
         return tree, exits, enters
+
+    def _final_check(self, event_data: Any, state_tree: dict, enter_partials: list) -> tuple[list, bool]:
+        """The library's search for states that have just become final, skipped: taskflow finishes parents itself
+        (module docstring) and has no ``on_final`` callbacks.  The library's own (0.9.3) raises
+        ``AttributeError: 'scoped_enter'`` after a transition in one parallel region while the last region sits
+        in its final state (it takes the last region's finality for the parallel state's)."""
+        return [], False
 
 
 def leaf_paths(state: Any) -> list[str]:

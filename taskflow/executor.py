@@ -11,12 +11,14 @@ Semantics in brief (docs/missions.md has the long form):
 * a transition on a composite state is checked while any of its sub-states is active; outer
   transitions are checked before inner ones, so `target_lost` on a parent pre-empts its children;
 * entering a composite enters its ``initial`` chain, or, with ``history: true`` and ``resume`` (the
-  default), the leaf that was active when it was last left (deep history, foreach index included);
+  default), the leaf that was active when it was last left (deep history, foreach index included) —
+  resolved after the transition's exits, so re-entering an active history state resumes where it is;
 * reaching a final sub-state finishes its parent: a ``foreach`` parent moves to the next item (or
   stops on a failed/aborted iteration unless ``on_failure: continue``); otherwise the parent's
   matching ``done`` transition fires.  A final state directly under the root ends the run;
 * ``blend: T`` on a transition mixes the last outgoing command into the incoming one with
-  ``h(τ) = ½(1 − cos(π τ / T))`` for ``τ < T``;
+  ``h(τ) = ½(1 − cos(π τ / T))`` for ``τ < T`` (inside a parallel region, only the parts that region
+  owns, alongside a sibling region's blend);
 * a state with ``regions`` runs them in parallel: one active leaf per region, each with its task; a
   tick steps every task, takes from each region's command only the parts it ``owns`` (the robot's stop
   command for the parts nobody drives) and checks every active leaf's table, each shared transition
@@ -54,8 +56,10 @@ TaskFactory = Callable[[type[Task], TaskContext], Task | None]
 
 @dataclass
 class _Blend:
-    t0: float
-    duration: float
+    """One blend in progress: ``old`` (the command when its transition fired) fades into the new one."""
+
+    t0: float  # sim time the transition fired
+    duration: float  # seconds (the transition's ``blend:``)
     old: Command
     parts: tuple[str, ...] | None = None  # the command parts blended (None: all)
 
@@ -90,7 +94,9 @@ class Executor:
         self.reason: str = ""
         self.last_command: Command = robot.stop_command()
         self._stop = robot.stop_command()
-        self._blend: _Blend | None = None
+        # blends in progress, by the region whose transition started them (None: a transition outside any
+        # region, which blends every part); each parallel region blends only the parts it owns
+        self._blends: dict[str | None, _Blend] = {}
         self._running_actions: set[str] = set()
         self._resuming = False
         self._since: dict[str, float] = {}  # active leaf → sim time it was entered
@@ -250,12 +256,27 @@ class Executor:
         for st in self._below[node.path]:
             st.first_entered = None
 
-    def _destination(self, target: StateNode, resume: bool) -> tuple[StateNode, bool]:
+    def _destination(self, target: StateNode, resume: bool, keep: int) -> tuple[StateNode, bool]:
+        """The leaf (or parallel state) a transition into ``target`` that keeps ``keep`` levels active enters,
+        and whether it resumes ``target``'s history.  UML order: the transition exits first, then resolves
+        history — so when ``target`` is active and is exited (a self-transition, a transition to an
+        enclosing state, an operator's pre-empt into the active state), it resumes where this exit leaves
+        it, not where an earlier exit did."""
         if target.children and target.history and resume:
+            if keep < target.depth and self._is_active(target):
+                point = self.mission.states[self._resume_point(target)]
+                if point.final:  # ``target`` has just finished (a `done` into it): it starts afresh
+                    return target.entry_point(), False
+                return point, True
             last = self._states[target.path].last_leaf
             if last is not None:
                 return self.mission.states[last], True
         return target.entry_point(), False
+
+    def _is_active(self, node: StateNode) -> bool:
+        """Whether an active leaf lies inside ``node``."""
+        prefix = node.path + "."
+        return any(p.startswith(prefix) for p in self.engine.active_leaves())
 
     def _go(self, leaf: StateNode, cause: str, resume: bool, keep: int, source: str | None = None, **why: Any) -> None:
         """Make ``leaf`` active (a leaf, or a parallel state: all its regions' initial leaves), exiting and
@@ -277,10 +298,10 @@ class Executor:
 
     def fire(self, tr: Transition, metrics: dict[str, float] | None = None) -> None:
         """Fire ``tr`` (declared on an active state); ``metrics`` are the tick's, for the record."""
-        leaf, resumed = self._destination(tr.target, tr.resume)
+        leaf, resumed = self._destination(tr.target, tr.resume, tr.domain_depth)
         region = tr.domain.region
         if tr.blend > 0.0:
-            self._blend = _Blend(self.t, tr.blend, self.last_command, region.owns if region is not None else None)
+            self._start_blend(tr.blend, region)
         kind = type(tr)
         why: dict[str, Any] = {"state": tr.source.path, "label": tr.label, "index": tr.index}
         guard = tr.guard if kind is GuardTransition or kind is EventTransition else None  # type: ignore[attr-defined]
@@ -355,7 +376,7 @@ class Executor:
     def _complete(self, node: StateNode, outcome: str) -> None:
         for tr in node.transitions:
             if isinstance(tr, DoneTransition) and tr.handles(outcome):
-                leaf, resumed = self._destination(tr.target, tr.resume)
+                leaf, resumed = self._destination(tr.target, tr.resume, tr.domain_depth)
                 self._go(leaf, DONE, resume=resumed, keep=tr.domain_depth, state=node.path, label=tr.label,
                          index=tr.index, outcome=outcome)
                 return
@@ -384,7 +405,7 @@ class Executor:
             command = self._stop
             metrics = obs.metrics
             self.step_sensors = None
-        if self._blend is not None:
+        if self._blends:
             command = self._blended(command, t)
         self.last_command = command
         if self.outcome is None:
@@ -419,22 +440,37 @@ class Executor:
                 sensors.update(res.sensors)
         self.step_timings = timings
         self.step_sensors = tuple(sorted(sensors)) if named else None
-        if self._blend is not None:
+        if self._blends:
             command = self._blended(command, t)
         self.last_command = command
         if self.outcome is None:
             self._check_regions(t, metrics, events)
         return command, metrics, events
 
+    def _start_blend(self, duration: float, region: StateNode | None) -> None:
+        """A transition with ``blend:`` fired in ``region`` (None: outside any): fade the last command into the
+        new one over ``duration``.  It replaces the blends it covers — every one for a transition outside any
+        region (it starts from the command they shaped), its own region's and those nested in it otherwise —
+        and leaves a sibling region's blend running on the parts that region owns."""
+        if region is None:
+            self._blends.clear()
+        else:
+            inner = region.path + "."
+            for key in [k for k in self._blends if k is not None and (k == region.path or k.startswith(inner))]:
+                del self._blends[key]
+        self._blends[None if region is None else region.path] = _Blend(
+            self.t, duration, self.last_command, region.owns if region is not None else None)
+
     def _blended(self, command: Command, t: float) -> Command:
-        b = self._blend
-        assert b is not None
-        h = blend_weight(t - b.t0, b.duration)
-        if h >= 1.0:
-            self._blend = None
-            return command
-        return {k: h * v + (1.0 - h) * b.old[k] if k in b.old and (b.parts is None or k in b.parts) else v
-                for k, v in command.items()}
+        """``command`` with every blend in progress applied (in the order they started); a finished one is dropped."""
+        for key, b in list(self._blends.items()):
+            h = blend_weight(t - b.t0, b.duration)
+            if h >= 1.0:
+                del self._blends[key]
+                continue
+            command = {k: h * v + (1.0 - h) * b.old[k] if k in b.old and (b.parts is None or k in b.parts) else v
+                       for k, v in command.items()}
+        return command
 
     def check(self, t: float, metrics: dict[str, float], events: Collection[str]) -> Transition | None:
         """Evaluate the active leaf's table (every active leaf's, with parallel regions); fire the first
@@ -526,6 +562,6 @@ class Executor:
         if target is None:
             self.outcome, self.reason = "aborted", f"pre-empted by {who} (operator)"
             return
-        leaf, resumed = self._destination(self.mission.states[target], True)
-        self._blend = None
+        leaf, resumed = self._destination(self.mission.states[target], True, 0)
+        self._blends.clear()
         self._go(leaf, OPERATOR, resume=resumed, keep=0, label=f"preempt --to {target}", who=who)

@@ -11,7 +11,14 @@
    run ends with a proper outcome in a final state (or at max_time), and the `transitions` machine
    agrees with the executor about the active state.
    Two executor bugs found this way are pinned by deterministic strict-xfail tests below.
-2. Random *mutations* of a valid mission (keys deleted or renamed, values replaced, junk text
+2. Random machines with *parallel regions, blends and history composites* (self-transitions,
+   transitions from inside a composite to it, `resume: false` entries, region finals and
+   `outcome_map`) run on the scripted backend with a constant command per leaf, side by side with
+   :class:`_Oracle`, a small separate implementation of the documented semantics that reads only the
+   generated document: both agree on every tick's active leaves, entry clocks, history, command
+   (each region's parts and blends) and outcome, and on the transitions fired.  It found the engine
+   bug pinned by tests/machine/test_crossing.py::test_a_region_moves_on_while_the_last_region_has_finished.
+3. Random *mutations* of a valid mission (keys deleted or renamed, values replaced, junk text
    inserted) never make :func:`load_mission_text` raise anything but :class:`MissionError`.
 """
 
@@ -22,6 +29,7 @@ import random
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import yaml
 from hypothesis import HealthCheck, event, given, note, settings
@@ -33,7 +41,9 @@ from taskflow.loader import load_mission_text
 from taskflow.model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode,
                             TimeoutTransition)
 from taskflow.runtime import OUTCOMES
-from taskflow.testing import Script, drive
+from taskflow.api import Observation, StepResult, Task, TaskContext
+from taskflow.runtime import run_mission
+from taskflow.testing import Script, ScriptedWorld, drive
 from taskflow.yamlsrc import MissionLoader
 
 TOY = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"
@@ -418,6 +428,484 @@ def test_event_at_time_zero_is_seen() -> None:
                           "local.yaml")
     r = drive(m, Script(events=[(0.0, "target_lost")]), max_time=1)
     assert r.outcome == "succeeded"
+
+
+# -- parallel regions, blends per region, history with self-transitions: engine against an oracle ------
+#
+# Random machines of top-level leaves, history composites and parallel states (two regions, each of
+# leaves and history composites; region `a` owns `v` or both parts, region `b` the other part or none),
+# with self-transitions on history composites, transitions from inside a composite to it, `resume:
+# false` entries and `blend:` on transitions.  Every leaf runs a task commanding a constant of its own
+# (`_LeafConst`), so the command shows each region's blends.  The engine runs on the scripted backend; the
+# oracle below is a small, separate implementation of the documented semantics (docs/missions.md: order
+# of evaluation, history, blend, parallel regions) that reads only the generated document — it never
+# calls the executor or the compiler.  Both must agree on every tick's active leaves, entry clocks,
+# history, command and outcome, and on the transitions fired.
+
+REGION_EVENTS = ["target_lost", "target_found", "arrived"]
+REGION_MAX_TIME = 6.0
+BLENDS_S = ["0.3 s", "0.6 s", "1 s"]
+
+
+class _RegionGen:
+    """Builds one machine with parallel regions and history composites from hypothesis draws."""
+
+    def __init__(self, draw: Any) -> None:
+        self.draw = draw
+        self.k = 0
+        self.pending: list[tuple[dict[str, Any], list[str]]] = []  # (transition, the targets it may take)
+
+    def name(self, prefix: str) -> str:
+        self.k += 1
+        return f"{prefix}{self.k}"
+
+    def trigger(self, slow: bool = False) -> dict[str, Any]:
+        kind = self.draw(st.sampled_from(["after", "on", "when"] if not slow else ["after", "on"]))
+        if kind == "after":
+            return {"after": f"{self.draw(st.integers(6, 40) if slow else st.integers(1, 24)) * 50} ms"}
+        if kind == "on":
+            return {"on": self.draw(st.sampled_from(REGION_EVENTS))}
+        return {"when": self.draw(st.sampled_from(sorted(GUARDS)))}
+
+    def transition(self, to: str, slow: bool = False, resume: bool = True) -> dict[str, Any]:
+        tr: dict[str, Any] = {"to": to, **self.trigger(slow)}
+        if resume and self.draw(st.integers(0, 3)) == 0:
+            tr["resume"] = False
+        if self.draw(st.booleans()):
+            tr["blend"] = self.draw(st.sampled_from(BLENDS_S))
+        return tr
+
+    def leaf(self, in_b: bool) -> dict[str, Any]:
+        task: Any = "toy_watch" if in_b else {"name": "toy_goto", "params": {"target": 0.5}}
+        out: dict[str, Any] = {"task": task}
+        if not in_b:
+            out["bind"] = {"gains": "g"}
+        return out
+
+    def history(self, path: str, in_b: bool, scope: list[str]) -> dict[str, Any]:
+        """A composite with history: 2-3 chained leaves and a final; maybe its own self-transition and a
+        transition from a leaf inside it to it."""
+        leaves = [self.name("h") for _ in range(self.draw(st.integers(2, 3)))]
+        fin = self.name("hf")
+        states: dict[str, Any] = {}
+        order = leaves + [fin]
+        for i, nm in enumerate(leaves):
+            s = self.leaf(in_b)
+            s["transitions"] = [self.transition(f"{path}.{order[i + 1]}")]
+            if self.draw(st.integers(0, 2)) == 0:  # to the composite itself, from inside
+                s["transitions"].append(self.transition(path))
+            states[nm] = s
+        states[fin] = {"final": self.draw(st.sampled_from([True, "succeeded", "failed"]))}
+        out: dict[str, Any] = {"history": True, "initial": leaves[0], "states": states, "transitions": []}
+        if self.draw(st.integers(0, 3)) > 0:
+            out["transitions"].append(self.transition(path, slow=True))  # the self-transition
+        self.extra(out, scope, slow=True)
+        return out
+
+    def extra(self, state: dict[str, Any], scope: list[str], slow: bool = False) -> None:
+        for _ in range(self.draw(st.integers(0, 1))):
+            tr = self.transition("?", slow)
+            state.setdefault("transitions", []).append(tr)
+            self.pending.append((tr, scope))
+
+    def sequence(self, prefix: str, kinds: list[str], in_b: bool, top: bool,
+                 scope: list[str]) -> tuple[dict[str, Any], str]:
+        """States of the machine (``top``) or of a region: one working state per kind, then finals."""
+        full = lambda nm: f"{prefix}.{nm}" if prefix else nm
+        work = [self.name("s") for _ in kinds]
+        finals = [self.name("f") for _ in range(self.draw(st.integers(1, 2)))]
+        order = work + finals
+        scope += [full(nm) for nm in order]
+        states: dict[str, Any] = {}
+        for i, (nm, kind) in enumerate(zip(work, kinds)):
+            nxt = full(order[i + 1])
+            if kind == "parallel":
+                s = self.parallel(full(nm))
+                s["transitions"] = [{"to": nxt, "done": True}]
+                self.extra(s, scope, slow=True)
+            elif kind == "history":
+                s = self.history(full(nm), in_b, scope)
+                s["transitions"].append({"to": nxt, "done": True})
+            else:
+                s = self.leaf(in_b)
+                s["transitions"] = [self.transition(nxt, slow=top and i + 1 == len(work))]
+                self.extra(s, scope)
+            states[nm] = s
+        for nm in finals[1:]:
+            src = states[self.draw(st.sampled_from(work))]
+            src["transitions"].insert(0, self.transition(full(nm), slow=True))
+        for nm in finals:
+            states[nm] = {"final": self.draw(st.sampled_from([True, "succeeded", "failed", "aborted"] if top else
+                                                              [True, "succeeded", "failed"]))}
+        return states, work[0]
+
+    def parallel(self, path: str) -> dict[str, Any]:
+        a_owns = self.draw(st.sampled_from([["v"], ["v", "w"]]))
+        regions: dict[str, Any] = {}
+        for r, owns in (("a", a_owns), ("b", [] if a_owns == ["v", "w"] else self.draw(st.sampled_from([["w"], []])))):
+            scope: list[str] = []
+            kinds = self.draw(st.lists(st.sampled_from(["leaf", "leaf", "history"]), min_size=1, max_size=2))
+            states, initial = self.sequence(f"{path}.{r}", kinds, in_b=r == "b", top=False, scope=scope)
+            regions[r] = {"initial": initial, "states": states, **({"owns": owns} if owns else {})}
+        out: dict[str, Any] = {"regions": regions}
+        if self.draw(st.integers(0, 2)) == 0:
+            out["outcome_map"] = {"succeeded": {"a": "succeeded"}}
+        return out
+
+
+@st.composite
+def region_machines(draw: Any) -> dict[str, Any]:
+    g = _RegionGen(draw)
+    top: list[str] = []
+    kinds = draw(st.lists(st.sampled_from(["parallel", "history", "leaf"]), min_size=2, max_size=3))
+    if "parallel" not in kinds:
+        kinds[draw(st.integers(0, len(kinds) - 1))] = "parallel"
+    states, initial = g.sequence("", kinds, in_b=False, top=True, scope=top)
+    for tr, scope in g.pending:  # a state of the same region or sequence, or any top-level state (seldom a final)
+        targets = sorted(set(scope) | set(top))
+        if draw(st.integers(0, 3)) > 0:
+            targets = [p for p in targets if not p.rsplit(".", 1)[-1].startswith("f")] or targets
+        tr["to"] = draw(st.sampled_from(targets))
+    return {
+        "mission": "prop_regions",
+        "robot": "toy_pair",
+        "world": {"name": "toy_line", "params": {"start": 0.0}},
+        "rate_hz": RATE_HZ,
+        "max_time": f"{REGION_MAX_TIME} s",
+        "parameters": {"tol": f"{TOL * 100:g} cm"},
+        "profiles": {"gains": {"g": {"kp": 1.0}}},
+        "machine": {"initial": initial, "states": states},
+    }
+
+
+class _ONode:
+    """The oracle's view of one state, read from the generated document."""
+
+    def __init__(self, name: str, path: str, parent: "_ONode | None", spec: dict[str, Any]) -> None:
+        self.name, self.path, self.parent, self.spec = name, path, parent, spec
+        self.depth = 0 if parent is None else parent.depth + 1
+        self.final: str | None = None
+        if "final" in spec:
+            self.final = "succeeded" if spec["final"] is True else spec["final"]
+        self.children: dict[str, _ONode] = {}
+        self.parallel = "regions" in spec
+        self.history = bool(spec.get("history"))
+        self.owns: tuple[str, ...] | None = None  # a region's parts (None: not a region)
+        self.initial: str | None = spec.get("initial")
+        kids = spec.get("regions") or spec.get("states") or {}
+        for nm, sub in kids.items():
+            child = _ONode(nm, f"{path}.{nm}" if path else nm, self, sub)
+            if self.parallel:
+                child.owns = tuple(sub.get("owns", ()))
+            self.children[nm] = child
+        self.transitions: list[dict[str, Any]] = list(spec.get("transitions", []))
+
+    def walk(self) -> list["_ONode"]:
+        return [self] + [d for c in self.children.values() for d in c.walk()]
+
+    def chain(self) -> list["_ONode"]:
+        """Root first, down to this state."""
+        return ([] if self.parent is None else self.parent.chain()) + [self]
+
+    def inside(self, other: "_ONode") -> bool:
+        return self.path == other.path or other.parent is None or self.path.startswith(other.path + ".")
+
+
+def _o_weight(tau: float, duration: float) -> float:
+    """h(τ) = ½(1 − cos(π τ / T)), 0 before the switch, 1 after T (docs/missions.md, `blend`)."""
+    if tau >= duration:
+        return 1.0
+    return 0.0 if tau <= 0.0 else 0.5 * (1.0 - math.cos(math.pi * tau / duration))
+
+
+class _Oracle:
+    """The semantics of docs/missions.md for the generated machines, written apart from the executor."""
+
+    def __init__(self, doc: dict[str, Any]) -> None:
+        self.root = _ONode("", "", None, doc["machine"])
+        self.nodes = {n.path: n for n in self.root.walk() if n.parent is not None}
+        self.order = {p: i for i, p in enumerate(self.nodes)}  # declaration order
+        self.consts = {p: float(i + 1) for i, p in enumerate(sorted(p for p, n in self.nodes.items()
+                                                                      if not n.children and n.final is None))}
+        self.active: set[str] = set()  # active leaf paths
+        self.entered: dict[str, float] = {}  # active state → sim time of its last entry
+        self.history: dict[str, str] = {}
+        self.finished: dict[str, dict[str, str]] = {}  # parallel state → region → outcome
+        self.blends: dict[str | None, tuple[float, float, dict[str, float], tuple[str, ...] | None]] = {}
+        self.last = {"v": 0.0, "w": 0.0}
+        self.outcome: str | None = None
+        self.fired: list[tuple[int, str, str, bool]] = []  # (tick, destination, cause, resumed)
+        self.tick_no = 0
+        self.seen: set[str] = set()  # which crossings the run exercised (hypothesis events)
+
+    # -- structure
+    def target(self, source: _ONode, to: str) -> _ONode:
+        if "." in to:
+            return self.nodes[to]
+        scope: _ONode | None = source.parent
+        while scope is not None:
+            if to in scope.children:
+                return scope.children[to]
+            scope = scope.parent
+        raise KeyError(to)
+
+    def domain(self, source: _ONode, target: _ONode) -> _ONode:
+        common = self.root
+        for a, b in zip(source.chain(), target.chain()):
+            if a is not b:
+                break
+            common = a
+        if (common is source or common is target) and common.parent is not None:
+            return common.parent
+        return common
+
+    def region_of(self, n: _ONode) -> _ONode | None:
+        m: _ONode | None = n
+        while m is not None and m.owns is None:
+            m = m.parent
+        return m
+
+    def entry(self, n: _ONode) -> _ONode:
+        while n.children and not n.parallel:
+            n = n.children[n.initial]  # type: ignore[index]
+        return n
+
+    def leaves(self) -> list[str]:
+        return sorted(self.active, key=self.order.__getitem__)
+
+    def is_active(self, n: _ONode) -> bool:
+        return any(self.nodes[leaf].inside(n) for leaf in self.active)
+
+    def resume_point(self, n: _ONode) -> str:
+        return next(leaf for leaf in self.leaves() if self.nodes[leaf].inside(n))
+
+    # -- changing state
+    def go(self, domain: _ONode, dest: _ONode, t: float, cause: str, resumed: bool) -> None:
+        leaving = [leaf for leaf in self.leaves() if self.nodes[leaf].inside(domain) and leaf != domain.path]
+        for leaf in leaving:  # each history state left records the leaf it is left in
+            for a in self.nodes[leaf].chain()[domain.depth + 1:]:
+                if a.history:
+                    self.history[a.path] = self.resume_point(a)
+        self.active.difference_update(leaving)
+        for p in [p for p in self.entered if self.nodes[p].inside(domain) and p != domain.path]:
+            del self.entered[p]
+        for a in dest.chain()[domain.depth + 1:]:
+            self.entered[a.path] = t
+        entered = [dest]
+        if dest.parallel:
+            self.finished.pop(dest.path, None)
+            entered = []
+            for region in dest.children.values():
+                self.entered[region.path] = t
+                leaf = region
+                while leaf.children:
+                    leaf = leaf.children[leaf.initial]  # type: ignore[index]
+                    self.entered[leaf.path] = t
+                entered.append(leaf)
+        for leaf in entered:
+            self.active.add(leaf.path)
+        self.fired.append((self.tick_no, dest.path, cause, resumed))
+        if dest.final is not None:
+            self.on_final(dest, t)
+
+    def fire(self, source: _ONode, tr: dict[str, Any], t: float, cause: str) -> None:
+        target = self.target(source, tr["to"])
+        domain = self.domain(source, target)
+        dest, resumed = self.entry(target), False
+        if target.history and tr.get("resume", True):
+            if target.depth > domain.depth and self.is_active(target):  # exit first, then resolve the history
+                point = self.nodes[self.resume_point(target)]
+                if point.final is None:
+                    dest, resumed = point, True
+                    self.seen.add("resumed an active history state")
+            elif target.path in self.history:
+                dest, resumed = self.nodes[self.history[target.path]], True
+        if "blend" in tr and cause != "done":
+            region = self.region_of(domain)
+            if region is None:
+                self.blends.clear()
+            else:
+                self.blends.pop(region.path, None)
+            duration = float(tr["blend"].split()[0])
+            self.blends[None if region is None else region.path] = (
+                t, duration, dict(self.last), None if region is None else region.owns)
+            if sum(key is not None for key in self.blends) >= 2:
+                self.seen.add("two regions blending at once")
+        self.go(domain, dest, t, cause, resumed)
+
+    def on_final(self, leaf: _ONode, t: float) -> None:
+        parent, outcome = leaf.parent, leaf.final
+        assert parent is not None and outcome is not None
+        if parent.owns is not None:  # a region finished
+            parallel = parent.parent
+            assert parallel is not None
+            done = self.finished.setdefault(parallel.path, {})
+            done[parent.name] = outcome
+            result = None
+            for out, need in parallel.spec.get("outcome_map", {}).items():
+                if all(done.get(r) == o for r, o in need.items()):
+                    result = out
+                    break
+            if result is None and outcome != "succeeded":
+                result = outcome
+            if result is None and len(done) == len(parallel.children):
+                result = "succeeded"
+            if result is not None:
+                self.complete(parallel, result, t)
+        elif parent.parent is None:
+            self.outcome = outcome
+        else:
+            self.complete(parent, outcome, t)
+
+    def complete(self, node: _ONode, outcome: str, t: float) -> None:
+        for tr in node.transitions:
+            if "done" in tr and (tr["done"] is True or tr["done"] == outcome):
+                self.fire(node, tr, t, "done")
+                return
+        self.outcome = outcome
+
+    # -- a tick
+    def holds(self, source: _ONode, tr: dict[str, Any], t: float, metrics: dict[str, float], events: set[str]) -> bool:
+        if "when" in tr:
+            return bool(GUARDS[tr["when"]](metrics))
+        if "on" in tr:
+            return tr["on"] in events
+        if "after" in tr:
+            after = float(tr["after"].split()[0]) / 1000.0
+            return t - self.entered[source.path] + 1e-9 >= after
+        return False
+
+    def command(self, t: float) -> dict[str, float]:
+        leaves = self.leaves()
+        if len(leaves) == 1 and self.region_of(self.nodes[leaves[0]]) is None:
+            c = self.consts.get(leaves[0], 0.0)
+            cmd = {"v": c, "w": c}
+        else:
+            cmd = {"v": 0.0, "w": 0.0}
+            for leaf in leaves:
+                region = self.region_of(self.nodes[leaf])
+                assert region is not None and region.owns is not None
+                for k in region.owns:
+                    if leaf in self.consts:
+                        cmd[k] = self.consts[leaf]
+        for key, (t0, duration, old, parts) in list(self.blends.items()):
+            h = _o_weight(t - t0, duration)
+            if h >= 1.0:
+                del self.blends[key]
+                continue
+            for k in cmd:
+                if parts is None or k in parts:
+                    cmd[k] = h * cmd[k] + (1.0 - h) * old[k]
+        self.last = cmd
+        return cmd
+
+    def step(self, k: int, metrics: dict[str, float], events: set[str]) -> dict[str, float]:
+        t = k * (1.0 / RATE_HZ)  # the scripted world's clock: ticks times the period
+        self.tick_no = k
+        cmd = self.command(t)
+        seen: set[tuple[str, int]] = set()
+        for leaf in self.leaves():
+            if self.outcome is not None:
+                break
+            if leaf not in self.active:
+                continue  # a transition this tick left it
+            for a in self.nodes[leaf].chain()[1:]:
+                fired = False
+                for i, tr in enumerate(a.transitions):
+                    if "done" in tr or (a.path, i) in seen:
+                        continue
+                    seen.add((a.path, i))
+                    if self.holds(a, tr, t, metrics, events):
+                        self.fire(a, tr, t, "guard" if "when" in tr else "event" if "on" in tr else "timeout")
+                        fired = True
+                        break
+                if fired:
+                    break
+        return cmd
+
+    def start(self) -> None:
+        first = self.root.children[self.root.initial]  # type: ignore[index]
+        self.go(self.root, self.entry(first), 0.0, "start", False)
+
+
+class _LeafConst(Task):
+    """Commands ``v = w =`` its leaf's constant (``_Oracle.consts``); publishes nothing (the script's metrics
+    are the guards')."""
+
+    def __init__(self, ctx: TaskContext, value: float) -> None:
+        super().__init__(ctx)
+        self.value = value
+
+    def step(self, obs: Observation) -> StepResult:
+        return StepResult({"v": np.array([self.value]), "w": np.array([self.value])})
+
+
+def _engine_snapshot(ex: Any) -> dict[str, Any]:
+    leaves = list(ex.engine.active_leaves())
+    states = sorted({a.path for p in leaves for a in ex.mission.states[p].ancestors()[1:]})
+    return {"leaves": leaves, "entered": {p: ex.entered_at(ex.mission.states[p]) for p in states},
+            "history": dict(ex.history), "outcome": ex.outcome}
+
+
+def _oracle_snapshot(o: _Oracle) -> dict[str, Any]:
+    return {"leaves": o.leaves(), "entered": dict(sorted(o.entered.items())), "history": dict(o.history),
+            "outcome": o.outcome}
+
+
+def check_regions_run(doc: dict[str, Any], script: Script) -> tuple[list[tuple[int, str, str, bool]], set[str]]:
+    """Run ``doc`` on the scripted backend and the oracle side by side; assert they agree tick by tick."""
+    m = load_mission_text(yaml.safe_dump(doc, sort_keys=False), "generated_regions.yaml")
+    oracle = _Oracle(doc)
+    world = ScriptedWorld(m.build_robot(), script, m)
+    ticks: list[tuple[dict[str, Any], dict[str, float]]] = []
+    holder: dict[str, Any] = {}
+
+    def factory(cls: type[Task], ctx: TaskContext) -> Task:
+        return _LeafConst(ctx, oracle.consts[holder["ex"].path[-1]])  # the leaf being entered
+
+    def attach(ex: Any) -> None:
+        holder["ex"] = ex
+        world.executor = ex
+        tick = ex.tick
+
+        def recorded(obs: Observation) -> Any:
+            out = tick(obs)
+            ticks.append((_engine_snapshot(ex), {k: float(v[0]) for k, v in out[0].items()}))
+            return out
+        ex.tick = recorded
+
+    result = run_mission(m, world=world, task_factory=factory, on_start=attach, record=False, safe_stop_s=0.0)
+    oracle.start()
+    k = 0
+    while oracle.outcome is None and k / RATE_HZ < REGION_MAX_TIME - 1e-9:
+        assert k < len(ticks), (f"the engine stopped at tick {len(ticks)} ({result.outcome}: "
+                                f"{result.summary['reason']}); the oracle goes on ({_oracle_snapshot(oracle)})")
+        cmd = oracle.step(k, _metrics_at(script, k), _script_events_at(script, k))
+        engine, engine_cmd = ticks[k]
+        assert engine == _oracle_snapshot(oracle), f"tick {k} (t = {k / RATE_HZ:g} s)"
+        assert engine_cmd == pytest.approx(cmd, abs=1e-9), f"command at tick {k} (t = {k / RATE_HZ:g} s)"
+        k += 1
+    assert len(ticks) == k, f"the oracle stopped at tick {k}, the engine ran {len(ticks)}"
+    assert result.outcome == (oracle.outcome or "timeout"), result.summary["reason"]
+    fired = [(round(r.t * RATE_HZ), r.target, r.cause, r.resumed) for r in result.executor.transitions_fired]
+    assert fired == oracle.fired
+    return fired, oracle.seen
+
+
+@settings(max_examples=80, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(doc=region_machines(), script=scripts())
+def test_random_region_and_history_machines_agree_with_the_oracle(doc: dict[str, Any], script: Script) -> None:
+    note(yaml.safe_dump(doc, sort_keys=False))
+    fired, seen = check_regions_run(doc, script)
+    note(str(fired))
+    event(f"transitions fired {min(len(fired) // 10 * 10, 40)}+")
+    for what in sorted(seen):
+        event(what)
+    if any(res for _, _, _, res in fired):
+        event("resumed a history state")
+    if any("." in tgt and tgt.count(".") >= 2 for _, tgt, _, _ in fired):
+        event("moved inside a region")
 
 
 # -- mutations never escape as anything but MissionError --------------------------------------------

@@ -1,6 +1,7 @@
 """Small registered robot/world/task used by the framework's own tests (no simulator).
 
-``toy_point`` is a 1-D point moved by a velocity command; ``toy_line`` integrates it exactly and
+``toy_point`` is a 1-D point moved by a velocity command (``toy_pair`` the same with a second command
+part ``w``, for two regions that each own one); ``toy_line`` integrates it exactly and
 emits ``target_lost`` / ``target_found`` at scheduled times; ``toy_goto`` is a P controller (it records
 its targets and robot view in mission data); ``toy_mark`` holds still and writes where it is
 (``toy.mark``, mission data), ``toy_return`` reads that mark and drives back to it.
@@ -26,6 +27,14 @@ class ToyRobotParams(StrictModel):
 class ToyPoint(Robot):
     Params = ToyRobotParams
     command_keys = {"v": 1}
+
+
+class ToyPair(Robot):
+    """``toy_point`` with a second command part ``w`` (``toy_line`` ignores it): two parallel regions can
+    each own one part."""
+
+    Params = ToyRobotParams
+    command_keys = {"v": 1, "w": 1}
 
 
 class ToyWheelParams(StrictModel):
@@ -193,7 +202,8 @@ class ToyReturn(Task[Any, ToyLimits]):
 
 
 def register() -> None:
-    for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (ROBOTS, "toy_wheel", ToyWheel), (WORLDS, "toy_line", ToyLine),
+    for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (ROBOTS, "toy_wheel", ToyWheel),
+                           (ROBOTS, "toy_pair", ToyPair), (WORLDS, "toy_line", ToyLine),
                            (TASKS, "toy_goto", ToyGoto), (TASKS, "toy_watch", ToyWatch), (TASKS, "toy_mark", ToyMark),
                            (TASKS, "toy_return", ToyReturn)):
         if name not in reg._items:

@@ -13,7 +13,7 @@ from ..schema import Transition as TransitionSpec
 from ..units import UnitError, parse_quantity
 from .context import Compilation
 from .dataflow import data_hint
-from .tree import metrics_under
+from .tree import metrics_under, sibling_metrics
 
 
 def compile_transitions(c: Compilation, root: StateNode, events: set[str]) -> None:
@@ -91,6 +91,26 @@ def _compile_one(c: Compilation, n: StateNode, target: StateNode, tr: Transition
     return DoneTransition(**common, label="done" if outcome is None else f"done {outcome}", outcome=outcome)
 
 
+def _unknown_metric_hint(c: Compilation, n: StateNode, m: str, available: dict[str, str]) -> str:
+    """What a guard on ``n`` may read instead of ``m``, where ``m`` is published, and — inside a region — how to
+    read a metric while the region runs (a monitor region)."""
+    hint = describe_choices(m, list(available))
+    publishers = sorted(p.path for p in c.states.values() if p.is_leaf and p.task_cls is not None
+                        and m in p.task_cls.metrics)
+    if publishers:
+        hint += (f"; {m!r} is published only in {', '.join(map(repr, publishers[:3]))}"
+                 f"{' …' if len(publishers) > 3 else ''}, never active with {n.path!r}")
+    if n.region is not None:
+        siblings = sibling_metrics(n)
+        listing = ", ".join(f"{k} ({r})" for k, (_, r) in sorted(siblings.items())) or "(none)"
+        hint += (f"; a guard in region {n.region.path!r} reads the world's metrics, its own tasks' and those of its "
+                 f"sibling regions' tasks: {listing}; to watch {m!r} while this region runs, run the task that "
+                 "publishes it in a sibling region of its own (a monitor region, `owns` nothing)")
+    else:
+        hint += "; `taskflow describe TASK` lists a task's metrics"
+    return hint
+
+
 def _region_entered_from_outside(source: StateNode, target: StateNode) -> StateNode | None:
     """The region ``target`` lies in that ``source`` is not inside (None: the transition enters no region from
     outside).  A region starts only with its parallel state, so the others are entered with it."""
@@ -145,8 +165,7 @@ def _compile_guard(c: Compilation, n: StateNode, text: str, where: YPath, quanti
     available = metrics_under(c, n)
     unknown = [m for m in sorted(guard.metrics) if m not in available]
     for m in unknown:
-        c.err(where, f"metric {m!r} is not published in state {n.path!r}",
-              f"{describe_choices(m, list(available))}; `taskflow describe TASK` lists a task's metrics")
+        c.err(where, f"metric {m!r} is not published in state {n.path!r}", _unknown_metric_hint(c, n, m, available))
     readable = c.mission_data.guard_units()  # data.<key> names (taskflow.compile.dataflow)
     unknown_data = sorted({cmp.metric for cmp in guard.comparisons()} - set(guard.metrics) - set(readable))
     for m in unknown_data:

@@ -169,12 +169,34 @@ def check_region_metrics(c: Compilation, root: StateNode) -> None:
 
 
 def metrics_under(c: Compilation, node: StateNode) -> dict[str, str]:
-    """The metrics a guard on ``node`` may read: the world's and those of every task at or below it."""
+    """The metrics a guard on ``node`` may read: the world's, those of every task at or below it, and —
+    inside a parallel region — those of every task of the regions concurrent with it (:func:`sibling_metrics`)."""
     units = dict(c.world.metrics)
     for n in node.walk():
         if n.task_cls is not None:
             units.update(n.task_cls.metrics)
+    for m, (unit, _) in sibling_metrics(node).items():
+        units.setdefault(m, unit)
     return units
+
+
+def sibling_metrics(node: StateNode) -> dict[str, tuple[str, str]]:
+    """Metric → (unit, region publishing it) for every task in a region concurrent with ``node``: the sibling
+    regions of each region ``node`` lies in (they are active whenever ``node`` is).  Empty outside regions."""
+    out: dict[str, tuple[str, str]] = {}
+    region = node.region
+    while region is not None:
+        parallel = region.parent
+        assert parallel is not None
+        for sibling in parallel.children.values():
+            if sibling is region:
+                continue
+            for n in sibling.walk():
+                if n.task_cls is not None:
+                    for m, unit in n.task_cls.metrics.items():
+                        out.setdefault(m, (unit, sibling.path))
+        region = parallel.region
+    return out
 
 
 def check_region_names(c: Compilation, root: StateNode) -> None:

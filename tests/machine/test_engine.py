@@ -133,3 +133,14 @@ machine:
     assert [rec.cause for rec in ex.transitions_fired] == ["start", "timeout", "next_item", "timeout", "next_item",
                                                           "timeout", "done"]
     assert ex.iteration == {"loop": 2}
+
+
+def test_the_library_members_the_engine_relies_on_exist():
+    """engine.py names the private members of `transitions` it builds on; a release that drops one fails here."""
+    import inspect
+
+    from transitions.extensions.nesting import NestedTransition
+
+    for name in ("_resolve_transition", "_enter_nested", "_final_check", "_change_state"):
+        assert callable(getattr(NestedTransition, name, None)), name
+    assert "_final_check" in inspect.getsource(NestedTransition._change_state)  # the hook the engine disables
