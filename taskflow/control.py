@@ -89,13 +89,16 @@ def check_action(action: OperatorAction, mission: CompiledMission) -> None:
 
 
 def check_script(script: Sequence[OperatorAction], live: bool) -> None:
-    """Without a live endpoint (``live=False``) a scripted pause must be ended by the script itself."""
+    """Without a live endpoint (``live=False``) a scripted pause must be ended by the script itself, at the
+    same sim time (the sim clock stops while paused, so a later time never comes)."""
     if live:
         return
     for i, a in enumerate(script):
-        if a.action == "pause" and not any(b.action in ("resume", "hold", "preempt") for b in script[i + 1:]):
+        if a.action == "pause" and not any(b.action in ("resume", "hold", "preempt") and b.t <= a.t + 1e-9
+                                           for b in script[i + 1:]):
             raise ControlError(f"operator script item {i}: pause at t={a.t:g} s is never resumed, held or pre-empted "
-                               "and no control endpoint is open — the run would wait for ever")
+                               "at that sim time and no control endpoint is open — the sim clock stops while paused, "
+                               "so the run would wait for ever")
 
 
 def load_operator_script(path: str | Path, mission: CompiledMission) -> list[OperatorAction]:
@@ -158,6 +161,7 @@ class OperatorChannel:
         self.on_record = on_record  # where each OperatorRecord's object goes (transitions.jsonl)
         self.on_wait: Callable[[], None] | None = None  # called as a pause begins (the recorder flushes)
         self.mode = RUNNING
+        self.executor: Executor | None = None  # the run's, once it has started: submissions are checked against it
         self.records: list[OperatorRecord] = []
         self._lock = threading.Lock()
         self._state: dict[str, Any] = {"mission": mission.name, "state": "", "t": 0.0, "tick": 0, "paused": False,
@@ -170,7 +174,19 @@ class OperatorChannel:
         check_action(action, self.mission)
         if not self.snapshot()["running"]:
             raise ControlError(f"{action.action}: the run has ended ({self.snapshot()['outcome']})")
+        problem = self._refusal(action, self.executor)
+        if problem is not None:
+            raise ControlError(problem)
         self._queue.put(action)
+
+    @staticmethod
+    def _refusal(action: OperatorAction, executor: Executor | None) -> str | None:
+        """Why the run cannot take ``action`` now (a pre-emption into a state whose entry reads mission data
+        not written yet: :meth:`Executor.preempt_problem`), or None."""
+        to = action.args.get("to")
+        if action.action != "preempt" or to is None or executor is None:
+            return None
+        return executor.preempt_problem(to)
 
     def snapshot(self) -> dict[str, Any]:
         """``GET /state``: active state, sim time and tick, the paused/held flags, outcome once decided."""
@@ -232,10 +248,13 @@ class OperatorChannel:
     def _apply(self, a: OperatorAction, k: int, t: float, executor: Executor, injected: list[str]) -> None:
         if executor.outcome is not None:
             return
-        rec = OperatorRecord(t, k, a.action, a.who, executor.state, dict(a.args))
+        refused = self._refusal(a, executor)  # checked again at the tick boundary: a script's, or a race
+        rec = OperatorRecord(t, k, a.action, a.who, executor.state, dict(a.args), refused)
         self.records.append(rec)
         if self.on_record is not None:
             self.on_record(rec.as_dict())
+        if refused is not None:
+            return
         if a.action == "pause":
             self.mode = PAUSED
         elif a.action == "hold":

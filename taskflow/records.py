@@ -91,8 +91,10 @@ class OperatorRecord:
     """One operator action as it took effect (``transitions.jsonl``, ``cause: operator``, no ``from``/``to``):
     ``action`` (pause, hold, resume, preempt, inject) with its ``args`` (``to`` of a pre-emption, ``event``
     of an injection), ``who`` asked for it, and the sim time ``t`` and index ``tick`` of the control tick at
-    whose start it was applied, with the ``state`` active then.  A list of these is an operator script
-    (:func:`taskflow.control.script_from_records`): replayed, it gives the same run."""
+    whose start it was applied, with the ``state`` active then; ``refused``, when the run could not take it
+    (a pre-emption whose target reads mission data not written yet), says why — the action then changed
+    nothing.  A list of these is an operator script (:func:`taskflow.control.script_from_records`):
+    replayed, it gives the same run."""
 
     t: float
     tick: int
@@ -100,10 +102,14 @@ class OperatorRecord:
     who: str
     state: str
     args: dict[str, str]
+    refused: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        return {"t": round(self.t, 9), "tick": self.tick, "cause": OPERATOR, "action": self.action, "who": self.who,
-                "state": self.state, "args": dict(self.args)}
+        out = {"t": round(self.t, 9), "tick": self.tick, "cause": OPERATOR, "action": self.action, "who": self.who,
+               "state": self.state, "args": dict(self.args)}
+        if self.refused is not None:
+            out["refused"] = self.refused
+        return out
 
 
 @dataclass
