@@ -6,10 +6,13 @@ test) can ask a running mission to
 * ``pause`` — freeze the simulation (no world step, no task step, the sim clock stops; the loop waits on
   this channel in wall time);
 * ``hold`` — bring the robot to a safe stop (the world's ``safe_stop()`` every tick) while the world goes
-  on; no task steps and no transition fires while held;
+  on; no task steps and no transition fires while held, and the time held does not count toward the
+  ``after`` and ``for`` of the active states (:meth:`Executor.hold_for`);
 * ``resume`` — from pause or hold;
 * ``preempt`` — leave every active state for ``args.to`` (a state path of the mission), or with no ``to``
-  end the run ``aborted`` (then the robot is stopped as after a failure);
+  end the run ``aborted`` (then the robot is stopped as after a failure); refused while a state it would
+  enter reads mission data not written yet, and never a way past a loop's or parallel state's own
+  success rule (:meth:`Executor.preempt`);
 * ``inject`` — emit the declared event ``args.event``: the tick's guards see it as a world or task event.
 
 Actions take effect at tick boundaries only: the run loop calls :meth:`OperatorChannel.begin_tick` at the

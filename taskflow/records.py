@@ -9,13 +9,15 @@
                           ``metrics`` (the guard's metric values when it fired), ``event``, ``outcome``,
                           ``item``, ``resumed``, ``who`` — :class:`TransitionRecord`; and one object per
                           operator action (``taskflow ctl``, an operator script): ``cause: operator``,
-                          ``action``, ``who``, ``args``, ``t``, ``tick``, ``state`` — :class:`OperatorRecord`
+                          ``action``, ``who``, ``args``, ``t``, ``tick``, ``state`` (and ``refused``, why, when the
+                          run could not take it) — :class:`OperatorRecord`
   ``trace.csv``           one row per control tick: ``t``, ``state``, ``events``, metric columns
                           ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
                           (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it; ``nan``
                           where a metric has no value that tick)
   ``summary.json``        outcome, final state, states visited, times, foreach items, final metrics, and
-                          the versions of the packages that shape the result
+                          the versions of the packages that shape the result; after operator actions,
+                          ``preempted`` (``t``, ``who``, ``to``, ``from`` each) and ``held_s``
   ``timing.json``         wall-clock figures only: real-time factor, per-tick loop time and the parts tasks
                           and worlds time (perception, control …) as n / mean / p50 / p95 / max in ms
   ``frames/``, ``frames.jsonl``  in rendered modes, the camera images the world observed, as PNG at a declared
