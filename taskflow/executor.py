@@ -420,7 +420,7 @@ class Executor:
             if bad is not None:
                 outcome, why = bad.verdict, f"{why}, but the mission's success rule does not hold: {bad.why}"
         for p in self.preemptions:
-            if bad is None or p is not bad.by:
+            if p.to is not None and (bad is None or p is not bad.by):
                 why += f"; pre-empted by {p.who} (operator) to {p.to!r} at t = {p.t:g} s"
         self.outcome, self.reason = outcome, why
 
