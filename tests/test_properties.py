@@ -11,7 +11,11 @@
    run ends with a proper outcome in a final state (or at max_time), and the `transitions` machine
    agrees with the executor about the active state.
    Two executor bugs found this way are pinned by deterministic strict-xfail tests below.
-2. Random *mutations* of a valid mission (keys deleted or renamed, values replaced, junk text
+2. The same machines with a random *operator script* (pause, hold, resume, pre-empt, abort, inject) against
+   an independent tick-by-tick oracle (`_OperatedOracle`, at the end of the file): every tick's active
+   leaf, every transition, the entry and operating clocks (hold does not count toward `after`/`for`),
+   history, the outcome (a pre-emption past a loop's rule cannot succeed), `preempted` and `held_s`.
+3. Random *mutations* of a valid mission (keys deleted or renamed, values replaced, junk text
    inserted) never make :func:`load_mission_text` raise anything but :class:`MissionError`.
 """
 
@@ -811,7 +815,7 @@ class _OperatedOracle:
 
 
 def check_operated_run(m: CompiledMission, result: Any, script: Script, ops: list[dict[str, Any]],
-                       seen: list[tuple[str, float]]) -> None:
+                       seen: list[tuple[str, float]]) -> "_OperatedOracle":
     ex = result.executor
     oracle = _OperatedOracle(m, script, ops)
     oracle.run(ex.transitions_fired)
@@ -835,6 +839,7 @@ def check_operated_run(m: CompiledMission, result: Any, script: Script, ops: lis
             oracle.t - oracle.entered[a.path] - (oracle.held - oracle.held_at[a.path])), a.path
     if any(p["to"] is not None for p in oracle.preempted) and result.outcome in ("succeeded", "failed"):
         assert any(p["who"] in result.summary["reason"] for p in oracle.preempted), result.summary["reason"]
+    return oracle
 
 
 @settings(max_examples=250, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -857,8 +862,10 @@ def test_random_operator_scripts_agree_with_an_independent_oracle(doc: dict[str,
     watched_script = Script(metrics=watched, events=script.events, actions=script.actions)
     result = drive(m, watched_script, max_time=MAX_TIME, operator=ops)
     note(str([(r.t, r.source, r.target, r.cause, r.resumed) for r in result.executor.transitions_fired]))
-    check_operated_run(m, result, script, ops, seen)
+    oracle = check_operated_run(m, result, script, ops, seen)
     event(f"outcome {result.outcome}")
+    if oracle.trust:
+        event("restricted: a transition into an active history composite")
     actions = {a["action"] for a in ops}
     for a in sorted(actions):
         event(f"operator {a}")
