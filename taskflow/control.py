@@ -6,10 +6,13 @@ test) can ask a running mission to
 * ``pause`` — freeze the simulation (no world step, no task step, the sim clock stops; the loop waits on
   this channel in wall time);
 * ``hold`` — bring the robot to a safe stop (the world's ``safe_stop()`` every tick) while the world goes
-  on; no task steps and no transition fires while held;
+  on; no task steps and no transition fires while held, and the time held does not count toward the
+  ``after`` and ``for`` of the active states (:meth:`Executor.hold_for`);
 * ``resume`` — from pause or hold;
 * ``preempt`` — leave every active state for ``args.to`` (a state path of the mission), or with no ``to``
-  end the run ``aborted`` (then the robot is stopped as after a failure);
+  end the run ``aborted`` (then the robot is stopped as after a failure); refused while a state it would
+  enter reads mission data not written yet, and never a way past a loop's or parallel state's own
+  success rule (:meth:`Executor.preempt`);
 * ``inject`` — emit the declared event ``args.event``: the tick's guards see it as a world or task event.
 
 Actions take effect at tick boundaries only: the run loop calls :meth:`OperatorChannel.begin_tick` at the
@@ -90,22 +93,25 @@ def check_action(action: OperatorAction, mission: CompiledMission) -> None:
 
 def unended_pause(script: Sequence[OperatorAction]) -> int | None:
     """The index in ``script`` of a pause that no later action (in sim-time order, as the channel applies
-    them) resumes, holds or pre-empts; None if every pause is ended."""
+    them) at the same sim time resumes, holds or pre-empts (the sim clock stops while paused); None if every
+    pause is ended."""
     order = sorted(range(len(script)), key=lambda i: script[i].t)  # stable: equal times keep their order
     for n, i in enumerate(order):
         if script[i].action == "pause" and not any(script[j].action in ("resume", "hold", "preempt")
-                                                   for j in order[n + 1:]):
+                                                   and script[j].t <= script[i].t + 1e-9 for j in order[n + 1:]):
             return i
     return None
 
 
 def _never_resumed(a: OperatorAction) -> str:
-    return (f"pause at t={a.t:g} s is never resumed, held or pre-empted and no control endpoint is open — the run "
-            "would wait for ever")
+    return (f"pause at t={a.t:g} s is never resumed, held or pre-empted at that sim time and no control endpoint "
+            "is open — the sim clock stops while paused, so the run would wait for ever: end it with an action at "
+            f"t={a.t:g}, or run with a control endpoint")
 
 
 def check_script(script: Sequence[OperatorAction], live: bool) -> None:
-    """Without a live endpoint (``live=False``) a scripted pause must be ended by the script itself."""
+    """Without a live endpoint (``live=False``) a scripted pause must be ended by the script itself, at the
+    same sim time (the sim clock stops while paused, so a later time never comes)."""
     i = None if live else unended_pause(script)
     if i is not None:
         raise ControlError(f"operator script item {i}: {_never_resumed(script[i])}")
@@ -201,6 +207,7 @@ class OperatorChannel:
         self.on_record = on_record  # where each OperatorRecord's object goes (transitions.jsonl)
         self.on_wait: Callable[[], None] | None = None  # called as a pause begins (the recorder flushes)
         self.mode = RUNNING
+        self.executor: Executor | None = None  # the run's, once it has started: submissions are checked against it
         self.records: list[OperatorRecord] = []
         self._lock = threading.Lock()
         self._state: dict[str, Any] = {"mission": mission.name, "state": "", "t": 0.0, "tick": 0, "paused": False,
@@ -213,7 +220,19 @@ class OperatorChannel:
         check_action(action, self.mission)
         if not self.snapshot()["running"]:
             raise ControlError(f"{action.action}: the run has ended ({self.snapshot()['outcome']})")
+        problem = self._refusal(action, self.executor)
+        if problem is not None:
+            raise ControlError(problem)
         self._queue.put(action)
+
+    @staticmethod
+    def _refusal(action: OperatorAction, executor: Executor | None) -> str | None:
+        """Why the run cannot take ``action`` now (a pre-emption into a state whose entry reads mission data
+        not written yet: :meth:`Executor.preempt_problem`), or None."""
+        to = action.args.get("to")
+        if action.action != "preempt" or to is None or executor is None:
+            return None
+        return executor.preempt_problem(to)
 
     def snapshot(self) -> dict[str, Any]:
         """``GET /state``: active state, sim time and tick, the paused/held flags, outcome once decided."""
@@ -275,10 +294,13 @@ class OperatorChannel:
     def _apply(self, a: OperatorAction, k: int, t: float, executor: Executor, injected: list[str]) -> None:
         if executor.outcome is not None:
             return
-        rec = OperatorRecord(t, k, a.action, a.who, executor.state, dict(a.args))
+        refused = self._refusal(a, executor)  # checked again at the tick boundary: a script's, or a race
+        rec = OperatorRecord(t, k, a.action, a.who, executor.state, dict(a.args), refused)
         self.records.append(rec)
         if self.on_record is not None:
             self.on_record(rec.as_dict())
+        if refused is not None:
+            return
         if a.action == "pause":
             self.mode = PAUSED
         elif a.action == "hold":

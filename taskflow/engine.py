@@ -61,6 +61,8 @@ class MissionState(NestedState):
         self.node = node
         self.entered_at = 0.0  # sim time of the last entry
         self.first_entered: float | None = None  # first entry since the enclosing state was entered afresh
+        self.held_at_entry = 0.0  # the run's time under operator hold (s) when it was last entered
+        self.held_at_first = 0.0  # ... and when it was first entered (the clock of `after … since: first_entry`)
         self.last_leaf: str | None = None  # history: the leaf that was active when this state was last left
         self.item = 0  # foreach: index of the current item
         self.item_started = 0.0  # foreach: sim time the current item started

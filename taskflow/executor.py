@@ -24,7 +24,12 @@ Semantics in brief (docs/missions.md has the long form):
   command for the parts nobody drives) and checks every active leaf's table, each shared transition
   once and at most one transition per region.  A region reaching a final state finishes; the parallel
   state finishes by its ``outcome_map``, at once with the outcome of a region that did not succeed
-  (pre-empting the others), or ``succeeded`` when every region has.
+  (pre-empting the others), or ``succeeded`` when every region has;
+* time under operator hold does not count: ``after`` timeouts and ``for`` dwell read the *operating
+  clock*, sim time less :attr:`Executor.held_s` (entry clocks stay sim times, as the records give them);
+* an operator pre-emption that leaves a ``foreach`` or parallel state before its own success rule
+  decided it records what that rule gives at that moment; a run that then reaches a ``succeeded`` final
+  ends with the first such verdict that is not ``succeeded`` (:meth:`Executor.preempt`).
 """
 
 from __future__ import annotations
@@ -37,7 +42,7 @@ from .contracts import build_robot_params
 from .data import DataAccess
 from .engine import START, MissionMachine, MissionState, leaf_paths
 from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode, TimeoutTransition,
-                    Transition, UnknownRef, has_refs, resolve_refs)
+                    Transition, UnknownRef, data_refs, has_refs, resolve_refs)
 from .records import (CAUSES, DONE, EVENT, GUARD, NEXT_ITEM, START_CAUSE, TIMEOUT, ItemCount, IterationRecord,
                       TransitionRecord)
 from .records import OPERATOR
@@ -52,6 +57,30 @@ blend_weight = activation
 
 
 TaskFactory = Callable[[type[Task], TaskContext], Task | None]
+
+
+@dataclass(frozen=True)
+class Preemption:
+    """One operator pre-emption: sim time ``t``, ``who`` asked, the state path it went ``to`` (None: the run
+    was aborted) and the active configuration it left (``source``) — the summary's ``preempted`` list."""
+
+    t: float
+    who: str
+    to: str | None
+    source: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"t": round(self.t, 9), "who": self.who, "to": self.to, "from": self.source}
+
+
+@dataclass(frozen=True)
+class SkippedRule:
+    """A ``foreach`` or parallel state a pre-emption left before its success rule decided it: the outcome
+    that rule gives at that moment (``verdict``) and why, in words, naming the pre-emption."""
+
+    verdict: str
+    why: str
+    by: Preemption
 
 
 @dataclass
@@ -81,7 +110,10 @@ class Executor:
         self.task: Task | None = None  # the task of the leaf entered last (the only one without parallel regions)
         self.tasks: dict[str, Task] = {}  # active leaf → its task
         self._region_outcomes: dict[str, dict[str, str]] = {}  # parallel state → region → outcome it finished with
-        self.dwell_since: dict[int, float] = {}
+        self.dwell_since: dict[int, float] = {}  # dwell guard's index → operating-clock time its condition began
+        self.held_s = 0.0  # sim seconds spent under operator hold so far (not counted by `after` and `for`)
+        self.preemptions: list[Preemption] = []  # operator pre-emptions, in order
+        self.skipped_rules: dict[str, SkippedRule] = {}  # composite path → the rule a pre-emption left undecided
         self.iterations: list[IterationRecord] = []
         self.loop_failures: list[str] = []  # loops that finished failed by their success rule, for the reason
         self.item_counts: dict[str, ItemCount] = {}  # foreach path → items attempted / succeeded over the whole run
@@ -173,6 +205,19 @@ class Executor:
         """Sim time of ``node``'s last entry."""
         return self._states[node.path].entered_at
 
+    def operating_since(self, node: StateNode, t: float, first: bool = False) -> float:
+        """Seconds of operating time (sim time not under operator hold) from ``node``'s last entry — or,
+        with ``first``, its first entry since its enclosing state was entered afresh — to sim time ``t``:
+        what its ``after`` timeouts compare."""
+        st = self._states[node.path]
+        if first and st.first_entered is not None:
+            return (t - st.first_entered) - (self.held_s - st.held_at_first)
+        return (t - st.entered_at) - (self.held_s - st.held_at_entry)
+
+    def hold_for(self, seconds: float) -> None:
+        """The world went on for ``seconds`` of sim time under operator hold (the runtime's held ticks)."""
+        self.held_s += seconds
+
     # -- start -------------------------------------------------------------------------------------
     def start(self, t: float) -> None:
         self.t = t
@@ -184,8 +229,10 @@ class Executor:
         t = self.t
         st = self._states[node.path]
         st.entered_at = t
+        st.held_at_entry = self.held_s
         if st.first_entered is None:
             st.first_entered = t
+            st.held_at_first = self.held_s
         for tr in node.transitions:
             self.dwell_since.pop(tr.index, None)
         if not self._resuming and node.children:
@@ -194,6 +241,8 @@ class Executor:
             st.item, st.item_started, st.items_succeeded = 0, t, 0
         if node.parallel:
             self._region_outcomes.pop(node.path, None)
+        if (node.loop or node.parallel) and not self._resuming:
+            self.skipped_rules.pop(node.path, None)  # a fresh run of it: its own rule decides again
         if node.action is not None:
             name, params = node.action
             self.world.start_action(name, resolve_refs(params, self.params, self.items(node)))
@@ -321,12 +370,11 @@ class Executor:
             self._region_finished(parent, outcome)
             return
         if parent is None or parent.parent is None:
-            self.outcome = outcome
             desc = self.mission.description_of(leaf)
             why = f"reached final state {leaf.path!r}" + (f" ({desc})" if desc else "")
             if outcome != "succeeded" and self.loop_failures:
                 why += "; " + "; ".join(self.loop_failures)
-            self.reason = self.reason or why
+            self._end(outcome, self.reason or why)
             return
         if parent.loop:
             loop = parent.loop
@@ -374,6 +422,7 @@ class Executor:
             self._complete(parallel, result)
 
     def _complete(self, node: StateNode, outcome: str) -> None:
+        self.skipped_rules.pop(node.path, None)  # its own rule decided
         for tr in node.transitions:
             if isinstance(tr, DoneTransition) and tr.handles(outcome):
                 leaf, resumed = self._destination(tr.target, tr.resume, tr.domain_depth)
@@ -381,8 +430,20 @@ class Executor:
                          index=tr.index, outcome=outcome)
                 return
         # nobody handles this outcome: the run ends with it
-        self.outcome = outcome
-        self.reason = f"{node.path!r} finished {outcome} and no `done` transition handles it"
+        self._end(outcome, f"{node.path!r} finished {outcome} and no `done` transition handles it")
+
+    def _end(self, outcome: str, why: str) -> None:
+        """The machine ended the run with ``outcome``: a ``succeeded`` one stands only if no rule a
+        pre-emption skipped gives otherwise; the reason names every pre-emption."""
+        bad = None
+        if outcome == "succeeded":
+            bad = next((s for s in self.skipped_rules.values() if s.verdict != "succeeded"), None)
+            if bad is not None:
+                outcome, why = bad.verdict, f"{why}, but the mission's success rule does not hold: {bad.why}"
+        for p in self.preemptions:
+            if p.to is not None and (bad is None or p is not bad.by):
+                why += f"; pre-empted by {p.who} (operator) to {p.to!r} at t = {p.t:g} s"
+        self.outcome, self.reason = outcome, why
 
     # -- one tick -------------------------------------------------------------------------------------
     def tick(self, obs: Observation) -> tuple[Command, dict[str, float], Collection[str]]:
@@ -516,8 +577,9 @@ class Executor:
             if kind is GuardTransition:
                 if tr.predicate(metrics, self.memory):  # type: ignore[attr-defined]
                     if tr.dwell > 0.0:  # type: ignore[attr-defined]
-                        since = self.dwell_since.setdefault(tr.index, t)
-                        if t - since + 1e-9 < tr.dwell:  # type: ignore[attr-defined]
+                        op = t - self.held_s  # the operating clock: time under hold does not count
+                        since = self.dwell_since.setdefault(tr.index, op)
+                        if op - since + 1e-9 < tr.dwell:  # type: ignore[attr-defined]
                             continue
                     return self._fire_from(table, i, metrics)
                 if tr.dwell > 0.0:  # type: ignore[attr-defined]
@@ -526,8 +588,11 @@ class Executor:
                 if tr.event in events and (tr.predicate is None or tr.predicate(metrics, self.memory)):  # type: ignore[attr-defined]
                     return self._fire_from(table, i, metrics)
             elif kind is TimeoutTransition:
-                since = clock.first_entered if tr.since_first else clock.entered_at  # type: ignore[attr-defined,union-attr]
-                if t - since + 1e-9 >= tr.after:  # type: ignore[attr-defined,operator]
+                if tr.since_first:  # type: ignore[attr-defined]
+                    since, held = clock.first_entered, clock.held_at_first  # type: ignore[union-attr]
+                else:
+                    since, held = clock.entered_at, clock.held_at_entry  # type: ignore[union-attr]
+                if (t - since) - (self.held_s - held) + 1e-9 >= tr.after:  # type: ignore[attr-defined,operator]
                     return self._fire_from(table, i, metrics)
         return None
 
@@ -557,11 +622,74 @@ class Executor:
     def preempt(self, target: str | None, who: str, t: float) -> None:
         """Operator pre-emption at sim time ``t``: leave every active state (their exits cancel running world
         actions) for the state path ``target`` — its initial leaf, or its history — recorded with cause
-        ``operator``; or, with ``target=None``, end the run ``aborted`` (the runtime then stops the robot)."""
+        ``operator``; or, with ``target=None``, end the run ``aborted`` (the runtime then stops the robot).
+
+        Every active ``foreach`` or parallel state the pre-emption leaves for good (not the target nor on the
+        way into it) has its success rule evaluated now (:meth:`_rule_verdict`); until that state is entered
+        afresh or finishes by its own rule, a ``succeeded`` end of the run yields to the first verdict that is
+        not (:meth:`_end`)."""
         self.t = t
+        by = Preemption(t, who, target, self.state)
+        self.preemptions.append(by)
         if target is None:
             self.outcome, self.reason = "aborted", f"pre-empted by {who} (operator)"
             return
         leaf, resumed = self._destination(self.mission.states[target], True, 0)
+        staying = {a.path for entered in leaf.entry_leaves() for a in entered.ancestors()}
+        for node in self._rule_states():
+            if node.path not in staying:
+                verdict, why = self._rule_verdict(node)
+                self.skipped_rules[node.path] = SkippedRule(
+                    verdict, f"{node.path!r} had not finished when {who} (operator) pre-empted the run to {target!r} "
+                    f"at t = {t:g} s: {why}", by)
         self._blends.clear()
         self._go(leaf, OPERATOR, resume=resumed, keep=0, label=f"preempt --to {target}", who=who)
+
+    def _rule_states(self) -> list[StateNode]:
+        """The active ``foreach`` and parallel states (each once, outermost first)."""
+        seen: dict[str, StateNode] = {}
+        for leaf in self.leaves:
+            for a in leaf.ancestors():
+                if a.loop or a.parallel:
+                    seen.setdefault(a.path, a)
+        return sorted(seen.values(), key=lambda n: n.depth)
+
+    def _rule_verdict(self, node: StateNode) -> tuple[str, str]:
+        """What the success rule of the active ``foreach`` or parallel ``node`` gives now, and why: a loop
+        ``succeeded`` if its items so far meet ``require``, else ``failed`` (as when its last item ends);
+        a parallel state by its ``outcome_map`` with the unfinished regions counted ``aborted`` (how a
+        region pre-empted mid-way ends), else the first region outcome that is not ``succeeded``."""
+        if node.loop is not None:
+            loop, st = node.loop, self._states[node.path]
+            n = len(self.params[loop.items])
+            ok = st.items_succeeded >= loop.required
+            return ("succeeded" if ok else "failed",
+                    f"{st.items_succeeded} of {n} items succeeded, its rule requires {loop.required} ({loop.rule})")
+        finished = self._region_outcomes.get(node.path, {})
+        outcomes = {r: finished.get(r, "aborted") for r in node.children}
+        result = next((out for out, need in node.outcome_map if all(outcomes.get(r) == o for r, o in need.items())),
+                      None)
+        if result is None:
+            result = next((o for o in outcomes.values() if o != "succeeded"), "succeeded")
+        running = [r for r in node.children if r not in finished]
+        return result, f"regions {', '.join(map(repr, running))} had not finished (counted aborted): {result}"
+
+    def preempt_problem(self, target: str) -> str | None:
+        """Why a pre-emption to ``target`` cannot be taken now, or None: a leaf it would enter reads, on
+        entry, mission data this run has not written (its task's ``reads``, its ``$data`` parameters)."""
+        leaf, _ = self._destination(self.mission.states[target], True, 0)
+        data = self.mission.data
+        for entered in leaf.entry_leaves():
+            if entered.final or entered.task_cls is None:
+                continue
+            needed = [k.name for k in entered.task_cls.reads]
+            needed += [name for name, _ in data_refs(entered.task_params) if name in data.keys]
+            for key in needed:
+                if key not in self.memory:
+                    writers = [n.path for n in self.mission.leaves() if not n.final and n.task_cls is not None
+                               and any(k.name == key for k in n.task_cls.writes)]
+                    via = f" (entered as {entered.path!r})" if entered is not self.mission.states[target] else ""
+                    return (f"preempt: {target!r}{via} reads mission data {key!r} on entry, which this run has "
+                            f"not written yet — it is written by {', '.join(map(repr, writers)) or 'no state'}: "
+                            "pre-empt to one of those first")
+        return None

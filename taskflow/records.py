@@ -9,13 +9,15 @@
                           ``metrics`` (the guard's metric values when it fired), ``event``, ``outcome``,
                           ``item``, ``resumed``, ``who`` — :class:`TransitionRecord`; and one object per
                           operator action (``taskflow ctl``, an operator script): ``cause: operator``,
-                          ``action``, ``who``, ``args``, ``t``, ``tick``, ``state`` — :class:`OperatorRecord`
+                          ``action``, ``who``, ``args``, ``t``, ``tick``, ``state`` (and ``refused``, why, when the
+                          run could not take it) — :class:`OperatorRecord`
   ``trace.csv``           one row per control tick: ``t``, ``state``, ``events``, metric columns
                           ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
                           (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it; ``nan``
                           where a metric has no value that tick)
   ``summary.json``        outcome, final state, states visited, times, foreach items, final metrics, and
-                          the versions of the packages that shape the result
+                          the versions of the packages that shape the result; after operator actions,
+                          ``preempted`` (``t``, ``who``, ``to``, ``from`` each) and ``held_s``
   ``timing.json``         wall-clock figures only: real-time factor, per-tick loop time and the parts tasks
                           and worlds time (perception, control …) as n / mean / p50 / p95 / max in ms
   ``frames/``, ``frames.jsonl``  in rendered modes, the camera images the world observed, as PNG at a declared
@@ -95,8 +97,10 @@ class OperatorRecord:
     """One operator action as it took effect (``transitions.jsonl``, ``cause: operator``, no ``from``/``to``):
     ``action`` (pause, hold, resume, preempt, inject) with its ``args`` (``to`` of a pre-emption, ``event``
     of an injection), ``who`` asked for it, and the sim time ``t`` and index ``tick`` of the control tick at
-    whose start it was applied, with the ``state`` active then.  A list of these is an operator script
-    (:func:`taskflow.control.script_from_records`): replayed, it gives the same run."""
+    whose start it was applied, with the ``state`` active then; ``refused``, when the run could not take it
+    (a pre-emption whose target reads mission data not written yet), says why — the action then changed
+    nothing.  A list of these is an operator script (:func:`taskflow.control.script_from_records`):
+    replayed, it gives the same run."""
 
     t: float
     tick: int
@@ -104,10 +108,14 @@ class OperatorRecord:
     who: str
     state: str
     args: dict[str, str]
+    refused: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        return {"t": round(self.t, 9), "tick": self.tick, "cause": OPERATOR, "action": self.action, "who": self.who,
-                "state": self.state, "args": dict(self.args)}
+        out = {"t": round(self.t, 9), "tick": self.tick, "cause": OPERATOR, "action": self.action, "who": self.who,
+               "state": self.state, "args": dict(self.args)}
+        if self.refused is not None:
+            out["refused"] = self.refused
+        return out
 
 
 @dataclass

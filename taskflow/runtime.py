@@ -213,6 +213,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     if channel is not None:
         channel.on_record = recorder.transition if recorder is not None else None
         channel.on_wait = recorder.flush if recorder is not None else None
+        channel.executor = executor
         if server is not None:
             server.start(channel, recorder.dir if recorder is not None else None)
     if on_start is not None:
@@ -256,6 +257,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                     k += 1
                     world.advance(dt)
                     obs = world.observe()
+                    executor.hold_for(obs.t - t)  # held time does not count toward `after` and `for`
                     continue
             leaf = executor.state
             command, metrics, events = executor.tick(obs)
@@ -364,8 +366,10 @@ def recorded_file(file: str) -> str:
 
 def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: float,
                   metrics: dict[str, Any], ticks: int) -> dict[str, Any]:
-    """What a run did, from the mission, the seed and the simulation only (no wall-clock figure)."""
-    return clean_floats({
+    """What a run did, from the mission, the seed and the simulation only (no wall-clock figure).  A run an
+    operator acted on also has ``preempted`` (each pre-emption: ``t``, ``who``, ``to``, ``from``) and
+    ``held_s`` (sim seconds under hold), when there were any."""
+    out = {
         "mission": mission.name,
         "file": recorded_file(mission.file),
         "seed": seed,
@@ -384,7 +388,12 @@ def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: f
         "metrics": metrics,
         "outputs": mission.data.outputs(ex.memory),
         "versions": versions(),
-    })
+    }
+    if ex.preemptions:
+        out["preempted"] = [p.as_dict() for p in ex.preemptions]
+    if ex.held_s > 0.0:
+        out["held_s"] = round(ex.held_s, 9)
+    return clean_floats(out)
 
 
 def print_progress(state: str, t: float, rtf: float) -> None:

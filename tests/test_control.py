@@ -401,10 +401,11 @@ def test_taskflow_run_opens_the_endpoint_by_default_and_ctl_drives_it(tmp_path, 
         assert main(["ctl", "--url", url, "--token", token, "preempt", "--to", "operate.home", "--who", "ivy"]) == 0
     finally:
         thread.join(30)
-    assert codes == [0]  # home reached: the run succeeds from the state it was sent to
+    assert codes == [1]  # home reached, but `operate.visit` was left with 0 of 3 goals: not a success (issue 20)
     captured = capsys.readouterr()
-    assert f"control: {url}  (taskflow ctl {out} " in err + captured.err and "outcome: succeeded" in captured.out
+    assert f"control: {url}  (taskflow ctl {out} " in err + captured.err and "outcome: failed" in captured.out
     assert f"; token {token})" in err + captured.err  # printed once, at start
+    assert "ivy (operator) pre-empted the run to 'operate.home'" in captured.out
     op = [r for r in operator_records(out) if "from" in r]
     assert op == [{"t": 1.0, "from": "operate.visit.approach", "to": "operate.home", "cause": "operator", "state": "",
                    "label": "preempt --to operate.home", "who": "ivy"}]
@@ -449,3 +450,29 @@ machine:
     a: {transitions: [{to: b, on: operator_confirmed}]}
     b: {final: true}
 """, "ev2.yaml")
+
+
+# -- a pre-emption the run's mission data cannot take (issue 20) -----------------------------------------
+
+def test_the_endpoint_refuses_a_preempt_into_an_unwritten_read_then_takes_it_once_written(live, tmp_path):
+    from test_operator_semantics import MARKED  # away → mark (writes toy.mark) → back (reads it) → done
+
+    from taskflow.loader import load_mission_text
+
+    mission = load_mission_text(MARKED, "marked.yaml")
+    out = tmp_path / "run"
+    # paused at 0.4 s in `away` (toy.mark not written), and at 2.25 s in `mark` (written on its first step)
+    pauses = [{"t": 0.4, "action": "pause", "who": "script"}, {"t": 2.25, "action": "pause", "who": "script"}]
+    run = live(lambda: run_mission(mission, out_dir=out, control="127.0.0.1:0", operator=pauses), out)
+    assert run.wait(lambda s: s["paused"])["state"] == "away"
+    with pytest.raises(ControlError) as exc:
+        run.client.send("preempt", who="erin", to="back")
+    assert "'back' reads mission data 'toy.mark'" in str(exc.value) and "written by 'mark'" in str(exc.value)
+    run.client.send("resume", who="erin")
+    assert run.wait(lambda s: s["paused"] and s["t"] >= 2.25)["state"] == "mark"
+    run.client.send("preempt", who="erin", to="back")  # toy.mark is written now: taken
+    result = run.finish()
+    assert result.outcome == "succeeded", result.summary["reason"]
+    assert result.summary["preempted"] == [{"t": 2.25, "who": "erin", "to": "back", "from": "mark"}]
+    assert result.summary["states_visited"] == ["away", "mark", "back", "done"]
+    assert not [r for r in operator_records(out) if "refused" in r]  # the refused one never reached the run
