@@ -383,7 +383,7 @@ def record_from_dict(d: Any) -> TransitionRecord | OperatorRecord:
             raise ValueError("'args' holds a value that is no string — an object of strings was expected")
         return OperatorRecord(t, _typed(d, "tick", (int,), "a tick index"), action,
                               _typed(d, "who", (str,), "a name"), _typed(d, "state", (str,), "a state path", ""),
-                              dict(args))
+                              dict(args), _typed(d, "refused", (str,), "why the run could not take it", None))
     metrics = _typed(d, "metrics", (dict,), "an object of metric values", None)
     if metrics is not None and not all(v is None or isinstance(v, _NUMBER) and not isinstance(v, bool)
                                        for v in metrics.values()):

@@ -73,10 +73,12 @@ def describe_transition(rec: TransitionRecord, units: dict[str, str]) -> str:
 
 
 def describe_operator(rec: OperatorRecord) -> str:
-    """One line: when, which operator action with its argument, who asked for it, the state active then."""
+    """One line: when, which operator action with its argument, who asked for it, the state active then, and
+    why the run refused it, if it did."""
     to = rec.args.get("to")
     arg = {"preempt": f" --to {to}" if to else " (abort)", "inject": f" {rec.args.get('event', '')}"}.get(rec.action, "")
-    return f"t = {rec.t:8.2f} s  {rec.action}{arg} by {rec.who} (tick {rec.tick}, in {rec.state or '-'})"
+    refused = f" — refused: {rec.refused}" if rec.refused else ""
+    return f"t = {rec.t:8.2f} s  {rec.action}{arg} by {rec.who} (tick {rec.tick}, in {rec.state or '-'}){refused}"
 
 
 def _last_values(run: RecordedRun) -> list[tuple[str, float, str, float]]:

@@ -281,3 +281,10 @@ def test_a_scripted_preempt_into_an_unwritten_read_is_refused_and_the_run_goes_o
     assert op["t"] == 0.5 and op["state"] == "away"
     assert "'back' reads mission data 'toy.mark'" in op["refused"] and "written by 'mark'" in op["refused"]
     assert r.summary["sim_time_s"] == base.summary["sim_time_s"]
+    # every reader takes the refused action: the recorded run and its printed summary name the refusal
+    from taskflow.recorded import load_run
+    from taskflow.report import format_report
+
+    (rec,) = load_run(out).operator
+    assert rec.action == "preempt" and rec.refused == op["refused"]
+    assert "refused: preempt: 'back' reads mission data 'toy.mark'" in format_report(load_run(out))
