@@ -1035,9 +1035,8 @@ def test_control_characters_give_mission_errors(ch: str, pos: int) -> None:
 # (a pre-emption that leaves a loop before its rule held cannot end the run `succeeded`) and the summary's
 # `preempted` and `held_s`.
 #
-# Restricted: a transition or pre-emption into a `history` composite that is active at that moment — the
-# engine picks the destination before the exit records the new history (a staleness another piece of
-# issue 20, "mregion", fixes); there the oracle takes the engine's destination instead of asserting one.
+# A transition or pre-emption into a `history` composite that is active at that moment resumes the leaf that
+# exit leaves (UML: exit first, then resolve history; it used to resume an older record).
 
 WHO = ("ann", "bo")
 
@@ -1137,8 +1136,8 @@ class _OperatedOracle:
         self.seen: list[tuple[str, float]] = []  # per tick: active leaf and its entry time, as observed
         self.preempted: list[dict[str, Any]] = []
         self.outcome: str | None = None
-        self.trust: set[int] = set()  # record positions whose destination the oracle took from the engine
         self.engine_records: list[Any] = []
+        self.into_active_history = 0  # transitions into a history composite active at that moment
 
     # -- entering and leaving --------------------------------------------------------------------------
     def _path_down(self, leaf: StateNode, keep: int) -> list[StateNode]:
@@ -1168,13 +1167,14 @@ class _OperatedOracle:
             self._finished(dest)
 
     def _destination(self, target: StateNode, resume: bool) -> tuple[StateNode, bool]:
-        """Where a transition into ``target`` leads; an active history target is the restricted case."""
+        """Where a transition into ``target`` leads.  UML order: the transition exits first, then resolves
+        history — a history target that is active when it is exited resumes the leaf this exit leaves (its
+        active leaf), or starts afresh when that leaf is final (the target has just finished)."""
         if target.children and target.history and resume and self.leaf is not None and _is_under(self.leaf, target):
-            i = len(self.records)
-            self.trust.add(i)
-            rec = self.engine_records[i] if i < len(self.engine_records) else None
-            if rec is not None and _is_under(self.m.states[rec.target], target):
-                return self.m.states[rec.target], rec.resumed
+            self.into_active_history += 1
+            if self.leaf.final:
+                return target.initial_leaf(), False
+            return self.leaf, True
         last = self.history.get(target.path) if target.children and target.history and resume else None
         if last is not None:
             return self.m.states[last], True
@@ -1309,7 +1309,7 @@ def check_operated_run(m: CompiledMission, result: Any, script: Script, ops: lis
     oracle.run(ex.transitions_fired)
     got = [(round(r.t * RATE_HZ), r.source, r.target, r.cause, r.resumed) for r in ex.transitions_fired]
     for i, (want, have) in enumerate(zip(oracle.records, got)):
-        assert want == have, f"record {i}: oracle {want}, engine {have}" + (" (restricted)" if i in oracle.trust else "")
+        assert want == have, f"record {i}: oracle {want}, engine {have}"
     assert len(got) == len(oracle.records), f"engine {got[len(oracle.records):]} / oracle {oracle.records[len(got):]}"
     # every tick's active leaf and its entry time, as the world observed them
     ticks = len(oracle.seen)
@@ -1352,8 +1352,8 @@ def test_random_operator_scripts_agree_with_an_independent_oracle(doc: dict[str,
     note(str([(r.t, r.source, r.target, r.cause, r.resumed) for r in result.executor.transitions_fired]))
     oracle = check_operated_run(m, result, script, ops, seen)
     event(f"outcome {result.outcome}")
-    if oracle.trust:
-        event("restricted: a transition into an active history composite")
+    if oracle.into_active_history:
+        event("a transition into an active history composite")
     actions = {a["action"] for a in ops}
     for a in sorted(actions):
         event(f"operator {a}")
