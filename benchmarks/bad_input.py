@@ -1,5 +1,5 @@
 """Wall time and peak memory of every broken command-line input of ``tests/bad_inputs.py``, each run as
-``taskflow …`` in a fresh process (the issue's budget: one line, exit 1, within 2 s and 200 MB).
+``taskflow …`` in a fresh process (the budget: one line, exit 1, within 1 s and 200 MB).
 
 Run: ``python benchmarks/bad_input.py`` — one line per case, then a JSON line with the worst time and
 memory.  Times include starting Python and importing numpy, pydantic and the world's module; ``cpu`` is the
