@@ -284,3 +284,28 @@ def test_a_rendered_run_shows_the_camera_frame_nearest_the_cursor(browser, rende
             assert f"captured at t = {want.stamp:.3f} s" in shown[3]
     finally:
         server.stop()
+
+
+def test_an_after_countdown_does_not_count_the_time_held(browser, tmp_path):
+    """Held ticks do not count toward ``after`` (the engine's operating clock): held 0.9 s in ``search``
+    (``after: 0.5 s``), the page shows at t = 1.2 s the 0.2 s the engine still waits, and the engine leaves
+    ``search`` 0.5 s of operating time after entering it."""
+    out = tmp_path / "held"
+    ops = [{"t": 0.1, "action": "hold", "who": "t"}, {"t": 1.0, "action": "resume", "who": "t"}]
+    result = drive(load_mission(TOY), _script(slow=False), max_time=120, out_dir=out, operator=ops)
+    assert result.outcome == "succeeded"
+    trace = read_trace(out)
+    held = [t for t, e in zip(trace["t"], trace["events"]) if "hold" in str(e).split("|")]
+    assert len(held) == 18  # ticks 0.10 .. 0.95
+    left_search = next(r for r in result.executor.transitions_fired if r.source == "search")
+    assert abs(left_search.t - (0.5 + len(held) * DT)) < 1e-9
+    server = serve_replay(out, "127.0.0.1:0")
+    try:
+        _open(browser, server.url)
+        k = _row(trace, 1.2)
+        browser.execute_script("taskflowView.seek(arguments[0])", k)
+        text = browser.execute_script("""return [...document.querySelectorAll('#guards tbody tr')]
+            .map(r => r.textContent).find(x => x.includes('s left of')) || ''""")
+        assert "0.20 s left of 0.5 s" in text and "0.90 s held" in text, text
+    finally:
+        server.stop()

@@ -114,6 +114,16 @@ function enteredAt(path, i, first) {
   return S.rows[j][0];
 }
 
+// sim time the operator held the robot between ``since`` and row i: held ticks (event ``hold``) do not count
+// toward ``after`` (the engine's operating clock, docs/missions.md "Operating a running mission")
+function heldSince(since, i, dt) {
+  let held = 0;
+  for (let j = i - 1; j >= 0 && S.rows[j][0] >= since - 1e-9; j--) {
+    if (S.rows[j][2] && S.rows[j][2].split("|").includes("hold")) held += dt;
+  }
+  return held;
+}
+
 // -- rendering ---------------------------------------------------------------------------------------------
 function render() {
   if (!S.rows.length) return;
@@ -227,8 +237,10 @@ function renderGuards(leaves, i) {
       cond.className = holds ? "ok" : "no";
     } else if (tr.kind === "timeout") {
       const since = enteredAt(tr.since, i, tr.since_first);
-      const left = tr.after - (t - since);
-      prog.append(bar((t - since) / tr.after), ` ${Math.max(0, left).toFixed(2)} s left of ${tr.after} s`);
+      const held = heldSince(since, i, dt);
+      const left = tr.after - (t - since - held);
+      prog.append(bar((t - since - held) / tr.after), ` ${Math.max(0, left).toFixed(2)} s left of ${tr.after} s` +
+        (held > 0 ? ` (${held.toFixed(2)} s held, not counted)` : ""));
       cond.textContent = `after ${tr.after} s since ${tr.since}${tr.since_first ? " (first entered)" : ""}`;
     } else if (tr.kind === "event") {
       const seen = events.includes(tr.event);
