@@ -38,7 +38,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from .backends import BackendError, TrialInterrupted, TrialJob, WorkerLost, make_backend
-from .campaign import Campaign, CampaignSpec, parse_sweep, read_value
+from .campaign import Campaign, CampaignSpec, file_sha256, parse_sweep, read_value
 from .records import clean_floats, write_json
 from .stats import mean_interval, wilson_interval
 
@@ -184,7 +184,8 @@ def run_batch(path: str, *, trials: int, workers: int | None = None, seed: int =
     spec = CampaignSpec(mission=str(Path(path).resolve()), trials=trials, first_seed=seed,
                         overrides=list(overrides or []), sweep=parse_sweep(sweep or [], overrides),
                         max_time=max_time, keep_runs=keep_runs)
-    name = check_conditions(spec)
+    name = check_conditions(spec)  # the mission loads: it is a readable file
+    spec.mission_sha256 = file_sha256(spec.mission)
     out_dir = Path(out) if out is not None else Path("runs") / f"batch-{name}-{time.strftime('%Y%m%d-%H%M%S')}"
     return _run(Campaign.create(out_dir, spec), name, workers, backend, address, progress)
 
@@ -196,6 +197,7 @@ def resume_batch(directory: str | Path, *, workers: int | None = None, backend: 
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     campaign = Campaign.open(directory)
+    campaign.check_mission()  # before the mission file is parsed
     return _run(campaign, check_conditions(campaign.spec), workers, backend, address, progress)
 
 

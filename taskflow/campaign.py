@@ -1,9 +1,11 @@
 """A campaign directory: what was asked, one record per finished trial, and the sweep's conditions.
 
 ``DIR/``
-  ``campaign.json``          the campaign as asked (:class:`CampaignSpec`): mission file, overrides,
-                             sweep, trials per condition, first seed, max time; written before any
-                             trial starts, read back by ``taskflow batch --resume DIR``
+  ``campaign.json``          the campaign as asked (:class:`CampaignSpec`): mission file and the
+                             sha256 of its bytes, overrides, sweep, trials per condition, first seed,
+                             max time; written before any trial starts, read back by
+                             ``taskflow batch --resume DIR``, which runs the mission only while the file
+                             is still the one the campaign started with (:meth:`Campaign.check_mission`)
   ``trials/cCCC-sSSSSS.json`` one record per finished trial (condition ``CCC``, seed ``SSSSS``): its
                              ``summary`` (as ``summary.json`` of a run) and its wall-clock ``timing``;
                              written atomically the moment the trial's result reaches the parent, so an
@@ -20,6 +22,8 @@ A sweep is the grid of every combination of its keys' values (:func:`parse_sweep
 """
 
 from __future__ import annotations
+
+import hashlib
 
 import itertools
 from dataclasses import asdict, dataclass, field
@@ -141,6 +145,7 @@ class CampaignSpec:
     sweep: list[tuple[str, list[str]]] = field(default_factory=list)
     max_time: float | None = None
     keep_runs: bool = False
+    mission_sha256: str = ""  # of the mission file's bytes when the campaign started ("" : not recorded)
 
     def conditions(self) -> list[Condition]:
         return grid(self.sweep)
@@ -159,7 +164,16 @@ class CampaignSpec:
                    overrides=[str(o) for o in d["overrides"]],
                    sweep=[(str(k), [str(v) for v in vals]) for k, vals in d["sweep"]],
                    max_time=None if d.get("max_time") is None else float(d["max_time"]),
-                   keep_runs=bool(d.get("keep_runs", False)))
+                   keep_runs=bool(d.get("keep_runs", False)), mission_sha256=str(d.get("mission_sha256", "")))
+
+
+def file_sha256(path: str | Path) -> str:
+    """The sha256 of a file's bytes (read in blocks), as a campaign records its mission file."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def record_name(condition: int, seed: int) -> str:
@@ -201,6 +215,24 @@ class Campaign:
                                 f"{str(exc)[:80]})") from None
         (root / TRIALS_DIR).mkdir(exist_ok=True)
         return cls(root, spec)
+
+    def check_mission(self) -> None:
+        """Refuse to resume unless ``campaign.json``'s mission file is still the file this campaign started
+        with (the sha256 of its bytes): a resume must not mix two missions in one ``batch.json``, and a
+        campaign directory is a record that may come from elsewhere, so the file it names is never parsed
+        (nor any of its text shown) before its fingerprint matches."""
+        spec, where = self.spec, self.root / SPEC_FILE
+        if not spec.mission_sha256:
+            raise CampaignError(f"{where}: no mission_sha256 (the campaign's fingerprint of its mission file) — "
+                                f"a resume runs only the mission a campaign started with: start it again with "
+                                f"taskflow batch MISSION")
+        path = Path(spec.mission)
+        if not path.is_absolute() or not path.is_file():
+            raise CampaignError(f"{where}: its mission {str(path)[:200]!r} is not an existing file (an absolute "
+                                "path) — a resume runs the mission file the campaign started with")
+        if file_sha256(path) != spec.mission_sha256:
+            raise CampaignError(f"{where}: {str(path)[:200]} is not the mission file this campaign started with "
+                                "(its sha256 differs) — a resume would mix two missions: start a new campaign")
 
     def run_dir(self, condition: int, seed: int) -> Path:
         """Where a trial's run directory goes with ``keep_runs``."""

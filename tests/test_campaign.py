@@ -155,6 +155,48 @@ def test_records_of_other_campaigns_or_half_written_are_ignored(tmp_path: Path) 
     assert [s for _, s in camp.missing()] == [1]
 
 
+def test_a_resume_runs_only_the_mission_file_the_campaign_started_with(tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """``campaign.json`` records the sha256 of its mission file; a resume checks it before the file is parsed,
+    so neither an edited mission (two missions in one batch.json) nor a ``campaign.json`` naming some other
+    file (a record from elsewhere) runs, and nothing of that file's text is shown."""
+    mission = tmp_path / "m.yaml"
+    mission.write_text(TOY.read_text())
+    out = tmp_path / "c"
+    run_batch(str(mission), trials=2, workers=1, out=out)
+    spec = json.loads((out / "campaign.json").read_text())
+    assert len(spec["mission_sha256"]) == 64
+    (out / "trials" / "c000-s00001.json").unlink()
+
+    def resume() -> tuple[int, str]:
+        capsys.readouterr()
+        code = main(["batch", "--resume", str(out)])
+        got = capsys.readouterr()
+        return code, got.out + got.err
+
+    secret = tmp_path / "secret.yaml"
+    secret.write_text("hunter2_key: hunter2\nmission: x\n")
+    for name, value in (("mission", str(secret)), ("mission_sha256", None)):
+        edited = dict(spec)
+        if value is None:
+            del edited[name]
+        else:
+            edited[name] = value
+        (out / "campaign.json").write_text(json.dumps(edited))
+        code, text = resume()
+        assert code == 1 and len(text.strip().splitlines()) == 1 and "hunter2" not in text, text
+        assert ("sha256 differs" if value else "no mission_sha256") in text
+    (out / "campaign.json").write_text(json.dumps(spec))
+    mission.write_text(TOY.read_text().replace("max_time: 60 s", "max_time: 61 s"))
+    assert mission.read_text() != TOY.read_text()
+    code, text = resume()
+    assert code == 1 and "is not the mission file this campaign started with" in text
+    assert not (out / "trials" / "c000-s00001.json").exists()
+    mission.write_text(TOY.read_text())  # the same bytes again: the resume runs the missing trial
+    code, text = resume()
+    assert code == 0 and (out / "trials" / "c000-s00001.json").is_file(), text
+
+
 # -- interrupt and resume: the same batch.json ---------------------------------------------------------
 
 
