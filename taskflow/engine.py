@@ -68,6 +68,14 @@ class MissionState(NestedState):
         self.item_started = 0.0  # foreach: sim time the current item started
         self.items_succeeded = 0  # foreach: items that succeeded in this run of the loop
 
+    def operating_time(self, t: float, held_s: float, first: bool = False) -> float:
+        """Seconds of operating time from this state's last entry (``first``: its first entry, when it has one)
+        to sim time ``t``, the run having spent ``held_s`` under operator hold so far: what ``after`` compares
+        (time under hold does not count)."""
+        if first and self.first_entered is not None:
+            return (t - self.first_entered) - (held_s - self.held_at_first)
+        return (t - self.entered_at) - (held_s - self.held_at_entry)
+
 
 class ExternalTransition(NestedTransition):
     """A transition to a leaf that exits and re-enters every state below its domain (UML external).

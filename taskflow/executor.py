@@ -59,6 +59,19 @@ blend_weight = activation
 TaskFactory = Callable[[type[Task], TaskContext], Task | None]
 
 
+def parallel_outcome(parallel: StateNode, finished: dict[str, str]) -> str | None:
+    """How the parallel state finishes given the outcomes of the regions that have (region name → outcome):
+    the first ``outcome_map`` rule whose regions all finished so, else a region's outcome other than
+    ``succeeded``, else ``succeeded`` once every region has finished; None while it goes on."""
+    result = next((out for out, need in parallel.outcome_map if all(finished.get(r) == o for r, o in need.items())),
+                  None)
+    if result is None:
+        result = next((o for o in finished.values() if o != "succeeded"), None)
+    if result is None and len(finished) == len(parallel.children):
+        result = "succeeded"
+    return result
+
+
 @dataclass(frozen=True)
 class Preemption:
     """One operator pre-emption: sim time ``t``, ``who`` asked, the state path it went ``to`` (None: the run
@@ -209,10 +222,7 @@ class Executor:
         """Seconds of operating time (sim time not under operator hold) from ``node``'s last entry — or,
         with ``first``, its first entry since its enclosing state was entered afresh — to sim time ``t``:
         what its ``after`` timeouts compare."""
-        st = self._states[node.path]
-        if first and st.first_entered is not None:
-            return (t - st.first_entered) - (self.held_s - st.held_at_first)
-        return (t - st.entered_at) - (self.held_s - st.held_at_entry)
+        return self._states[node.path].operating_time(t, self.held_s, first)
 
     def hold_for(self, seconds: float) -> None:
         """The world went on for ``seconds`` of sim time under operator hold (the runtime's held ticks)."""
@@ -412,12 +422,7 @@ class Executor:
         assert parallel is not None
         finished = self._region_outcomes.setdefault(parallel.path, {})
         finished[region.name] = outcome
-        result = next((out for out, need in parallel.outcome_map
-                       if all(finished.get(r) == o for r, o in need.items())), None)
-        if result is None and outcome != "succeeded":
-            result = outcome
-        if result is None and len(finished) == len(parallel.children):
-            result = "succeeded"
+        result = parallel_outcome(parallel, finished)
         if result is not None:
             self._complete(parallel, result)
 
@@ -588,11 +593,7 @@ class Executor:
                 if tr.event in events and (tr.predicate is None or tr.predicate(metrics, self.memory)):  # type: ignore[attr-defined]
                     return self._fire_from(table, i, metrics)
             elif kind is TimeoutTransition:
-                if tr.since_first:  # type: ignore[attr-defined]
-                    since, held = clock.first_entered, clock.held_at_first  # type: ignore[union-attr]
-                else:
-                    since, held = clock.entered_at, clock.held_at_entry  # type: ignore[union-attr]
-                if (t - since) - (self.held_s - held) + 1e-9 >= tr.after:  # type: ignore[attr-defined,operator]
+                if clock.operating_time(t, self.held_s, tr.since_first) + 1e-9 >= tr.after:  # type: ignore[attr-defined,union-attr]
                     return self._fire_from(table, i, metrics)
         return None
 
@@ -666,11 +667,8 @@ class Executor:
             return ("succeeded" if ok else "failed",
                     f"{st.items_succeeded} of {n} items succeeded, its rule requires {loop.required} ({loop.rule})")
         finished = self._region_outcomes.get(node.path, {})
-        outcomes = {r: finished.get(r, "aborted") for r in node.children}
-        result = next((out for out, need in node.outcome_map if all(outcomes.get(r) == o for r, o in need.items())),
-                      None)
-        if result is None:
-            result = next((o for o in outcomes.values() if o != "succeeded"), "succeeded")
+        result = parallel_outcome(node, {r: finished.get(r, "aborted") for r in node.children})
+        assert result is not None  # every region has an outcome
         running = [r for r in node.children if r not in finished]
         return result, f"regions {', '.join(map(repr, running))} had not finished (counted aborted): {result}"
 

@@ -21,15 +21,10 @@ from .frames import FrameRecord, read_frames
 from .guards import Comparison
 from .model import CompiledMission, EventTransition, GuardTransition
 from .record_io import MAX_FRAME_BYTES, RunDirError, check_summary, inside, read_bytes, read_json
-from .records import OperatorRecord, TransitionRecord, read_trace, read_transitions, record_from_dict
+from .records import OperatorRecord, TransitionRecord, read_trace, read_transitions
 from .scene import Scene, mission_scene
 
-__all__ = ["RecordedRun", "RunDirError", "Threshold", "load_run", "transition_from_dict"]
-
-
-def transition_from_dict(d: dict[str, Any]) -> TransitionRecord | OperatorRecord:
-    """One line of ``transitions.jsonl`` as the record that wrote it (:func:`taskflow.records.record_from_dict`)."""
-    return record_from_dict(d)
+__all__ = ["RecordedRun", "RunDirError", "Threshold", "load_run"]
 
 
 @dataclass(frozen=True)
