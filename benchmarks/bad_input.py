@@ -20,7 +20,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))
 
-from bad_inputs import cases  # noqa: E402
+from bad_inputs import cases
 
 
 def main() -> None:

@@ -5,18 +5,18 @@ Run: ``python benchmarks/car_loop.py`` (prints medians of a few repeats; last li
 
 from __future__ import annotations
 
-import math
 import json
+import math
 import statistics
 import time
 
 import numpy as np
 import pybullet as p
-
 from taskflow_robots.racecar import Racecar
 from taskflow_sim.flat_ground import FlatGround
-from taskflow.api import TaskContext
 from taskflow_tasks.car_goto import CarGains, CarGoto
+
+from taskflow.api import TaskContext
 
 ROBOT = Racecar(Racecar.Params())
 

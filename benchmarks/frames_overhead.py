@@ -45,10 +45,10 @@ def one_run(mission: str, sets: list[str], out: Path, hz: float, max_time: float
 
 def micro(run_dir: Path) -> dict[str, float]:
     """``offer`` with no frame due (µs) and one frame written (ms), on the run's first recorded image."""
+    import cv2
+
     from taskflow.frames import FrameRecorder, read_frames
     from taskflow.messages import Image
-
-    import cv2
 
     first = read_frames(run_dir)[0]
     px = np.ascontiguousarray(cv2.imread(str(run_dir / first.file), cv2.IMREAD_COLOR)[:, :, ::-1])

@@ -50,7 +50,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from taskflow.stats import mean_interval, wilson_interval  # noqa: E402
+from taskflow.stats import mean_interval, wilson_interval
 
 PAPER = {  # papers/002, Tables 1 and 2 (real robot, 10 sequences x 4 screws per scenario)
     "conveyor": {"time_per_screw": (9.45, 2.07), "screwing": (5.28, 1.88), "success": 92.5,
@@ -124,7 +124,7 @@ def aggregate(runs: list[dict[str, Any]]) -> dict[str, Any]:
     sim = sum(r["sim_s"] for r in runs)
     wall = sum(r["wall_s"] for r in runs)
     cpu = sum(r["cpu_s"] for r in runs)
-    ms = lambda xs: (statistics.fmean(xs), statistics.pstdev(xs)) if xs else (math.nan, math.nan)  # noqa: E731
+    ms = lambda xs: (statistics.fmean(xs), statistics.pstdev(xs)) if xs else (math.nan, math.nan)
     return {"sequences": len(runs), "screws": total, "succeeded": ok, "success": 100.0 * ok / total if total else math.nan,
             "operations": sum(r["operations"] for r in runs), "operations_fastened": sum(r["operations_fastened"] for r in runs),
             "operations_no_bolt": sum(r["operations_no_bolt"] for r in runs),
@@ -152,14 +152,14 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     the smallest median over batches of 300 ticks."""
     _register()
     import numpy as np
-
     from taskflow_robots.mobile_iiwa import MobileIiwa
-    from taskflow.api import Observation
-    from taskflow.testing import task_context
-    from taskflow.messages import MarkerPose, Wrench
     from taskflow_tasks.impedance import ImpedanceProfile
     from taskflow_tasks.pid import PidProfile
     from taskflow_tasks.screw_tasks import ArmParams, PbvsArm, Prediction
+
+    from taskflow.api import Observation
+    from taskflow.messages import MarkerPose, Wrench
+    from taskflow.testing import task_context
 
     robot = MobileIiwa(MobileIiwa.Params())
     pose = {"xyz": [0.0, 0.0, 0.67], "rpy_deg": [145.0, -24.6, -30.8]}
@@ -203,7 +203,7 @@ def table(rows: list[tuple[str, dict[str, Any]]]) -> str:
         tp, sc = a["time_per_screw"], a["screwing"]
         ops = (f"{a['operations_fastened']} / {a['operations']} ({a['operations_no_bolt']})" if "operations" in a else "—")
         seqs = (f"{a['outcomes'].count('succeeded')} / {a['sequences']}" if "outcomes" in a else "—")
-        iv = lambda k, d=0: (f"{fmt(a[k][0], d)}-{fmt(a[k][1], d)}" if a.get(k) else "—")  # noqa: E731
+        iv = lambda k, d=0: (f"{fmt(a[k][0], d)}-{fmt(a[k][1], d)}" if a.get(k) else "—")  # noqa: B023 - used in this iteration
         out.append(f"{name:38s} {fmt(tp[0]):>7s} ± {fmt(tp[1]):<6s} {iv('time_per_screw_ci95', 2):>12s} "
                    f"{fmt(sc[0]):>6s} ± {fmt(sc[1]):<6s} {fmt(a['success'], 1):>7s} % {iv('success_ci95') + ' %':>12s}  "
                    f"{seqs:>12s} {iv('sequences_ci95') + ' %':>12s}  {ops}")

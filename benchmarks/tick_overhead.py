@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from taskflow.api import Observation, Robot, StepResult, Task, World
-from taskflow.loader import load_mission_text
 from taskflow.executor import Executor
+from taskflow.loader import load_mission_text
 from taskflow.records import RunRecorder
 from taskflow.registry import ROBOTS, TASKS, WORLDS
 

@@ -41,18 +41,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 import taskflow_sim.viki_world  # noqa: F401  registers viki_ground (forked batch workers inherit it)
-import taskflow_tasks.viki_hyco  # noqa: F401  registers viki_hyco
+import taskflow_tasks.viki_hyco
 import taskflow_tasks.viki_rotation  # noqa: F401  registers viki_rotate
 from taskflow_robots.racecar import Racecar
-from taskflow.api import Observation
-from taskflow.testing import task_context
-from taskflow.messages import Detection
-from taskflow.batch import run_batch
-from taskflow.stats import mean_interval, wilson_interval
 from taskflow_tasks.viki_hyco import ViKiGains, ViKiHyCo
 from taskflow_tasks.viki_laws import ServoInputs, viki_velocity
+
+from taskflow.api import Observation
+from taskflow.batch import run_batch
+from taskflow.messages import Detection
+from taskflow.stats import mean_interval, wilson_interval
+from taskflow.testing import task_context
 
 ROOT = Path(__file__).resolve().parents[1]
 MISSIONS = ROOT / "missions"

@@ -51,11 +51,12 @@ sys.path.insert(0, str(ROOT))
 import taskflow_robots.quadcopter  # noqa: F401 - registration
 import taskflow_sim.room_world  # noqa: F401
 import taskflow_tasks.visual_path  # noqa: F401
+
 from taskflow.batch import run_batch
-from taskflow.stats import mean_interval, wilson_interval
 from taskflow.loader import load_mission
 from taskflow.records import read_trace
 from taskflow.runtime import run_mission
+from taskflow.stats import mean_interval, wilson_interval
 
 EXPERIMENTS = {
     "pose_regulation": ("visual_path_pose_regulation.yaml",

@@ -35,6 +35,7 @@ sys.path.insert(0, str(ROOT))
 import taskflow_robots.quadcopter  # noqa: F401 - registration
 import taskflow_sim.room_world  # noqa: F401
 import taskflow_tasks.visual_path  # noqa: F401
+
 from taskflow.batch import run_batch
 from taskflow.loader import load_mission
 from taskflow.stats import wilson_interval

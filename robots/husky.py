@@ -18,10 +18,10 @@ import math
 from typing import ClassVar
 
 from pydantic import Field
+from taskflow_robots.racecar import CameraMount, LidarMount
 
 from taskflow.api import ObsSpec, Robot, StrictModel, array, scalar
 from taskflow.registry import register_robot
-from taskflow_robots.racecar import CameraMount, LidarMount
 
 _PITCH = math.radians(30.0)
 

@@ -26,11 +26,11 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import ConfigDict, Field, field_validator, model_validator
-
+from taskflow_robots.camera import focal_px, tinyrenderer_K
 from taskflow_robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
+
 from taskflow.api import ObsSpec, Robot, StrictModel, array
 from taskflow.registry import register_robot
-from taskflow_robots.camera import focal_px, tinyrenderer_K
 from taskflow.spatial import rpy_from_rotation, transform_from_xyz_rpy
 
 Vec3 = tuple[float, float, float]
@@ -59,7 +59,7 @@ class Pose(StrictModel):
     rpy: Vec3 = Field(default=(0.0, 0.0, 0.0), description="URDF roll, pitch, yaw (rad): each within one turn either way")
 
     @model_validator(mode="after")
-    def _on_the_robot(self) -> "Pose":
+    def _on_the_robot(self) -> Pose:
         if max(abs(x) for x in self.xyz) > 3.0 or max(abs(a) for a in self.rpy) > 2.0 * math.pi:
             raise ValueError(f"a pose on the robot has each xyz within ±3 m and each rpy angle within ±2 pi rad, "
                              f"got xyz {list(self.xyz)}, rpy {list(self.rpy)}")
@@ -95,7 +95,7 @@ class Pose(StrictModel):
         return transform_from_xyz_rpy(self.xyz, self.rpy)
 
     @classmethod
-    def from_matrix(cls, H: NDArray[np.float64]) -> "Pose":
+    def from_matrix(cls, H: NDArray[np.float64]) -> Pose:
         return cls(xyz=tuple(float(x) for x in H[:3, 3]), rpy=rpy_from_rotation(H[:3, :3]))  # type: ignore[arg-type]
 
 
@@ -122,7 +122,7 @@ class CameraParams(StrictModel):
     far: float = Field(default=5.0, gt=0.0, le=1000.0, description="far clip plane (m): beyond near, at most 1 km")
 
     @model_validator(mode="after")
-    def _clip(self) -> "CameraParams":
+    def _clip(self) -> CameraParams:
         if self.far <= self.near:
             raise ValueError(f"the far clip plane ({self.far} m) must lie beyond the near one ({self.near} m)")
         return self
@@ -164,7 +164,7 @@ class ToolParams(StrictModel):
                           "at least tol_t, at most 2 cm")
 
     @model_validator(mode="after")
-    def _bit(self) -> "ToolParams":
+    def _bit(self) -> ToolParams:
         if self.bit_radius >= self.radius:
             raise ValueError(f"bit_radius ({self.bit_radius}) must be below the tool's radius ({self.radius})")
         if self.bit_length >= self.length:

@@ -18,10 +18,10 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, model_validator
+from taskflow_robots.camera import tinyrenderer_K
 
 from taskflow.api import ObsSpec, Robot, StrictModel, array
 from taskflow.registry import register_robot
-from taskflow_robots.camera import tinyrenderer_K
 from taskflow.spatial import R_FLU_OPTICAL, rotation_y, rotation_z, transform
 
 
@@ -72,7 +72,7 @@ class QuadCamera(StrictModel):
         """``eT_c`` as a 4x4 transform: body ← optical frame."""
         return transform(self.R_body_camera(), self.t_body_camera())
 
-    def pose_in_world(self, pose: "tuple[float, float, float, float] | list[float]"
+    def pose_in_world(self, pose: tuple[float, float, float, float] | list[float]
                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(R_world_camera, t_world_camera)`` of this camera on a body at ``pose = (x, y, z, yaw)``
         (the quadcopter flies level: its body frame is turned by ``yaw`` about the world z only)."""

@@ -16,10 +16,10 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, field_validator, model_validator
+from taskflow_robots.camera import focal_px
 
 from taskflow.api import ObsSpec, Robot, StrictModel, array, scalar
 from taskflow.registry import register_robot
-from taskflow_robots.camera import focal_px
 from taskflow.spatial import R_body_optical, rotation_from_rpy, transform
 
 Vec3 = tuple[float, float, float]
@@ -36,7 +36,7 @@ class Mount(StrictModel):
     rpy: Vec3 = Field(default=(0.0, 0.0, 0.0), description="URDF roll, pitch, yaw (rad): each within one turn either way")
 
     @model_validator(mode="after")
-    def _on_the_robot(self) -> "Mount":
+    def _on_the_robot(self) -> Mount:
         if not all(math.isfinite(x) and abs(x) <= 3.0 for x in self.xyz) or \
                 not all(math.isfinite(a) and abs(a) <= 2.0 * math.pi for a in self.rpy):
             raise ValueError(f"a sensor mount has each xyz within ±3 m and each rpy angle within ±2 pi rad, "
@@ -73,7 +73,7 @@ class CameraMount(Mount):
                        "(the depth buffer's resolution is spread over far / near)")
 
     @model_validator(mode="after")
-    def _clip_planes(self) -> "CameraMount":
+    def _clip_planes(self) -> CameraMount:
         if not self.near < self.far:
             raise ValueError(f"the far clip plane ({self.far} m) must lie beyond the near one ({self.near} m)")
         return self
@@ -120,7 +120,7 @@ class LidarMount(Mount):
         return v
 
     @model_validator(mode="after")
-    def _ranges(self) -> "LidarMount":
+    def _ranges(self) -> LidarMount:
         if not self.min_range < self.max_range:
             raise ValueError(f"min_range ({self.min_range} m) must be below max_range ({self.max_range} m)")
         return self

@@ -20,7 +20,7 @@ def _import_pybullet_quietly() -> None:
         sys.stderr.flush()
         saved = os.dup(2)
     except (OSError, ValueError):  # no usable fd 2: import as is
-        import pybullet  # noqa: F401
+        import pybullet
         return
     try:
         with open(os.devnull, "wb") as null:

@@ -76,7 +76,7 @@ class GroundBody(ABC):
     def apply(self, command: Command) -> None:
         """Take a command with exactly the robot's ``command_keys`` (the world has checked them)."""
 
-    def update(self, h: float) -> None:
+    def update(self, h: float) -> None:  # noqa: B027 - an optional hook, not abstract
         """Advance actuator dynamics by one physics step of ``h`` s, before the solver (default: none)."""
 
     @abstractmethod

@@ -19,10 +19,10 @@ from typing import Any, ClassVar, cast
 import numpy as np
 import pybullet as p
 from pydantic import BaseModel, Field, model_validator
-
 from taskflow_sim.bodies import BodyOptions, GroundBody, make_body
 from taskflow_sim.car_scene import add_floor, connect
 from taskflow_sim.stepped import SteppedWorld, check_command
+
 from taskflow.api import Command, Marker, Observation, Robot, RobotNeeds, StrictModel
 from taskflow.registry import register_world
 
@@ -67,7 +67,7 @@ class FlatGroundParams(StrictModel):
     floor_half_size: float = Field(default=25.0, gt=0.0, le=1000.0, description="m: at most 1 km")
 
     @model_validator(mode="after")
-    def _start_on_the_floor(self) -> "FlatGroundParams":
+    def _start_on_the_floor(self) -> FlatGroundParams:
         if not max(abs(self.start[0]), abs(self.start[1])) < self.floor_half_size:
             raise ValueError(f"start ({self.start[0]:g}, {self.start[1]:g}) m is off the floor: |x|, |y| must be "
                              f"below floor_half_size = {self.floor_half_size:g} m")

@@ -24,16 +24,17 @@ import ctypes
 import math
 import os
 import sys
+from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any, ClassVar, Iterator
+from typing import Any, ClassVar
 
 import numpy as np
 import pybullet as p
 import pybullet_data
 from numpy.typing import NDArray
-
 from taskflow_robots.husky import Husky
 from taskflow_sim.bodies import BodyOptions, GroundBody
+
 from taskflow.api import Command, Robot
 from taskflow.spatial import yaw_from_quaternion
 

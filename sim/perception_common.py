@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-
 from taskflow_robots.camera import tinyrenderer_intrinsics
-from taskflow.spatial import rotation_angle
 from taskflow_robots.racecar import CameraMount
+
+from taskflow.spatial import rotation_angle
 
 
 @dataclass(frozen=True)

@@ -18,12 +18,11 @@ time), with the same camera model and the same depth rule (:mod:`taskflow_sim.pe
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-
 from taskflow_sim.car_depth import shrunk_box
 from taskflow_sim.perception_common import CameraModel, pixel_box, quantise_box
 from taskflow_sim.viki_objects import PlacedObject, ray_ground

@@ -28,12 +28,11 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-
 from taskflow_robots.racecar import LidarMount
 from taskflow_sim.car_depth import (
     blind_spot_mask,

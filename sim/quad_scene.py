@@ -26,9 +26,9 @@ import cv2
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
+from taskflow_robots.quadcopter import QuadCamera
 
 from taskflow.spatial import quaternion_from_rotation, rotation_from_quaternion
-from taskflow_robots.quadcopter import QuadCamera
 
 OBSTACLE_RGB = (0.1, 0.8, 0.15)
 """Default column colour: a saturated green that no generated texture contains."""

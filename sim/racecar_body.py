@@ -30,12 +30,12 @@ import numpy as np
 import pybullet as p
 import pybullet_data
 from numpy.typing import NDArray
-
 from taskflow_robots.racecar_kinematics import (
     ackermann_wheel_angles,
     bicycle_from_wheel_angles,
     differential_wheel_speeds,
 )
+
 from taskflow.spatial import yaw_from_quaternion
 
 URDF = os.path.join(pybullet_data.getDataPath(), "racecar", "racecar.urdf")

@@ -12,10 +12,10 @@ from typing import Any, ClassVar
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-
 from taskflow_robots.racecar import Racecar
 from taskflow_sim.bodies import BodyOptions, GroundBody
 from taskflow_sim.racecar_body import Actuation, RacecarBody
+
 from taskflow.api import Command, Robot
 
 

@@ -21,7 +21,6 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-
 from taskflow_sim.quad_scene import Column, Room
 
 Array = NDArray[np.float64]

@@ -44,16 +44,26 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
-
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
-from taskflow_sim.faults import FaultIntervals, IntervalFault
 from taskflow_sim.command_delay import CommandDelay
+from taskflow_sim.faults import FaultIntervals, IntervalFault
 from taskflow_sim.quad_response import move_target, relative_move_step
 from taskflow_sim.quad_scene import Column, QuadScene, Room
 from taskflow_sim.room_landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
 from taskflow_sim.stepped import SensorSchedule, SteppedWorld, check_command
-from taskflow.api import (Command, Marker, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message,
-                          scalar, sequence)
+
+from taskflow.api import (
+    Command,
+    Marker,
+    Observation,
+    ObsSpec,
+    Robot,
+    RobotNeeds,
+    StrictModel,
+    message,
+    scalar,
+    sequence,
+)
 from taskflow.fidelity import Fidelity, Sourced
 from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow.registry import register_world
@@ -534,7 +544,7 @@ class QuadRoom(SteppedWorld[QuadScene]):
         uu, vv = np.meshgrid(us, vs)
         uv = np.column_stack((uu.ravel(), vv.ravel()))
         Z = depth[np.clip(uv[:, 1].astype(int), 0, cam.height - 1), np.clip(uv[:, 0].astype(int), 0, cam.width - 1)]
-        ok = Z < 0.99 * cam.far
+        ok = 0.99 * cam.far > Z
         uv, Z = uv[ok], Z[ok]
         Xc = np.column_stack(((uv[:, 0] - K[0, 2]) / K[0, 0] * Z, (uv[:, 1] - K[1, 2]) / K[1, 1] * Z, Z))
         Rk, tk = cam.pose_in_world(kf.pose)

@@ -30,12 +30,11 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-
 from taskflow_robots.camera import tinyrenderer_intrinsics
-from taskflow.spatial import rotation_angle, transform
 from taskflow_robots.mobile_iiwa import CameraParams
 from taskflow_sim.screw_scene import MARKER_DICT, MARKER_ID, MARKER_SIZE
 
+from taskflow.spatial import rotation_angle, transform
 
 APRILTAG_OFFSET_PX = 0.5
 

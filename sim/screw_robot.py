@@ -23,11 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-
-from taskflow.spatial import quaternion_from_yaw, rotation_from_quaternion, transform_from_pose, transform_xyz_yaw
 from taskflow_robots.iiwa_urdf import ARM_JOINTS, CAMERA_LINK, TOOL_JOINT, TOOL_TIP, write_urdf
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim.command_delay import CommandDelay
+
+from taskflow.spatial import quaternion_from_yaw, rotation_from_quaternion, transform_from_pose, transform_xyz_yaw
 
 
 @dataclass
@@ -38,7 +38,7 @@ class PlatformState:
     twist: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
 
 
-def integrate_planar(pose: "tuple[float, float, float] | NDArray[np.float64]", twist: "tuple[float, float, float]",
+def integrate_planar(pose: tuple[float, float, float] | NDArray[np.float64], twist: tuple[float, float, float],
                      h: float) -> tuple[float, float, float]:
     """Exact pose after ``h`` seconds of a constant body-frame twist."""
     x, y, th = float(pose[0]), float(pose[1]), float(pose[2])
@@ -205,7 +205,7 @@ class MobileIiwaBody:
             p.resetJointState(self.id, j, float(qq), 0.0, physicsClientId=self.client)
         self._servo()
 
-    def set_platform(self, pose: "tuple[float, float, float] | NDArray[np.float64]") -> None:
+    def set_platform(self, pose: tuple[float, float, float] | NDArray[np.float64]) -> None:
         self._pose = (float(pose[0]), float(pose[1]), float(pose[2]))
         self.platform.pose = np.array(self._pose)
         x, y, th = self._pose

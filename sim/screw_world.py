@@ -79,14 +79,14 @@ screwdriver.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal, Mapping, cast
+from typing import Any, ClassVar, Literal, cast
 
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
-
 from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
 from taskflow_sim import screw_scene as sc
 from taskflow_sim.car_scene import connect
@@ -96,7 +96,8 @@ from taskflow_sim.screw_perception import ImageNoise, MarkerDetection, PoseNoise
 from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow_sim.screwdriver import BitErrors, Screwdriver
 from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
-from taskflow.api import Command, Marker, ObsSpec, Observation, Robot, RobotNeeds, StrictModel, World, array, message
+
+from taskflow.api import Command, Marker, Observation, ObsSpec, Robot, RobotNeeds, StrictModel, message
 from taskflow.fidelity import Fidelity, Level, Sourced
 from taskflow.messages import Image, MarkerPose, Wrench
 from taskflow.registry import register_world
@@ -193,7 +194,7 @@ class ScrewWorldParams(Fidelity):
     fasten_s: float = Field(default=3.0, gt=0.0, le=600.0, description="default fastening duration (s)")
 
     @model_validator(mode="after")
-    def _delays(self) -> "ScrewWorldParams":
+    def _delays(self) -> ScrewWorldParams:
         if max(abs(self.robot_offset[0]), abs(self.robot_offset[1])) > 2.0 or abs(self.robot_offset[2]) > math.pi:
             raise ValueError(f"robot_offset {list(self.robot_offset)}: the platform starts within 2 m of its nominal "
                              "pose (along, away) and turned at most pi rad, so the camera can find the marker")

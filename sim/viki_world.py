@@ -51,22 +51,22 @@ from typing import Any, ClassVar, Literal, cast
 import numpy as np
 import pybullet as p
 from pydantic import BaseModel, Field, model_validator
-
 from taskflow_robots.racecar import CameraMount
 from taskflow_sim.bodies import BodyOptions, make_body
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
 from taskflow_sim.odometry_slip import SlipOdometry
-from taskflow.spatial import rotation_from_unit_quaternion, transform
 from taskflow_sim.perception_common import CameraModel, DropoutModel
 from taskflow_sim.perception_geometric import GeometricPerception
 from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
 from taskflow_sim.stepped import SensorSchedule
 from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
-from taskflow.api import Marker, ObsSpec, Observation, Robot, RobotNeeds, message, text
+
+from taskflow.api import Marker, Observation, ObsSpec, Robot, RobotNeeds, message, text
 from taskflow.fidelity import Fidelity, Level, Sourced
 from taskflow.messages import Detection, Image
 from taskflow.registry import register_world
+from taskflow.spatial import rotation_from_unit_quaternion, transform
 
 CAMERA_CODE = {None: 0.0, "front": 1.0, "rear": 2.0}
 
@@ -150,7 +150,7 @@ class VikiGroundParams(Fidelity, FlatGroundParams):
     }}
 
     @model_validator(mode="after")
-    def _check(self) -> "VikiGroundParams":
+    def _check(self) -> VikiGroundParams:
         if self.image_size is not None and not (min(self.image_size) >= 8 and max(self.image_size) <= 4096):
             raise ValueError(f"image_size must be 8 to 4096 pixels each way, got {self.image_size}")
         if max(abs(b) for b in self.box_bias) > 50.0:

@@ -20,9 +20,10 @@ whose threshold lies outside it can never hold, and the loader refuses it.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Generic, Mapping, MutableMapping, TypeVar, cast
+from typing import Any, ClassVar, Generic, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -102,7 +103,7 @@ class Metric(str):
     high: float | None
     reason: str
 
-    def __new__(cls, unit: str = "", low: float | None = None, high: float | None = None, reason: str = "") -> "Metric":
+    def __new__(cls, unit: str = "", low: float | None = None, high: float | None = None, reason: str = "") -> Metric:
         if low is not None and high is not None and not low <= high:
             raise ValueError(f"Metric range needs low <= high, got [{low}, {high}]")
         self = super().__new__(cls, unit)
@@ -231,7 +232,7 @@ class TaskContext(Generic[ParamsT, RobotParamsT]):
     params: ParamsT
     profiles: Mapping[str, BaseModel]
     memory: MutableMapping[str, Any]
-    robot: "Robot"
+    robot: Robot
     items: Mapping[str, Any] = field(default_factory=dict)
     dt: float = 0.0  # the control period (1 / rate_hz), s
     robot_params: RobotParamsT = None  # type: ignore[assignment]  # None when the task declares none
@@ -428,7 +429,7 @@ class World:
     """Whether :meth:`teach` is implemented (``taskflow teach MISSION`` refuses worlds that do not)."""
 
     @classmethod
-    def teach(cls, robot: Robot, params: BaseModel, out_dir: "str | Path", seed: int, name: str = "") -> list["Path"]:
+    def teach(cls, robot: Robot, params: BaseModel, out_dir: str | Path, seed: int, name: str = "") -> list[Path]:
         """Render what a mission on this world is taught (e.g. visual-path keyframes) into ``out_dir``
         and return the written paths.  ``params`` are the world's parameters drawn with ``seed``;
         ``name`` is the mission's.  Worlds that teach set :attr:`teaches` and override this."""

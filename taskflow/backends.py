@@ -30,11 +30,12 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator, Protocol
+from typing import Any, Protocol
 
 BACKENDS = ("pool", "ray")
 RAY_INSTALL = "pip install 'taskflow[cluster]'"
@@ -308,12 +309,12 @@ class LocalRayCluster:
                     f"--temp-dir={self.temp_dir}"]
         else:
             cmd += [f"--address={self.address}", f"--num-cpus={self.cpus_per_node}"]
-        log = open(Path(self.temp_dir) / f"node-{len(self.procs)}.log", "wb")
+        log = open(Path(self.temp_dir) / f"node-{len(self.procs)}.log", "wb")  # noqa: SIM115 - the node writes it until stopped
         env = dict(os.environ, **self.env)
         self.procs.append(subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
                                            env=env))
 
-    def start(self, timeout: float = 60.0) -> "LocalRayCluster":
+    def start(self, timeout: float = 60.0) -> LocalRayCluster:
         """Start the head, then the worker nodes one at a time, each awaited until the cluster counts its
         CPUs; a worker node whose start fails (a raylet that does not register with the head within
         Ray's 30 s, which a loaded machine can exceed) is started again, twice at most."""
@@ -321,7 +322,7 @@ class LocalRayCluster:
             self._start(head=True)
             self._wait_port(timeout)
             for k in range(1, self.nodes + 1):
-                for attempt in range(3):
+                for _attempt in range(3):
                     self._start(head=False)
                     if self._wait_cpus(k * self.cpus_per_node, timeout, self.procs[-1]):
                         break
@@ -398,7 +399,7 @@ class LocalRayCluster:
                 else:
                     os.environ[k] = v
 
-    def __enter__(self) -> "LocalRayCluster":
+    def __enter__(self) -> LocalRayCluster:
         return self.start()
 
     def __exit__(self, *exc: Any) -> None:

@@ -24,7 +24,6 @@ A sweep is the grid of every combination of its keys' values (:func:`parse_sweep
 from __future__ import annotations
 
 import hashlib
-
 import itertools
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -39,7 +38,7 @@ from .yamlsrc import MissionLoader
 
 def read_value(text: str) -> Any:
     """A swept value read as ``--set`` reads it (the mission's safe YAML 1.2 reader: ``on`` stays text)."""
-    return yaml.load(text, Loader=MissionLoader)  # noqa: S506 - MissionLoader is a SafeLoader
+    return yaml.load(text, Loader=MissionLoader)
 
 SPEC_FILE, TRIALS_DIR = "campaign.json", "trials"
 
@@ -159,7 +158,7 @@ class CampaignSpec:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "CampaignSpec":
+    def from_dict(cls, d: dict[str, Any]) -> CampaignSpec:
         return cls(mission=str(d["mission"]), trials=int(d["trials"]), first_seed=int(d["first_seed"]),
                    overrides=[str(o) for o in d["overrides"]],
                    sweep=[(str(k), [str(v) for v in vals]) for k, vals in d["sweep"]],
@@ -188,7 +187,7 @@ class Campaign:
         self.spec = spec
 
     @classmethod
-    def create(cls, root: str | Path, spec: CampaignSpec) -> "Campaign":
+    def create(cls, root: str | Path, spec: CampaignSpec) -> Campaign:
         """Start a campaign in ``root`` (created if missing); refuses a directory that holds one already."""
         root = Path(root)
         if (root / SPEC_FILE).exists():
@@ -199,7 +198,7 @@ class Campaign:
         return cls(root, spec)
 
     @classmethod
-    def open(cls, root: str | Path) -> "Campaign":
+    def open(cls, root: str | Path) -> Campaign:
         """The campaign in ``root``, as ``taskflow batch`` left it."""
         root = Path(root)
         spec_file = root / SPEC_FILE

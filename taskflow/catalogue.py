@@ -28,14 +28,15 @@ import math
 import re
 import types
 import typing
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Iterable, Literal, Union
+from typing import Any, Literal, Union
 
 import annotated_types
 import numpy as np
 from pydantic import BaseModel
 from pydantic.fields import FieldInfo
-from pydantic_core import PydanticUndefined, to_jsonable_python
+from pydantic_core import to_jsonable_python
 
 from . import api
 from .api import ObsSpec, Robot, Task, World

@@ -10,9 +10,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Sequence
 
 from .errors import MissionError
 
@@ -437,7 +437,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         if not (sep and dot and world and name):
             raise UsageError(f"--param {item!r}: expected WORLD.KEY=VALUE, e.g. quad_room.perception=geometric")
         try:
-            params.setdefault(world, {})[name] = yaml.load(value, Loader=MissionLoader)  # noqa: S506 - a SafeLoader
+            params.setdefault(world, {})[name] = yaml.load(value, Loader=MissionLoader)
         except yaml.YAMLError:
             raise UsageError(f"--param {item}: the value is not valid YAML") from None
         given[(world, name)] = item
@@ -505,7 +505,7 @@ def _user() -> str:
 
     try:
         return getpass.getuser()
-    except Exception:  # noqa: BLE001 - no user name in this environment
+    except Exception:
         return "operator"
 
 

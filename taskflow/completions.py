@@ -14,7 +14,8 @@ problem with its line); this schema is what an editor completes and flags as one
 from __future__ import annotations
 
 import copy
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from pydantic import BaseModel
 from pydantic.json_schema import models_json_schema

@@ -21,8 +21,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -112,7 +113,7 @@ def check_pair(world_cls: type[World], robot_cls: type[Robot], params: Mapping[s
     try:
         robot = robot_cls(robot_cls.Params())
         wparams = world_cls.Params.model_validate(dict(params or {}))
-    except Exception as exc:  # noqa: BLE001 - a report, not a crash
+    except Exception as exc:
         res.problems.append(f"default parameters do not build: {type(exc).__name__}: {exc}")
         return res
 
@@ -165,7 +166,7 @@ def check_pair(world_cls: type[World], robot_cls: type[Robot], params: Mapping[s
                 break
         for k, (obs, _) in enumerate(a):
             res.problems += [f"rollout tick {k}: {p}" for p in spec_problems(obs, specs)]
-    except Exception as exc:  # noqa: BLE001
+    except Exception as exc:
         res.problems.append(f"raised {type(exc).__name__}: {exc}")
     res.problems = list(dict.fromkeys(res.problems))
     res.seconds = time.perf_counter() - t0

@@ -29,8 +29,9 @@ from __future__ import annotations
 
 import queue
 import threading
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Callable, Literal, Sequence
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
@@ -63,7 +64,7 @@ class OperatorAction(BaseModel):
     who: str = Field(default="operator", min_length=1)
 
     @model_validator(mode="after")
-    def _args_fit(self) -> "OperatorAction":
+    def _args_fit(self) -> OperatorAction:
         allowed = _ARGS[self.action]
         for key in self.args:
             if key not in allowed:

@@ -37,8 +37,9 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 from .control import ACTIONS, ControlError, OperatorAction, OperatorChannel
 
@@ -159,7 +160,7 @@ def write_private(path: Path, text: str) -> None:
     tmp.replace(path)
 
 
-def _app(channel: OperatorChannel | None, host: str, view: "RunView | None" = None, token: str | None = None,
+def _app(channel: OperatorChannel | None, host: str, view: RunView | None = None, token: str | None = None,
          on_refused: Callable[[str, str, str, int, str], None] | None = None) -> Any:
     """The routes (with ``view``, the web view's too: :mod:`taskflow.view_http`; without ``channel``, a
     replay: ``/state`` tells the run's end and the actions answer 409).  On a loopback address only
@@ -251,7 +252,7 @@ class ControlServer:
         self._refused = 0
         self._log_lock = threading.Lock()
 
-    def start(self, channel: OperatorChannel | None, run_dir: Path | None, view: "RunView | None" = None) -> None:
+    def start(self, channel: OperatorChannel | None, run_dir: Path | None, view: RunView | None = None) -> None:
         """Serve ``channel`` (None: a replay) and, given ``view``, the web page of the run."""
         import uvicorn
 
@@ -320,7 +321,7 @@ class ControlClient:
         self.run_dir = run_dir
 
     @classmethod
-    def for_run(cls, run_dir: str | Path) -> "ControlClient":
+    def for_run(cls, run_dir: str | Path) -> ControlClient:
         """The client of the run writing ``run_dir`` (its ``control.json``: address, token, process).  A run
         whose process has ended (killed, crashed) is refused here: its ``control.json`` is stale."""
         path = Path(run_dir) / CONTROL_FILE

@@ -14,8 +14,9 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+from collections.abc import Iterator, MutableMapping
 from dataclasses import dataclass, field
-from typing import Any, Iterator, MutableMapping
+from typing import Any
 
 import numpy as np
 

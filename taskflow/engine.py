@@ -38,12 +38,18 @@ region, so the other regions stay as they are.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import partial, reduce
-from typing import Any, Callable
+from typing import Any
 
 from transitions.core import Event, listify
-from transitions.extensions.nesting import (HierarchicalMachine, NestedEventData, NestedState, NestedTransition,
-                                            resolve_order)
+from transitions.extensions.nesting import (
+    HierarchicalMachine,
+    NestedEventData,
+    NestedState,
+    NestedTransition,
+    resolve_order,
+)
 
 from .model import CompiledMission, StateNode
 

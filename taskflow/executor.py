@@ -34,18 +34,40 @@ Semantics in brief (docs/missions.md has the long form):
 
 from __future__ import annotations
 
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
-from typing import Any, Callable, Collection
+from typing import Any
 
 from .api import Command, Observation, Robot, Task, TaskContext, World
 from .contracts import build_robot_params
 from .data import DataAccess
 from .engine import START, MissionMachine, MissionState, leaf_paths
-from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode, TimeoutTransition,
-                    Transition, UnknownRef, data_refs, has_refs, resolve_refs)
-from .records import (CAUSES, DONE, EVENT, GUARD, NEXT_ITEM, START_CAUSE, TIMEOUT, ItemCount, IterationRecord,
-                      TransitionRecord)
-from .records import OPERATOR
+from .model import (
+    CompiledMission,
+    DoneTransition,
+    EventTransition,
+    GuardTransition,
+    StateNode,
+    TimeoutTransition,
+    Transition,
+    UnknownRef,
+    data_refs,
+    has_refs,
+    resolve_refs,
+)
+from .records import (
+    CAUSES,
+    DONE,
+    EVENT,
+    GUARD,
+    NEXT_ITEM,
+    OPERATOR,
+    START_CAUSE,
+    TIMEOUT,
+    ItemCount,
+    IterationRecord,
+    TransitionRecord,
+)
 from .shaping import activation
 
 __all__ = ["CAUSES", "START", "Executor", "ItemCount", "IterationRecord", "TaskFactory", "TransitionRecord",

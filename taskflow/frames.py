@@ -26,9 +26,10 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -108,7 +109,7 @@ class FrameRecorder:
         rec = FrameRecord(t=round(t, 9), tick=tick, sensor=name, stamp=round(float(image.stamp), 9),
                           frame=image.frame, width=width, height=height, file=rel)
         if self._index is None:
-            self._index = open(self.dir / INDEX, "w")
+            self._index = open(self.dir / INDEX, "w")  # noqa: SIM115 - open for the whole run, closed by close()
         self._index.write(json.dumps(rec.as_dict()) + "\n")
         self._index.flush()
         self._last[name] = image.stamp

@@ -31,10 +31,12 @@ from __future__ import annotations
 import math
 import operator
 import re
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping
+from typing import Any
 
-from .units import BASE_UNIT_OF, UNITS, dimension, with_article as _a
+from .units import BASE_UNIT_OF, UNITS, dimension
+from .units import with_article as _a
 
 Metrics = Mapping[str, float]
 Data = Mapping[str, Any]
@@ -84,7 +86,7 @@ class Comparison:
 @dataclass
 class Node:
     kind: str  # "and" | "or" | "not" | "cmp"
-    children: list["Node"] = field(default_factory=list)
+    children: list[Node] = field(default_factory=list)
     cmp: Comparison | None = None
 
 

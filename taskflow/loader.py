@@ -19,9 +19,20 @@ from pydantic import ValidationError
 from .compile import compile_document
 from .diagnostics import pydantic_problems
 from .errors import MissionError, Problem
+from .model import (  # noqa: F401
+    CompiledMission,
+    DoneTransition,
+    EventTransition,
+    GuardTransition,
+    Loop,
+    StateNode,
+    TimeoutTransition,
+    Transition,
+    UnknownRef,
+    resolve_refs,
+    with_model_defaults,
+)
 from .registry import describe_choices
-from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, Loop, StateNode,  # noqa: F401
-                    TimeoutTransition, Transition, UnknownRef, resolve_refs, with_model_defaults)
 from .schema import Mission
 from .submission import expand_uses
 from .yamlsrc import MissionLoader, SourceMap, load_yaml_file, load_yaml_text
@@ -56,7 +67,7 @@ def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap 
         if not sep or not key:
             raise MissionError([Problem(file, 0, 0, f"--set {item!r} is not KEY=VALUE", "write e.g. --set world.params.speed=0.05")])
         try:
-            value = yaml.load(text, Loader=MissionLoader)  # noqa: S506 - MissionLoader is a SafeLoader (YAML 1.2 scalars)
+            value = yaml.load(text, Loader=MissionLoader)
         except yaml.YAMLError as exc:
             raise refuse(f"value is not valid YAML ({getattr(exc, 'problem', None) or exc})") from None
         node = data

@@ -45,12 +45,12 @@ class Marker:
 
     @classmethod
     def point(cls, role: str, label: str, x: float, y: float, yaw: float | None = None,
-              radius: float | None = None) -> "Marker":
+              radius: float | None = None) -> Marker:
         return cls(role, label, ((float(x), float(y)),), yaw=None if yaw is None else float(yaw),
                    radius=None if radius is None else float(radius))
 
     @classmethod
-    def box(cls, role: str, label: str, x: float, y: float, width: float, depth: float, yaw: float = 0.0) -> "Marker":
+    def box(cls, role: str, label: str, x: float, y: float, width: float, depth: float, yaw: float = 0.0) -> Marker:
         """A ``width`` (along x before ``yaw``) x ``depth`` rectangle centred on ``(x, y)``, turned by ``yaw``."""
         c, s = math.cos(yaw), math.sin(yaw)
         corners = [(-width / 2, -depth / 2), (width / 2, -depth / 2), (width / 2, depth / 2), (-width / 2, depth / 2)]

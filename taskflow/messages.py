@@ -21,8 +21,8 @@ write into them.  Field names of transforms follow :mod:`taskflow.spatial`: ``T_
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,7 +101,7 @@ class Detection(Message):
         """A usable detection: a box and a valid object depth."""
         return self.bbox is not None and self.depth is not None and self.depth > 0.0
 
-    def stale(self) -> "Detection":
+    def stale(self) -> Detection:
         """The same frame seen again on a later control tick (``fresh = False``)."""
         return self if not self.fresh else dataclasses.replace(self, fresh=False)
 

@@ -9,9 +9,10 @@ condition) and :class:`DoneTransition` (``done``) — each carrying only the fie
 
 from __future__ import annotations
 
-from functools import cached_property
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any, Iterator
+from functools import cached_property
+from typing import Any
 
 from pydantic import BaseModel
 
@@ -30,14 +31,14 @@ class Transition:
     """What every transition has: where it is declared, where it leads, and how it enters the target."""
 
     index: int  # position among the mission's transitions (dwell timers are keyed by it)
-    source: "StateNode"
-    target: "StateNode"
+    source: StateNode
+    target: StateNode
     label: str  # the trigger as written, for records and diagrams
     resume: bool = True  # re-enter a history target where it was left
     blend: float = 0.0  # seconds of command blending after it fires
 
     @cached_property
-    def domain(self) -> "StateNode":
+    def domain(self) -> StateNode:
         """The state whose descendants this transition exits and enters (UML external semantics): the
         deepest common ancestor of source and target, or its parent when one of them contains the other
         (so that one is left and re-entered)."""
@@ -71,7 +72,7 @@ class TimeoutTransition(Transition):
     """``after: T`` (``since: …``): ``after`` seconds since ``since`` was (first, with ``since_first``) entered."""
 
     after: float
-    since: "StateNode"
+    since: StateNode
     since_first: bool = False
 
 
@@ -112,9 +113,9 @@ class StateNode:
 
     name: str
     path: str  # dotted from the root; "" for the root
-    parent: "StateNode | None"
+    parent: StateNode | None
     ypath: YPath
-    children: dict[str, "StateNode"] = field(default_factory=dict)
+    children: dict[str, StateNode] = field(default_factory=dict)
     initial: str | None = None
     task_cls: type[Task] | None = None  # effective (inherited)
     task_params: dict[str, Any] = field(default_factory=dict)  # raw, may hold $refs
@@ -136,7 +137,7 @@ class StateNode:
     def is_leaf(self) -> bool:
         return not self.children
 
-    def ancestors(self) -> list["StateNode"]:
+    def ancestors(self) -> list[StateNode]:
         """Root first, self last."""
         out: list[StateNode] = []
         n: StateNode | None = self
@@ -145,19 +146,19 @@ class StateNode:
             n = n.parent
         return out[::-1]
 
-    def walk(self) -> Iterator["StateNode"]:
+    def walk(self) -> Iterator[StateNode]:
         yield self
         for c in self.children.values():
             yield from c.walk()
 
-    def initial_leaf(self) -> "StateNode":
+    def initial_leaf(self) -> StateNode:
         """The leaf entering this state leads to (for a parallel state: the first region's)."""
         n = self
         while n.children:
             n = n.children[n.initial] if n.initial is not None else next(iter(n.children.values()))
         return n
 
-    def entry_point(self) -> "StateNode":
+    def entry_point(self) -> StateNode:
         """What entering this state makes active: its initial leaf, or the first parallel state on the
         way there (entering that enters every region's initial chain)."""
         n = self
@@ -165,7 +166,7 @@ class StateNode:
             n = n.children[n.initial]  # type: ignore[index]
         return n
 
-    def entry_leaves(self) -> list["StateNode"]:
+    def entry_leaves(self) -> list[StateNode]:
         """Every leaf that entering this state makes active (one per region below a parallel state)."""
         if not self.children:
             return [self]
@@ -174,7 +175,7 @@ class StateNode:
         return self.children[self.initial].entry_leaves()  # type: ignore[index]
 
     @property
-    def region(self) -> "StateNode | None":
+    def region(self) -> StateNode | None:
         """The innermost parallel region this state is in (None: outside any)."""
         n: StateNode | None = self
         while n is not None and n.owns is None:

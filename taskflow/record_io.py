@@ -19,8 +19,9 @@ would be valid``.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
@@ -115,7 +116,7 @@ def lines(root: Path, name: str | Path, *, offset: int = 0, first_line: int = 1,
     path = _regular(root, name)
     where = Path(root) / name
     try:
-        f = open(path, "rb")
+        f = open(path, "rb")  # noqa: SIM115 - closed below on every path
     except FileNotFoundError:
         raise RunDirError(f"{where}: missing — a run record has it") from None
     except OSError as exc:

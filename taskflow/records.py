@@ -40,13 +40,13 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any
 
 import numpy as np
 import yaml
-
 
 START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM = "start", "guard", "timeout", "event", "done", "next_item"
 OPERATOR = "operator"
@@ -191,9 +191,9 @@ class RunRecorder:
         cmd_cols = [f"cmd.{k}" if n == 1 else f"cmd.{k}.{i}" for k, n in self.command_layout.items() for i in range(n)]
         self.columns = ["t", "state", "events", *[f"m.{m}" for m in self.metric_names], *cmd_cols,
                         *[f"gt.{g}" for g in self.gt_names]]
-        self._trace = open(self.dir / "trace.csv", "w", buffering=1 << 16)
+        self._trace = open(self.dir / "trace.csv", "w", buffering=1 << 16)  # noqa: SIM115 - open for the run
         self._trace.write(",".join(self.columns) + "\n")
-        self._transitions = open(self.dir / "transitions.jsonl", "w")
+        self._transitions = open(self.dir / "transitions.jsonl", "w")  # noqa: SIM115 - open for the run
         self.ticks = 0
 
     # -- start ---------------------------------------------------------------------------------

@@ -14,8 +14,9 @@ closest match.
 from __future__ import annotations
 
 import difflib
+from collections.abc import Callable
 from importlib import import_module, metadata
-from typing import Callable, Generic, TypeVar
+from typing import Generic, TypeVar
 
 from .api import Robot, Task, World
 

@@ -25,17 +25,17 @@ import signal
 import sys
 import time
 import traceback
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 from .api import World
 from .executor import Executor, TaskFactory
 from .frames import DEFAULT_HZ, FrameRecorder
-from .records import TransitionRecord
 from .model import CompiledMission
 from .provenance import versions
-from .records import RunRecorder, TimingRecord, clean_floats
+from .records import RunRecorder, TimingRecord, TransitionRecord, clean_floats
 from .units import parse_max_time
 
 if TYPE_CHECKING:
@@ -146,8 +146,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                 gui: bool = False, max_time: float | None = None, progress: Progress | None = None,
                 world: World | None = None, task_factory: TaskFactory | None = None,
                 record: bool = True, on_start: Callable[[Executor], None] | None = None,
-                safe_stop_s: float = 1.0, control: "str | ControlServer | None" = None,
-                operator: "Sequence[OperatorAction | dict[str, Any]] | None" = None,
+                safe_stop_s: float = 1.0, control: str | ControlServer | None = None,
+                operator: Sequence[OperatorAction | dict[str, Any]] | None = None,
                 frames_hz: float | None = DEFAULT_HZ) -> RunResult:
     """Run ``mission`` to its end and return the outcome and summary.
 
@@ -190,7 +190,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             resolved["world"] = {**resolved["world"], "params": world_params.model_dump(mode="json")}
         if world is None:
             world = mission.world_cls(robot, world_params, seed, gui)
-    except Exception as exc:  # noqa: BLE001 - a run that cannot start still leaves its record
+    except Exception as exc:
         summary.update(reason=f"the world could not be built: {type(exc).__name__}: {exc}", final_state="",
                        states_visited=[], sim_time_s=0.0, ticks=0, time_in_state_s={}, iterations=[], items={},
                        transitions=0, metrics={}, stopped_at_s=0.0)
@@ -308,7 +308,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
         final_metrics: dict[str, Any] = dict(metrics)
         try:
             final_metrics.update(world.summary_metrics())
-        except Exception as exc:  # noqa: BLE001 - a summary must still be written
+        except Exception as exc:
             final_metrics["summary_error"] = f"{type(exc).__name__}: {exc}"
         summary = build_summary(mission, seed, executor, t_end, final_metrics, k)
         summary["stopped_at_s"] = t
@@ -327,8 +327,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     return RunResult(outcome, summary, recorder.dir if recorder else None, executor, timing_summary)
 
 
-def _operator(mission: CompiledMission, control: "str | ControlServer | None",
-              operator: "Sequence[OperatorAction | dict[str, Any]] | None") -> "tuple[OperatorChannel | None, ControlServer | None]":
+def _operator(mission: CompiledMission, control: str | ControlServer | None,
+              operator: Sequence[OperatorAction | dict[str, Any]] | None) -> tuple[OperatorChannel | None, ControlServer | None]:
     """The operator channel and endpoint a run asked for (none by default: nothing is checked per tick)."""
     if control is None and not operator:
         return None, None
@@ -352,7 +352,7 @@ def _safe_stop(world: World, executor: Executor, recorder: RunRecorder | None, t
             t = obs.t
             if recorder is not None:
                 recorder.tick(t, executor.state, ("safe_stop",), {}, executor.robot.stop_command(), world.ground_truth())
-    except (Exception, KeyboardInterrupt, _Terminated):  # noqa: BLE001 - the world may be what failed; the record matters more
+    except (Exception, KeyboardInterrupt, _Terminated):
         pass
     return t
 

@@ -8,9 +8,19 @@ prints :func:`mission_json_schema` for editors.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Callable, Literal, Union
+from collections.abc import Callable
+from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictBool, StrictInt, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    StrictBool,
+    StrictInt,
+    field_validator,
+    model_validator,
+)
 
 from .units import UnitError, parse_duration, parse_max_time, parse_rate
 
@@ -20,11 +30,11 @@ SEED_MAX = 2**63 - 1
 Outcome = Literal["succeeded", "failed", "aborted"]
 
 
-def _quantity(parse: Callable[[Union[str, float, int]], float]) -> AfterValidator:
+def _quantity(parse: Callable[[str | float | int], float]) -> AfterValidator:
     """A pydantic validator that parses a number-or-quantity with ``parse`` (a :mod:`taskflow.units`
     parser) and turns its :class:`UnitError` into the validation error pydantic reports."""
 
-    def validate(v: Union[str, float, int]) -> float:
+    def validate(v: str | float | int) -> float:
         try:
             return parse(v)
         except UnitError as exc:
@@ -33,13 +43,13 @@ def _quantity(parse: Callable[[Union[str, float, int]], float]) -> AfterValidato
     return AfterValidator(validate)
 
 
-Duration = Annotated[Union[float, int, str], _quantity(parse_duration)]
+Duration = Annotated[float | int | str, _quantity(parse_duration)]
 """``"5 s"``, ``"200 ms"`` or a number of seconds; stored as seconds."""
 
-MaxTime = Annotated[Union[float, int, str], _quantity(parse_max_time)]
+MaxTime = Annotated[float | int | str, _quantity(parse_max_time)]
 """A run's simulated time limit: a duration > 0 and at most one simulated day."""
 
-Rate = Annotated[Union[float, int, str], _quantity(parse_rate)]
+Rate = Annotated[float | int | str, _quantity(parse_rate)]
 """A rate: ``20``, ``"20 Hz"`` or ``"1 kHz"``; stored in Hz."""
 
 
@@ -69,13 +79,13 @@ class Foreach(_Model):
     as_: str = Field(alias="as", description="name under which tasks see the current item")
     on_failure: Literal["stop", "continue"] = Field(
         "stop", description="an iteration ending failed/aborted: stop the loop (done with that outcome) or record it and go on")
-    require: Union[Literal["all"], StrictInt, str] = Field(
+    require: Literal["all"] | StrictInt | str = Field(
         "all", description="the loop's success rule: 'all' items, at least N items (an integer), or a share like '75 %'; "
                            "with fewer the loop finishes failed")
 
     @field_validator("require")
     @classmethod
-    def _require(cls, v: Union[str, int]) -> Union[str, int]:
+    def _require(cls, v: str | int) -> str | int:
         if isinstance(v, bool):
             raise ValueError("require is 'all', a number of items or a share like '75 %', not a boolean")
         if isinstance(v, int):
@@ -133,7 +143,7 @@ class Transition(_Model):
     blend: Duration | None = Field(None, description="blend outgoing → incoming command with h(t) over this time")
 
     @model_validator(mode="after")
-    def _one_trigger(self) -> "Transition":
+    def _one_trigger(self) -> Transition:
         given = [k for k in ("when", "after", "on", "done") if getattr(self, k) not in (None, False)]
         if len(given) != 1 and set(given) != {"on", "when"}:
             raise ValueError(
@@ -153,13 +163,13 @@ class State(_Model):
     bind: dict[str, str | dict[str, Any]] = Field(
         default_factory=dict, description="profile slot → profile name (or inline values); children inherit")
     initial: str | None = None
-    states: dict[str, "State"] = Field(default_factory=dict)
+    states: dict[str, State] = Field(default_factory=dict)
     transitions: list[Transition] = Field(default_factory=list)
     history: StrictBool = Field(False, description="re-entry resumes the sub-state last active")
     foreach: Foreach | None = None
     action: Action | None = None
     final: StrictBool | Outcome | None = Field(None, description="final state with this outcome (true = succeeded)")
-    regions: dict[str, "Region"] = Field(
+    regions: dict[str, Region] = Field(
         default_factory=dict, description="parallel (orthogonal) regions, all active while the state is")
     outcome_map: dict[Outcome, dict[str, Outcome]] = Field(
         default_factory=dict, description="outcome → {region: outcome, ...}: the parallel state finishes with the "

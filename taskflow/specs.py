@@ -8,8 +8,9 @@ and :mod:`taskflow.conformance` checks real observations against them.  Re-expor
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal, Mapping
+from typing import Any, Literal
 
 import numpy as np
 
@@ -37,7 +38,7 @@ class ObsSpec:
                 "sequence": f"sequence[{self.cls.__name__}]" if self.cls else "sequence"}
         return base.get(self.kind, self.kind) + ("?" if self.optional else "")
 
-    def satisfies(self, required: "ObsSpec") -> bool:
+    def satisfies(self, required: ObsSpec) -> bool:
         """Whether a provided entry of this type can serve a consumer that ``required`` it."""
         if self.kind != required.kind:
             return False

@@ -21,8 +21,8 @@ Pure functions of counts and samples (scipy for the distributions).  Every inter
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 from scipy import stats as _sp

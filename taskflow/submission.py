@@ -91,7 +91,7 @@ class _Scope:
                  items: frozenset[str] = frozenset()) -> None:
         self.file, self.chain, self.env, self.known, self.items = file, chain, env, known, items
 
-    def with_item(self, name: str) -> "_Scope":
+    def with_item(self, name: str) -> _Scope:
         return _Scope(self.file, self.chain, self.env, self.known | {name}, self.items | {name})
 
 

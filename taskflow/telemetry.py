@@ -35,7 +35,6 @@ import math
 from pathlib import Path
 from typing import IO, Any
 
-
 from .frames import FrameRecord, read_frame
 from .recorded import RecordedRun, RunDirError, load_run
 from .records import clean_floats

@@ -27,9 +27,10 @@ The pytest plugin (registered as ``taskflow`` in the ``pytest11`` entry point) p
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import pytest
@@ -37,7 +38,8 @@ import pytest
 from .api import Observation, Robot, StepResult, Task, TaskContext, World
 from .contracts import build_robot_params
 from .data import DataAccess
-from .loader import CompiledMission, load_mission as _load
+from .loader import CompiledMission
+from .loader import load_mission as _load
 from .runtime import RunResult, run_mission
 
 

@@ -35,14 +35,21 @@ import math
 from pathlib import Path
 from typing import Any
 
-from .frames import INDEX as FRAMES_INDEX, FrameRecord, frames_from, nearest, read_frame
+from .frames import INDEX as FRAMES_INDEX
+from .frames import FrameRecord, frames_from, nearest, read_frame
 from .guards import Guard, Node
 from .markers import Marker
-from .model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode,
-                    TimeoutTransition, Transition)
+from .model import (
+    CompiledMission,
+    DoneTransition,
+    EventTransition,
+    GuardTransition,
+    StateNode,
+    TimeoutTransition,
+    Transition,
+)
 from .record_io import RunDirError, check_summary, lines, read_json
-from .records import (OperatorRecord, TransitionRecord, check_trace_header, parse_trace_row,
-                      read_transitions)
+from .records import OperatorRecord, TransitionRecord, check_trace_header, parse_trace_row, read_transitions
 from .scene import Scene, mission_scene
 
 WEB_DIR = Path(__file__).resolve().parent / "web"

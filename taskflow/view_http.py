@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from .record_io import RunDirError
 from .view import WEB_DIR, RunView, open_run
@@ -89,7 +90,7 @@ def view_routes(view: RunView) -> list[Any]:
 
 
 def serve_replay(run_dir: str | Path, address: str,
-                 announce: Callable[[str, Path | None, str | None], None] | None = None) -> "Any":
+                 announce: Callable[[str, Path | None, str | None], None] | None = None) -> Any:
     """Start serving the finished run ``run_dir`` on ``address`` (``HOST:PORT``) from a daemon thread and
     return its :class:`~taskflow.control_http.ControlServer` (``.url``; ``.token``: None on loopback, else
     the secret every request must carry; ``.stop()``).  Raises

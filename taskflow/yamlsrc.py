@@ -91,7 +91,7 @@ class Graft:
     from (``FILE:LINE:COL``, innermost first; empty when ``smap`` is the same document)."""
 
     prefix: Path_
-    smap: "SourceMap"
+    smap: SourceMap
     base: Path_
     via: tuple[str, ...] = ()
 
@@ -173,7 +173,7 @@ def _bad_scalar(node: yaml.Node, loader: yaml.SafeLoader, budget: list[int]) -> 
     if isinstance(node, yaml.ScalarNode):
         try:
             loader.construct_object(node, deep=True)
-        except Exception as exc:  # noqa: BLE001 - PyYAML raises ValueError/KeyError/... for bad tags
+        except Exception as exc:
             return node, exc
         return None
     children: list[yaml.Node] = []

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
 from taskflow_tasks.image_features import CameraIntrinsics, as_intrinsics
 
 __all__ = ["desired_bbox", "static_desired_bbox"]

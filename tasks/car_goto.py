@@ -18,17 +18,30 @@ Metrics (from the observation's odometry, never ground truth):
 from __future__ import annotations
 
 import math
-from typing import ClassVar, Mapping, cast
+from collections.abc import Mapping
+from typing import ClassVar, cast
 
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
-
-from taskflow.api import DISTANCE, SPEED, WRAPPED_ANGLE
-from taskflow.api import (ControlPoint, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext,
-                          TaskScene, array, scalar)
-from taskflow.registry import register_task
-from taskflow_tasks.targets import PlanarTarget
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
+from taskflow_tasks.targets import PlanarTarget
+
+from taskflow.api import (
+    DISTANCE,
+    SPEED,
+    WRAPPED_ANGLE,
+    ControlPoint,
+    Observation,
+    ObsSpec,
+    StepResult,
+    StrictModel,
+    Task,
+    TaskContext,
+    TaskScene,
+    array,
+    scalar,
+)
+from taskflow.registry import register_task
 
 
 class CarGains(StrictModel):

@@ -23,7 +23,6 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
 from taskflow_robots.racecar_kinematics import require_positive as _positive
 
 FloatArray = NDArray[np.float64]

@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from taskflow.spatial import skew, vee
 
 Array = NDArray[np.float64]

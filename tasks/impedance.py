@@ -79,7 +79,7 @@ class ImpedanceProfile(StrictModel):
         name, positive, nonneg = cls._RULES[str(info.field_name)]
         return _three(name, v, positive=positive, nonneg=nonneg)
 
-    def arrays(self) -> "ImpedanceGains":
+    def arrays(self) -> ImpedanceGains:
         return ImpedanceGains(np.array(self.K), np.array(self.D), np.array(self.M), np.array(self.force))
 
 

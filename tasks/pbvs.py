@@ -42,6 +42,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dposv as _dposv
+
 from taskflow.spatial import cross, inverse, rotation_angle, rotvec_from_rotation
 
 Array = NDArray[np.float64]

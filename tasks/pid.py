@@ -97,7 +97,7 @@ class PidProfile(StrictModel):
             raise ValueError(f"d_tau must be a finite time >= 0 s, got {v}")
         return v
 
-    def arrays(self) -> "PidGains":
+    def arrays(self) -> PidGains:
         """The gains as numpy arrays (built once per state entry, not per tick)."""
         return PidGains(np.array(self.kp), np.array(self.ki), np.array(self.kd), np.array(self.u_max),
                         np.array(self.i_limit), float(self.d_tau))
@@ -123,9 +123,9 @@ class PidGains:
     @staticmethod
     def of(kp: float | list[float], ki: float | list[float] = 0.0, kd: float | list[float] = 0.0,
            u_max: float | list[float] = math.inf, i_limit: float | list[float] = math.inf,
-           d_tau: float = 0.0) -> "PidGains":
+           d_tau: float = 0.0) -> PidGains:
         """Convenience for tests and scripts: scalars broadcast to all six axes."""
-        f = lambda v: np.broadcast_to(np.asarray(v, dtype=np.float64), (N_AXES,)).copy()  # noqa: E731
+        f = lambda v: np.broadcast_to(np.asarray(v, dtype=np.float64), (N_AXES,)).copy()
         return PidGains(f(kp), f(ki), f(kd), f(u_max), f(i_limit), float(d_tau))
 
 
@@ -142,7 +142,7 @@ class PidState:
         self.last_error = None
         self.derivative = np.zeros(N_AXES)
 
-    def copy(self) -> "PidState":
+    def copy(self) -> PidState:
         return PidState(self.integral.copy(), None if self.last_error is None else self.last_error.copy(),
                         self.derivative.copy())
 

@@ -19,8 +19,7 @@ from typing import ClassVar
 
 from pydantic import BaseModel
 
-from taskflow.api import AGE, FORCE
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, message
+from taskflow.api import AGE, FORCE, Observation, ObsSpec, StepResult, StrictModel, Task, TaskContext, message
 from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import register_task
 

@@ -45,17 +45,32 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator
-
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
-from taskflow.api import DISTANCE, FORCE, ROTATION_ANGLE, Metric
-from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, instance,
-                          message, scalar, sequence)
-from taskflow.messages import MarkerPose, Wrench
-from taskflow.registry import register_task
-from taskflow.spatial import inverse, transform_xyz_yaw
 from taskflow_tasks import pbvs
 from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step
 from taskflow_tasks.pid import PidProfile, PidState, pid_step
+
+from taskflow.api import (
+    DISTANCE,
+    FORCE,
+    ROTATION_ANGLE,
+    MemoryKey,
+    Metric,
+    Observation,
+    ObsSpec,
+    StepResult,
+    StrictModel,
+    Task,
+    TaskContext,
+    array,
+    instance,
+    message,
+    scalar,
+    sequence,
+)
+from taskflow.messages import MarkerPose, Wrench
+from taskflow.registry import register_task
+from taskflow.spatial import inverse, transform_xyz_yaw
 
 # the mission data the screw tasks keep across states (one definition each; every MobilePbvs task writes
 # them all — each one starts from what is there, or from zero — and ArmHome the arm's)

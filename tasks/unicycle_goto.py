@@ -26,17 +26,30 @@ curvature ``w / v`` is kept).  Metrics (from odometry, never ground truth): ``po
 from __future__ import annotations
 
 import math
-from typing import ClassVar, Mapping, cast
+from collections.abc import Mapping
+from typing import ClassVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
+from taskflow_tasks.targets import PlanarTarget
 
-from taskflow.api import DISTANCE, SPEED, WRAPPED_ANGLE
-from taskflow.api import ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, TaskScene, array, scalar
+from taskflow.api import (
+    DISTANCE,
+    SPEED,
+    WRAPPED_ANGLE,
+    Observation,
+    ObsSpec,
+    StepResult,
+    StrictModel,
+    Task,
+    TaskContext,
+    TaskScene,
+    array,
+    scalar,
+)
 from taskflow.registry import register_task
 from taskflow.spatial import wrap_angle
-from taskflow_tasks.targets import PlanarTarget
 
 
 def unicycle_point_law(pose: NDArray[np.float64], target: NDArray[np.float64], k_rho: float,

@@ -67,21 +67,15 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import replace
-from typing import Any, ClassVar, Literal, Mapping, cast
+from typing import Any, ClassVar, Literal, cast
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
-
 from taskflow_robots.racecar import CameraMount
-from taskflow.api import AGE, DISTANCE, FLAG, SPEED, Metric
-from taskflow.api import (ControlPoint, MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext,
-                          TaskScene, array, mapping, message)
-from taskflow.messages import Detection
-from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry
-from taskflow.spatial import twist_adjoint_inverse
 from taskflow_tasks.car_visual_servo import car_jacobian_r
 from taskflow_tasks.keep_out import keep_out_speed
 from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shifts
@@ -93,6 +87,29 @@ from taskflow_tasks.viki_laws import (
     object_base,
     viki_velocity,
 )
+
+from taskflow.api import (
+    AGE,
+    DISTANCE,
+    FLAG,
+    SPEED,
+    ControlPoint,
+    MemoryKey,
+    Metric,
+    Observation,
+    ObsSpec,
+    StepResult,
+    StrictModel,
+    Task,
+    TaskContext,
+    TaskScene,
+    array,
+    mapping,
+    message,
+)
+from taskflow.messages import Detection
+from taskflow.registry import register_task
+from taskflow.spatial import twist_adjoint_inverse
 
 # the mission data the ViKi-HyCo tasks keep across states (one definition each)
 MEM_OBJECT: MemoryKey[NDArray[np.float64]] = MemoryKey(
@@ -165,7 +182,7 @@ class ViKiHyCoParams(StrictModel):
     smoothing: bool = True
 
     @model_validator(mode="after")
-    def _check(self) -> "ViKiHyCoParams":
+    def _check(self) -> ViKiHyCoParams:
         if self.mode == "mgbm" and self.object_size is None:
             raise ValueError("mode 'mgbm' needs object_size: [W, H] (m), the object's known size")
         if self.object_size is not None and min(self.object_size) <= 0.0:

@@ -34,7 +34,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
 from taskflow_tasks.bbox_target import desired_bbox, static_desired_bbox
 from taskflow_tasks.car_kinematics import car_command, kinematic_control
 from taskflow_tasks.car_visual_servo import car_vs_velocity

@@ -32,20 +32,33 @@ paper's ``-0.01 < h < 0.01`` m test; ``leg`` (0, 1); ``heading_error`` (rad) to 
 from __future__ import annotations
 
 import math
-from typing import ClassVar, Literal, Mapping, cast
+from collections.abc import Mapping
+from typing import ClassVar, Literal, cast
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
-
-from taskflow.api import COUNT, DISTANCE, SPEED, WRAPPED_ANGLE
-from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, TaskScene,
-                          array)
-from taskflow.registry import register_task
 from taskflow_tasks.car_goto import CarGains, CarGeometry, car_control_point
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 from taskflow_tasks.viki_hyco import MEM_OBJECT
 from taskflow_tasks.viki_laws import reverse_control
+
+from taskflow.api import (
+    COUNT,
+    DISTANCE,
+    SPEED,
+    WRAPPED_ANGLE,
+    MemoryKey,
+    Observation,
+    ObsSpec,
+    StepResult,
+    StrictModel,
+    Task,
+    TaskContext,
+    TaskScene,
+    array,
+)
+from taskflow.registry import register_task
 
 FloatArray = NDArray[np.float64]
 MEM_ROTATION: MemoryKey[NDArray[np.float64]] = MemoryKey(

@@ -103,14 +103,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
-
 from taskflow_robots.quadcopter import QuadCamera
-from taskflow.api import COUNT, FLAG, WEIGHT, Metric
-from taskflow.api import (MemoryKey, ObsSpec, Observation, StepResult, StrictModel, Task, TaskContext, array, instance, message,
-                          scalar, sequence)
-from taskflow.messages import FeatureView, Image, Silhouette
-from taskflow.registry import register_task
-from taskflow.spatial import transform, twist_adjoint, vee
 from taskflow_tasks.hierarchy import (
     Activation,
     collision_error,
@@ -120,20 +113,6 @@ from taskflow_tasks.hierarchy import (
     transition_weight,
     visibility_error,
     visibility_jacobian,
-)
-from taskflow_tasks.obstacle_memory import (
-    LEFT,
-    RIGHT,
-    ObstacleMemory,
-    RememberedObstacle,
-    associate,
-    closing_in,
-    committed_edges,
-    edges_in_body,
-    escape_side,
-    has_passed,
-    propagate,
-    remembered_collision,
 )
 from taskflow_tasks.homography import (
     HomographyGains,
@@ -149,6 +128,20 @@ from taskflow_tasks.homography import (
     task_error,
     yaw_decoupled_error,
 )
+from taskflow_tasks.obstacle_memory import (
+    LEFT,
+    RIGHT,
+    ObstacleMemory,
+    RememberedObstacle,
+    associate,
+    closing_in,
+    committed_edges,
+    edges_in_body,
+    escape_side,
+    has_passed,
+    propagate,
+    remembered_collision,
+)
 from taskflow_tasks.visual_path_perception import (
     Features,
     ObstacleDetection,
@@ -160,6 +153,28 @@ from taskflow_tasks.visual_path_perception import (
     obstacle_edges,
     to_grey,
 )
+
+from taskflow.api import (
+    COUNT,
+    FLAG,
+    WEIGHT,
+    MemoryKey,
+    Metric,
+    Observation,
+    ObsSpec,
+    StepResult,
+    StrictModel,
+    Task,
+    TaskContext,
+    array,
+    instance,
+    message,
+    scalar,
+    sequence,
+)
+from taskflow.messages import FeatureView, Image, Silhouette
+from taskflow.registry import register_task
+from taskflow.spatial import transform, twist_adjoint, vee
 
 Vec3 = tuple[float, float, float]
 

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
 from taskflow_tasks.homography import (
     normalize_homography,
     normalize_pixels,

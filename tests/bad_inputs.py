@@ -158,7 +158,7 @@ def _ladder(tmp: Path, name: str, depth: int, fan_out: int) -> Path:
     (folder / "m.yaml").write_text(_USING.replace("USE", "l0.yaml"))
     for i in range(depth):
         states = "".join(f"    u{k}:\n      use: l{i + 1}.yaml\n      transitions: [{{to: "
-                         f"{'u%d' % (k + 1) if k + 1 < fan_out else 'ok'}, done: true}}]\n" for k in range(fan_out))
+                         f"{f'u{k + 1}' if k + 1 < fan_out else 'ok'}, done: true}}]\n" for k in range(fan_out))
         (folder / f"l{i}.yaml").write_text(f"submission: l{i}\nmachine:\n  initial: u0\n  states:\n{states}"
                                            "    ok: {final: succeeded}\n")
     (folder / f"l{depth}.yaml").write_text("submission: leaf\nmachine:\n  initial: ok\n  states:\n"

@@ -3,7 +3,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-import toys  # noqa: E402
+import toys
 
 toys.register()
 

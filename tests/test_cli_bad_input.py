@@ -7,8 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
 from bad_inputs import CAR, BadInput, cases
+
 from taskflow.cli import main
 
 

@@ -14,8 +14,9 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import pytest
 
@@ -52,7 +53,7 @@ class LiveRun:
         def target() -> None:
             try:
                 self.result = start()
-            except BaseException as exc:  # noqa: BLE001 - reported by finish()
+            except BaseException as exc:
                 self.error = exc
 
         self.thread = threading.Thread(target=target, daemon=True)
@@ -332,7 +333,7 @@ def test_the_recorded_actions_of_a_live_session_replay_to_the_same_records(live,
 @pytest.fixture
 def viki():
     import taskflow_sim.viki_world  # noqa: F401  registers the world viki_ground
-    import taskflow_tasks.viki_hyco  # noqa: F401
+    import taskflow_tasks.viki_hyco
     import taskflow_tasks.viki_rotation  # noqa: F401
 
     return load_mission(VIKI, ["world.params.perception=geometric"])

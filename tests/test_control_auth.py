@@ -17,10 +17,9 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
-
-import pytest
+from typing import Any
 
 from taskflow.cli import main
 from taskflow.control_http import ControlServer
@@ -66,7 +65,7 @@ def start_toy(out: Path, control: str | ControlServer = "127.0.0.1:0") -> tuple[
     def target() -> None:
         try:
             box["result"] = run_mission(mission, out_dir=out, control=control, max_time=3600, operator=PAUSE_AT_1)
-        except BaseException as exc:  # noqa: BLE001 - reported by the test
+        except BaseException as exc:
             box["error"] = exc
 
     thread = threading.Thread(target=target, daemon=True)

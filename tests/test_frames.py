@@ -12,8 +12,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from conftest import rendered_run
+
 from taskflow.api import Observation
 from taskflow.cli import main
 from taskflow.frames import DEFAULT_HZ, FrameRecorder, nearest, read_frames
@@ -149,6 +149,7 @@ def test_the_same_seed_writes_the_same_frames_byte_for_byte(rendered_run_dir: Pa
 
 def test_frames_off_records_none(tmp_path: Path) -> None:
     from conftest import RENDERED, RENDERED_LOW_RES
+
     from taskflow.runtime import run_mission
 
     run_mission(load_mission(RENDERED, RENDERED_LOW_RES), seed=5, max_time=0.5, out_dir=tmp_path / "run",

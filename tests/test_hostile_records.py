@@ -16,7 +16,6 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-
 from hostile_records import BATCH_CASES, RUN_CASES, SECRET, base_batch, base_run, make_case
 
 from taskflow.cli import main

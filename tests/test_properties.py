@@ -39,14 +39,19 @@ import yaml
 from hypothesis import HealthCheck, event, given, note, settings
 from hypothesis import strategies as st
 
+from taskflow.api import Observation, StepResult, Task, TaskContext
 from taskflow.errors import MissionError
 from taskflow.executor import CAUSES
 from taskflow.loader import load_mission_text
-from taskflow.model import (CompiledMission, DoneTransition, EventTransition, GuardTransition, StateNode,
-                            TimeoutTransition)
-from taskflow.runtime import OUTCOMES
-from taskflow.api import Observation, StepResult, Task, TaskContext
-from taskflow.runtime import run_mission
+from taskflow.model import (
+    CompiledMission,
+    DoneTransition,
+    EventTransition,
+    GuardTransition,
+    StateNode,
+    TimeoutTransition,
+)
+from taskflow.runtime import OUTCOMES, run_mission
 from taskflow.testing import Script, ScriptedWorld, drive
 from taskflow.yamlsrc import MissionLoader
 
@@ -585,7 +590,7 @@ def region_machines(draw: Any) -> dict[str, Any]:
 class _ONode:
     """The oracle's view of one state, read from the generated document."""
 
-    def __init__(self, name: str, path: str, parent: "_ONode | None", spec: dict[str, Any]) -> None:
+    def __init__(self, name: str, path: str, parent: _ONode | None, spec: dict[str, Any]) -> None:
         self.name, self.path, self.parent, self.spec = name, path, parent, spec
         self.depth = 0 if parent is None else parent.depth + 1
         self.final: str | None = None
@@ -604,14 +609,14 @@ class _ONode:
             self.children[nm] = child
         self.transitions: list[dict[str, Any]] = list(spec.get("transitions", []))
 
-    def walk(self) -> list["_ONode"]:
+    def walk(self) -> list[_ONode]:
         return [self] + [d for c in self.children.values() for d in c.walk()]
 
-    def chain(self) -> list["_ONode"]:
+    def chain(self) -> list[_ONode]:
         """Root first, down to this state."""
         return ([] if self.parent is None else self.parent.chain()) + [self]
 
-    def inside(self, other: "_ONode") -> bool:
+    def inside(self, other: _ONode) -> bool:
         return self.path == other.path or other.parent is None or self.path.startswith(other.path + ".")
 
 
@@ -1303,7 +1308,7 @@ class _OperatedOracle:
 
 
 def check_operated_run(m: CompiledMission, result: Any, script: Script, ops: list[dict[str, Any]],
-                       seen: list[tuple[str, float]]) -> "_OperatedOracle":
+                       seen: list[tuple[str, float]]) -> _OperatedOracle:
     ex = result.executor
     oracle = _OperatedOracle(m, script, ops)
     oracle.run(ex.transitions_fired)

@@ -11,8 +11,8 @@ from taskflow.cli import main
 from taskflow.loader import load_mission
 from taskflow.recorded import RecordedRun, load_run
 from taskflow.report import format_report
-from taskflow.units import suffix_unit
 from taskflow.runtime import run_mission
+from taskflow.units import suffix_unit
 
 FULL = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"
 

@@ -51,7 +51,7 @@ def ladder(tmp: Path, depth: int, fan_out: int, guard: str = "pos_error < 1 cm",
     (tmp / "m.yaml").write_text(MISSION)
     for i in range(depth):
         nxt = [f"l{i + 1}.yaml"] * fan_out
-        states = "".join(f"    u{k}:\n      use: {nxt[k]}\n      transitions: [{{to: {'u%d' % (k + 1) if k + 1 < fan_out else 'ok'}"
+        states = "".join(f"    u{k}:\n      use: {nxt[k]}\n      transitions: [{{to: {f'u{k + 1}' if k + 1 < fan_out else 'ok'}"
                          f", done: true}}]\n" for k in range(fan_out))
         (tmp / f"l{i}.yaml").write_text(f"submission: l{i}\nmachine:\n  initial: u0\n  states:\n{states}"
                                         "    ok: {final: succeeded}\n")
@@ -96,7 +96,7 @@ def test_more_distinct_files_than_the_budget_are_refused(tmp_path: Path) -> None
     n = MAX_USE_FILES + 1
     for k in range(n):
         (tmp_path / f"f{k}.yaml").write_text((tmp_path / "leaf.yaml").read_text())
-    states = "".join(f"    u{k}:\n      use: f{k}.yaml\n      transitions: [{{to: {'u%d' % (k + 1) if k + 1 < n else 'fin'}"
+    states = "".join(f"    u{k}:\n      use: f{k}.yaml\n      transitions: [{{to: {f'u{k + 1}' if k + 1 < n else 'fin'}"
                      ", done: true}]\n" for k in range(n))
     (tmp_path / "m.yaml").write_text(MISSION.split("machine:")[0] + f"machine:\n  initial: u0\n  states:\n{states}"
                                      "    fin: {final: succeeded}\n")

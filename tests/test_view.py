@@ -16,10 +16,10 @@ import pytest
 
 from taskflow.cli import main
 from taskflow.loader import load_mission
-from taskflow.testing import Script, drive
 from taskflow.recorded import load_run
 from taskflow.runtime import run_mission
 from taskflow.scene import Scene, mission_scene
+from taskflow.testing import Script, drive
 from taskflow.view import RecordReader, RunView, ViewError, machine_json, open_run
 from taskflow.view_http import serve_replay
 

@@ -18,8 +18,9 @@ from __future__ import annotations
 import json
 import threading
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import pytest
 
@@ -111,7 +112,7 @@ def test_live_view_follows_the_record_and_its_buttons_resume_and_pause_the_run(b
         try:
             box["result"] = drive(mission, _script(slow=True), max_time=120, out_dir=out, control=server,
                                   operator=[{"t": t, "action": "pause", "who": "script"} for t in pauses])
-        except BaseException as exc:  # noqa: BLE001 - reported below
+        except BaseException as exc:
             box["error"] = exc
 
     thread = threading.Thread(target=run, daemon=True)
@@ -122,9 +123,9 @@ def test_live_view_follows_the_record_and_its_buttons_resume_and_pause_the_run(b
         _open(browser, client.url, client.token)
         seen: list[dict[str, Any]] = []
         for t_pause in pauses:
-            _until(lambda: client.state()["paused"] and client.state()["t"] == t_pause, f"the pause at {t_pause}")
+            _until(lambda t_pause=t_pause: client.state()["paused"] and client.state()["t"] == t_pause, f"the pause at {t_pause}")
             # the page follows the record: its last row is the tick before the pause
-            shown = _until(lambda: (s := _shown(browser)) and s["mode"] == "paused"
+            shown = _until(lambda t_pause=t_pause: (s := _shown(browser)) and s["mode"] == "paused"
                            and abs(float(s["t"] or -1) - (t_pause - DT)) < 1e-9 and s, f"the page at {t_pause}")
             seen.append(shown)
             browser.find_element("id", "op-resume").click()
@@ -146,7 +147,7 @@ def test_live_view_follows_the_record_and_its_buttons_resume_and_pause_the_run(b
         if thread.is_alive():
             try:
                 ControlClient.for_run(out).send("preempt", who="teardown")
-            except Exception:  # noqa: BLE001 - best effort
+            except Exception:
                 pass
             thread.join(10)
     assert "error" not in box, box.get("error")
@@ -181,7 +182,7 @@ def test_replay_steps_transition_by_transition_and_scrubs_to_the_record(browser,
         assert float(first["t"]) == 0.0 and first["state"] == "search"
         for rec in moves[:3]:  # three chosen times: just after each of the first three transitions
             browser.find_element("id", "next-tr").click()
-            shown = _until(lambda: (s := _shown(browser)) and float(s["t"]) > rec["t"] and s, "the step")
+            shown = _until(lambda rec=rec: (s := _shown(browser)) and float(s["t"]) > rec["t"] and s, "the step")
             assert shown["state"] == rec["to"]
             assert abs(float(shown["t"]) - (rec["t"] + DT)) < 1e-9  # the first row in the new state
             _check_against_trace(trace, shown)

@@ -10,13 +10,25 @@ They exist so the machine tests exercise real task and world code paths without 
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Mapping
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 from pydantic import Field
 
-from taskflow.api import (MemoryKey, Observation, Robot, StepResult, StrictModel, Task, TaskContext, World, instance,
-                          scalar, sequence)
+from taskflow.api import (
+    MemoryKey,
+    Observation,
+    Robot,
+    StepResult,
+    StrictModel,
+    Task,
+    TaskContext,
+    World,
+    instance,
+    scalar,
+    sequence,
+)
 from taskflow.registry import ROBOTS, TASKS, WORLDS
 
 

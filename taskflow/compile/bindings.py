@@ -84,10 +84,10 @@ def check_parameters(c: Compilation, root: StateNode) -> None:
         spec = c.spec_of(n)
         if isinstance(spec, State) and spec.foreach is not None:
             _check_loop(c, n, spec)
-        if n.is_leaf and n.task_cls is not None:
-            if _refs_resolve(c, n, n.task_params, n.task_ypath + ("params",), c.mission_data.samples()):
-                validate_every_item(c, n, n.task_cls.Params, n.task_params, n.task_ypath + ("params",),
-                                    f"task {n.task_cls.name!r}")
+        if n.is_leaf and n.task_cls is not None and _refs_resolve(c, n, n.task_params, n.task_ypath + ("params",),
+                                                                  c.mission_data.samples()):
+            validate_every_item(c, n, n.task_cls.Params, n.task_params, n.task_ypath + ("params",),
+                                f"task {n.task_cls.name!r}")
 
 
 def _check_action(c: Compilation, n: StateNode) -> None:

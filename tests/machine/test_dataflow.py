@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from toys import MARK, ToyReturn
 
 from taskflow.api import Observation, StepResult, Task
 from taskflow.data import DataAccess, DataAccessError
@@ -18,7 +19,6 @@ from taskflow.loader import load_mission_text
 from taskflow.registry import TASKS
 from taskflow.runtime import run_mission
 from taskflow.testing import assert_outcome, assert_path
-from toys import MARK, ToyReturn
 
 HEAD = """\
 mission: m

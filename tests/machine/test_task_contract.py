@@ -6,6 +6,11 @@ from __future__ import annotations
 
 import pytest
 from pydantic import Field
+from taskflow_robots.husky import Husky
+from taskflow_robots.racecar import Racecar
+from taskflow_tasks.car_goto import CarGeometry, CarGoto
+from taskflow_tasks.unicycle_goto import UnicycleGoto
+from toys import ToyGoto, ToyLine
 
 from taskflow.api import Robot, StepResult, StrictModel
 from taskflow.contracts import build_robot_params, robot_params_problem
@@ -14,11 +19,6 @@ from taskflow.loader import load_mission_text
 from taskflow.registry import ROBOTS, TASKS, WORLDS
 from taskflow.runtime import run_mission
 from taskflow.testing import assert_outcome, run_on_world
-from taskflow_robots.husky import Husky
-from taskflow_robots.racecar import Racecar
-from taskflow_tasks.car_goto import CarGeometry, CarGoto
-from taskflow_tasks.unicycle_goto import UnicycleGoto
-from toys import ToyGoto, ToyLine
 
 MISSION = """
 mission: m

@@ -6,14 +6,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
 import taskflow_tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
+from taskflow_sim.screw_world import ScrewConveyor
+
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission
 from taskflow.runtime import run_mission
 from taskflow.testing import assert_outcome, run_on_world
-from taskflow_sim.screw_world import ScrewConveyor
 
 ROOT = Path(__file__).resolve().parents[2]
 CONVEYOR = ROOT / "missions" / "screw_fastening.yaml"
@@ -198,7 +198,7 @@ def test_the_safety_region_stops_an_over_force_and_leaves_the_robot_at_rest(tmp_
     cause = next(t for t in r.executor.transitions_fired if t.source.endswith("|cell.safety.over_force"))
     assert cause.t == trip.t and cause.target == "error_stop" and cause.source.startswith(S + "s2_arm_approach")
     assert r.summary["metrics"]["operations"] == 0 and r.summary["states_visited"][-2:] == ["error_stop", "error"]
-    rows = list(csv.DictReader(open(tmp_path / "run" / "trace.csv")))
+    rows = list(csv.DictReader((tmp_path / "run" / "trace.csv").read_text().splitlines()))
     at_trip = [row for row in rows if abs(float(row["t"]) - trip.t) < 1e-6][0]
     assert float(at_trip["gt.contact_force"]) > 40.0  # the over-force was real, in the simulation
     before = [float(row["gt.contact_force"]) for row in rows if float(row["t"]) < trip.t - 0.05]

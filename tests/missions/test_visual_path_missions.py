@@ -7,10 +7,10 @@ import json
 from pathlib import Path
 
 import pytest
-
 import taskflow_robots.quadcopter  # noqa: F401 - registration (until the entry points are added)
 import taskflow_sim.room_world  # noqa: F401
 import taskflow_tasks.visual_path  # noqa: F401
+
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission
 from taskflow.runtime import run_mission

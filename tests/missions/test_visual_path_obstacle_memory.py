@@ -8,6 +8,7 @@ from pathlib import Path
 import taskflow_robots.quadcopter  # noqa: F401 - registration
 import taskflow_sim.room_world  # noqa: F401
 import taskflow_tasks.visual_path  # noqa: F401
+
 from taskflow.loader import load_mission
 from taskflow.runtime import run_mission
 from taskflow.testing import assert_outcome

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-
 from taskflow_robots.husky import Husky
 from taskflow_sim.bodies import GroundBody
 from taskflow_sim.flat_ground import FlatGround

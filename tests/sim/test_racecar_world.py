@@ -7,11 +7,11 @@ import math
 
 import numpy as np
 import pytest
-
 from taskflow_robots.racecar import Racecar
 from taskflow_sim.flat_ground import FlatGround
-from taskflow.testing import task_context
 from taskflow_tasks.car_goto import CarGains, CarGoto
+
+from taskflow.testing import task_context
 
 ROBOT = Racecar(Racecar.Params())
 L = ROBOT.params.wheelbase

@@ -4,22 +4,21 @@ from __future__ import annotations
 
 import contextlib
 import io
-
 import json
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
-from pydantic import ValidationError
-
 import taskflow_tasks.visual_path  # noqa: F401 - registers the tasks the missions use
+from pydantic import ValidationError
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
-from taskflow.messages import FeatureView, Image, Silhouette
 from taskflow_sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir
+
 from taskflow.cli import main as cli_main
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission
+from taskflow.messages import FeatureView, Image, Silhouette
 
 ROOT = Path(__file__).resolve().parents[2]
 POSE_REG = ROOT / "missions" / "visual_path_pose_regulation.yaml"

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim.screw_world import ScrewConveyor

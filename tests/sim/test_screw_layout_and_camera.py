@@ -10,16 +10,16 @@ from pathlib import Path
 import numpy as np
 import pybullet as p
 import pytest
-from pydantic import ValidationError
-
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
 import taskflow_tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
-from taskflow.errors import MissionError
-from taskflow.loader import load_mission
-from taskflow.testing import assert_outcome, run_on_world
+from pydantic import ValidationError
 from taskflow_robots.mobile_iiwa import CameraParams, MobileIiwa
 from taskflow_sim import screw_scene as sc
 from taskflow_sim.screw_world import ScrewConveyor
+
+from taskflow.errors import MissionError
+from taskflow.loader import load_mission
+from taskflow.testing import assert_outcome, run_on_world
 
 CONVEYOR = Path(__file__).resolve().parents[2] / "missions" / "screw_fastening.yaml"
 HOLD = {"base_twist": np.zeros(3), "arm_dq": np.zeros(7)}

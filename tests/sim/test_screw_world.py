@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pybullet as p
 import pytest
-
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim.screw_world import ScrewConveyor, ScrewdriverParams
-from taskflow import spatial
 from taskflow_tasks import pbvs
+
+from taskflow import spatial
 from taskflow.registry import WORLDS
 
 ROBOT = MobileIiwa(MobileIiwa.Params())

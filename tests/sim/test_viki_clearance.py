@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 import taskflow_robots.racecar  # noqa: F401 - registers racecar
-from taskflow.loader import load_mission
-from taskflow.testing import run_on_world
 from taskflow_robots.racecar import Racecar
 from taskflow_sim.bodies import BodyOptions, make_body
 from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
 from taskflow_sim.viki_objects import SHAPES, PlacedObject
+
+from taskflow.loader import load_mission
+from taskflow.testing import run_on_world
 
 FORWARD = Path(__file__).resolve().parents[2] / "missions" / "viki_forward.yaml"
 

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 from taskflow_robots.racecar import Racecar
 from taskflow_sim.viki_world import VikiGround
 

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from taskflow_tasks.bbox_target import desired_bbox, static_desired_bbox
 from taskflow_tasks.image_features import CameraIntrinsics
 

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-
 from taskflow_sim.car_depth import (
     blind_spot_mask,
     blind_spot_radius,

@@ -9,12 +9,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pydantic import ValidationError
-
 from taskflow_robots.racecar import Racecar
-from taskflow.api import Observation
-from taskflow.testing import task_context
+from taskflow_robots.racecar_kinematics import (
+    ackermann_wheel_angles,
+    bicycle_from_wheel_angles,
+    differential_wheel_speeds,
+)
 from taskflow_tasks.car_goto import CarGains, CarGoto
-from taskflow_robots.racecar_kinematics import ackermann_wheel_angles, bicycle_from_wheel_angles, differential_wheel_speeds
 from taskflow_tasks.car_kinematics import (
     car_command,
     car_jacobian_b,
@@ -24,6 +25,9 @@ from taskflow_tasks.car_kinematics import (
     saturate,
     steering_from_twist,
 )
+
+from taskflow.api import Observation
+from taskflow.testing import task_context
 
 L, TRACK, R = 0.325, 0.2, 0.05
 V_MAX, PSI_MAX = 0.5, 0.44

@@ -3,9 +3,7 @@
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-
 from taskflow_tasks.bbox_target import desired_bbox
-from taskflow.spatial import R_body_optical, skew, transform, twist_adjoint, twist_adjoint_inverse
 from taskflow_tasks.car_visual_servo import (
     camera_vs_velocity,
     car_feature_jacobian,
@@ -19,6 +17,8 @@ from taskflow_tasks.image_features import (
     feature_error,
     point_interaction_matrix,
 )
+
+from taskflow.spatial import R_body_optical, skew, transform, twist_adjoint, twist_adjoint_inverse
 
 K = CameraIntrinsics(500.0, 500.0, 320.0, 240.0)
 

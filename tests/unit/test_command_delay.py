@@ -5,7 +5,6 @@ hand-computed times."""
 from __future__ import annotations
 
 import pytest
-
 from taskflow_sim.command_delay import CommandDelay
 
 

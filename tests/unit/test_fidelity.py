@@ -8,8 +8,8 @@ from typing import ClassVar
 import pytest
 from pydantic import Field, ValidationError
 
-from taskflow.registry import WORLDS
 from taskflow.fidelity import Fidelity, Level, Sourced, check_fidelity
+from taskflow.registry import WORLDS
 
 
 class Toy(Fidelity):

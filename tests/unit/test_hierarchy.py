@@ -8,8 +8,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from taskflow.executor import blend_weight
 from taskflow_tasks.hierarchy import (
     Activation,
     activation,
@@ -22,6 +20,8 @@ from taskflow_tasks.hierarchy import (
     visibility_error,
     visibility_jacobian,
 )
+
+from taskflow.executor import blend_weight
 
 
 def project(X, v, w, dt):

@@ -8,8 +8,6 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-
-from taskflow.spatial import R_FLU_OPTICAL, skew, transform, twist_adjoint, vee
 from taskflow_tasks.homography import (
     HomographyGains,
     adaptive_gain,
@@ -31,6 +29,8 @@ from taskflow_tasks.homography import (
     virtual_plane_homography,
     yaw_decoupled_error,
 )
+
+from taskflow.spatial import R_FLU_OPTICAL, skew, transform, twist_adjoint, vee
 
 K = intrinsic_matrix(260.0, 260.0, 160.0, 119.0)
 AD_BODY_CAMERA = twist_adjoint(transform(R_FLU_OPTICAL, [0.2, 0.0, -0.05]))  # eq. (5): camera twist → body twist

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 from scipy.spatial.transform import Rotation
-
 from taskflow_robots.iiwa_urdf import ARM_JOINTS, installed_iiwa_urdf
 from taskflow_robots.mobile_iiwa import MobileIiwa, Pose
-from taskflow import spatial
 from taskflow_tasks import pbvs
+
+from taskflow import spatial
 from taskflow.registry import ROBOTS
 
 
@@ -92,7 +92,6 @@ def test_robot_params_reject_bad_values():
 
 def test_pybullet_and_pinocchio_tool_frames_agree_within_0_1_mm(robot):
     import pybullet as p
-
     from taskflow_sim.screw_robot import MobileIiwaBody
 
     client = p.connect(p.DIRECT)

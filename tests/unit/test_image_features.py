@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-
 from taskflow_tasks.image_features import (
     CameraIntrinsics,
     as_intrinsics,

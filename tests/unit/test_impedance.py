@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from pydantic import ValidationError
-
 from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step, static_displacement
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import pytest
-
 from taskflow_tasks.keep_out import body_gap, keep_out_speed
 
 BODY = (-0.05, 0.41, -0.15, 0.15)

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import pytest
-
-from taskflow.api import MemoryKey, sequence
 from taskflow_tasks.screw_tasks import PID_B, Q_NOM
 from taskflow_tasks.viki_hyco import MEM_OBJECT
+
+from taskflow.api import MemoryKey, sequence
 
 
 def test_a_key_reads_and_writes_its_entry_by_its_whole_name() -> None:

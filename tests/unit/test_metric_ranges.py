@@ -8,6 +8,7 @@ import pickle
 from typing import Any, ClassVar
 
 import pytest
+from toys import ToyMark
 
 from taskflow.api import DISTANCE, FLAG, WRAPPED_ANGLE, MemoryKey, Metric, flag, scalar
 from taskflow.catalogue import build
@@ -16,7 +17,6 @@ from taskflow.data import DataCatalogue
 from taskflow.errors import MissionError
 from taskflow.guards import bind_units, never_holds, parse_guard
 from taskflow.loader import load_mission_text
-from toys import ToyMark
 
 
 def _never(text: str, unit: str) -> list[bool]:

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-
 from taskflow_robots.quadcopter import QuadCamera
 from taskflow_tasks.hierarchy import collision_jacobian
 from taskflow_tasks.obstacle_memory import (
@@ -72,9 +71,9 @@ def test_an_obstacle_is_passed_once_both_edges_are_behind_the_margin():
 
 def test_remembered_collision_is_eq_8_9_of_a_centred_obstacle():
     e, J = remembered_collision(obstacle(0.5, 0.0), 0.5)  # at the keep-out distance: d = 0.2 = W / keep_out
-    assert e == pytest.approx(0.0) and J == pytest.approx(np.array([[0.4, 0, 0, 0, 0, 0]]))
+    assert e == pytest.approx(0.0) and pytest.approx(np.array([[0.4, 0, 0, 0, 0, 0]])) == J
     e, J = remembered_collision(obstacle(0.0, 0.4), 0.5)  # beside, inside: d = 0.25
-    assert e == pytest.approx(0.25 - 0.2) and J == pytest.approx(np.array([[0.0, 0.625, 0, 0, 0, 0]]))
+    assert e == pytest.approx(0.25 - 0.2) and pytest.approx(np.array([[0.0, 0.625, 0, 0, 0, 0]])) == J
     # J predicts the change of W / rho when the body moves (passing by leaves it unchanged)
     ob = obstacle(0.3, 0.4)
     e0, J = remembered_collision(ob, 0.5)

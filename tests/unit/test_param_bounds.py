@@ -11,9 +11,9 @@ from pathlib import Path
 
 import annotated_types as at
 import pytest
+import taskflow_missions
 from pydantic import BaseModel
 
-import taskflow_missions
 from taskflow.catalogue import build
 from taskflow.catalogue_render import describe_text
 from taskflow.diagnostics import _inner_model

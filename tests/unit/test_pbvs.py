@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from taskflow_tasks import pbvs
 
 from taskflow import spatial
-from taskflow_tasks import pbvs
 
 
 def rand_pose(rng: np.random.Generator, scale: float = 1.0) -> np.ndarray:

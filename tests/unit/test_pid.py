@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 from pydantic import ValidationError
-
 from taskflow_tasks.pid import PidGains, PidProfile, PidState, pid_step
 
 

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.quad_response import move_target, relative_move_step
 from taskflow_sim.room_world import QuadRoom, QuadRoomParams

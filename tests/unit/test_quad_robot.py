@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 from pydantic import ValidationError
-
 from taskflow_robots.quadcopter import QuadCamera, Quadcopter, QuadcopterParams
-from taskflow.spatial import R_FLU_OPTICAL, transform, twist_adjoint
 from taskflow_tasks.homography import robot_velocity
+
+from taskflow.spatial import R_FLU_OPTICAL, transform, twist_adjoint
 
 
 def test_camera_intrinsics_follow_tinyrenderer():

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from taskflow_tasks.safety_monitor import ContactMonitor, MonitorParams, force_magnitude, marker_age
 
 from taskflow.api import Observation
 from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import ROBOTS
 from taskflow.testing import task_context
-from taskflow_tasks.safety_monitor import ContactMonitor, MonitorParams, force_magnitude, marker_age
 
 
 def wrench(f):  # type: ignore[no-untyped-def]

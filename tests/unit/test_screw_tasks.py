@@ -7,16 +7,26 @@ import math
 
 import numpy as np
 import pytest
-
-from taskflow.api import Observation
-from taskflow.testing import task_context
 from taskflow_robots.mobile_iiwa import MobileIiwa
-from taskflow import spatial
 from taskflow_tasks import pbvs
-from taskflow.messages import MarkerPose, Wrench
 from taskflow_tasks.impedance import ImpedanceProfile
 from taskflow_tasks.pid import PidProfile
-from taskflow_tasks.screw_tasks import ADMITTANCE, PID_B, Q_NOM, ArmHome, ArmParams, HomeParams, PbvsArm, PbvsPlatform, PlatformParams
+from taskflow_tasks.screw_tasks import (
+    ADMITTANCE,
+    PID_B,
+    Q_NOM,
+    ArmHome,
+    ArmParams,
+    HomeParams,
+    PbvsArm,
+    PbvsPlatform,
+    PlatformParams,
+)
+
+from taskflow import spatial
+from taskflow.api import Observation
+from taskflow.messages import MarkerPose, Wrench
+from taskflow.testing import task_context
 
 ROBOT = MobileIiwa(MobileIiwa.Params())
 DT = 1.0 / 40.0  # the paper's control rate

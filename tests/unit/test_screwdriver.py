@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pytest
-
 from taskflow_robots.mobile_iiwa import ToolParams
 from taskflow_sim.screwdriver import BitErrors, Phase, Screwdriver
 

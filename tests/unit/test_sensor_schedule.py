@@ -6,9 +6,9 @@ import math
 
 import pytest
 from pydantic import ValidationError
-
 from taskflow_sim.faults import FaultIntervals, IntervalFault, check_intervals
 from taskflow_sim.stepped import SensorSchedule
+
 from taskflow.api import StrictModel
 
 

@@ -56,7 +56,7 @@ def test_twist_adjoint_maps_a_rigidly_attached_frames_twist_finite_differences()
         V_body = rng.normal(0.0, 1.0, 6)
 
         def T_world_camera(s: float) -> np.ndarray:
-            return _moving_frame(T_world_body0, V_body, s) @ T_body_camera
+            return _moving_frame(T_world_body0, V_body, s) @ T_body_camera  # noqa: B023 - used in this iteration
 
         V_camera = _body_twist_fd(T_world_camera)
         np.testing.assert_allclose(sp.twist_adjoint_inverse(T_body_camera) @ V_body, V_camera, atol=1e-7)

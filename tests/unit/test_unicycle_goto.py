@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from taskflow_robots.husky import Husky
+from taskflow_tasks.unicycle_goto import UnicycleGains, UnicycleGoto, saturate, unicycle_point_law
 
 from taskflow.api import Observation
 from taskflow.testing import task_context
-from taskflow_robots.husky import Husky
-from taskflow_tasks.unicycle_goto import UnicycleGains, UnicycleGoto, saturate, unicycle_point_law
 
 
 def test_hand_computed_diagonal_target():
@@ -45,7 +45,7 @@ def test_closed_loop_bearing_decays_as_exp_minus_k_alpha_t():
     pose, target = np.array([0.0, 0.0, 0.0]), np.array([2.0, 1.5])
     _, _, rho0, alpha0 = unicycle_point_law(pose, target, k_rho, k_alpha)
     last_rho = rho0
-    for k in range(1, 20001):
+    for _ in range(1, 20001):
         v, w, rho, _ = unicycle_point_law(pose, target, k_rho, k_alpha)
         assert rho <= last_rho + 1e-12
         last_rho = rho

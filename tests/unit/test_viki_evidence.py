@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shift, view_shifts
 
 

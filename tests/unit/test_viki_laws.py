@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 from taskflow_robots.racecar import Racecar
 from taskflow_tasks.bbox_target import desired_bbox, static_desired_bbox
 from taskflow_tasks.car_kinematics import car_command, kinematic_control

@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 import pytest
-
 from taskflow_robots.racecar import Racecar
-from taskflow.messages import Detection
 from taskflow_sim.perception_common import CameraModel, DropoutModel, pixel_box, quantise_box
+
+from taskflow.messages import Detection
 
 RP = Racecar(Racecar.Params()).params
 

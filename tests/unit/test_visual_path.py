@@ -9,10 +9,8 @@ import cv2
 import numpy as np
 import pytest
 from pydantic import ValidationError
-
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.quad_scene import generate_texture
-from taskflow.spatial import twist_adjoint
 from taskflow_tasks.homography import (
     intrinsic_matrix,
     largest_triangle,
@@ -41,6 +39,8 @@ from taskflow_tasks.visual_path_perception import (
     obstacle_edges,
     to_grey,
 )
+
+from taskflow.spatial import twist_adjoint
 
 K = intrinsic_matrix(207.8, 207.8, 160.0, 119.0)
 
