@@ -7,7 +7,7 @@
 
 Each trial of ``visual_path_obstacles`` and ``visual_path_pose_regulation`` (geometric camera by default)
 draws its columns' places from the seed (``world.params.obstacles`` with ``{uniform: [a, b]}`` inside,
-:mod:`taskflow.campaigns.distributions`): every column anywhere within ``--offset`` (0.2 m) of the taught line
+:mod:`taskflow.mission.distributions`): every column anywhere within ``--offset`` (0.2 m) of the taught line
 across it and over a stretch of the line along it (``PLACEMENTS``), with the shipped sizes times
 ``--scale`` (and the collision references σ alike: the task starts at the same distance).  The trials
 run through :func:`taskflow.campaigns.batch.run_batch`; collisions, clearance and final error are the world's

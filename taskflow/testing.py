@@ -36,9 +36,9 @@ import numpy as np
 import pytest
 
 from taskflow.api import Observation, Robot, StepResult, Task, TaskContext, World
-from taskflow.execution.data import DataAccess
 from taskflow.execution.runtime import RunResult, run_mission
 from taskflow.mission.contracts import build_robot_params
+from taskflow.mission.data import DataAccess
 from taskflow.mission.loader import CompiledMission
 from taskflow.mission.loader import load_mission as _load
 
@@ -148,7 +148,7 @@ def drive(mission: CompiledMission, script: Script, *, max_time: float | None = 
 
     ``on_world`` receives the :class:`ScriptedWorld` (its ``started``, ``cancelled`` and
     ``applied`` lists record what the machine asked of the hardware); ``control`` and ``operator``
-    are :func:`~taskflow.execution.runtime.run_mission`'s (operator endpoint and script, :mod:`taskflow.operate.control`)."""
+    are :func:`~taskflow.execution.runtime.run_mission`'s (operator endpoint and script, :mod:`taskflow.execution.control`)."""
     robot = mission.build_robot()
     world = ScriptedWorld(robot, script, mission)
     if on_world is not None:

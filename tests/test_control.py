@@ -1,4 +1,4 @@
-"""Operator control of a running mission, through the real endpoint (taskflow.operate.control, taskflow.operate.control_http).
+"""Operator control of a running mission, through the real endpoint (taskflow.execution.control, taskflow.operate.control_http).
 
 Each live test starts a run in a thread with the control server on 127.0.0.1 port 0, finds it through
 RUN_DIR/control.json and talks HTTP to it with the client `taskflow ctl` uses.  A scripted pause
@@ -22,10 +22,10 @@ import pytest
 
 from taskflow.cli import main
 from taskflow.errors import MissionError
+from taskflow.execution.control import ControlError, OperatorAction, load_operator_script, script_from_records
 from taskflow.execution.records import read_trace
 from taskflow.execution.runtime import RunResult, run_mission
 from taskflow.mission.loader import load_mission
-from taskflow.operate.control import ControlError, OperatorAction, load_operator_script, script_from_records
 from taskflow.operate.control_http import ControlClient, ControlServer
 from taskflow.testing import Script, drive
 
@@ -105,7 +105,7 @@ def toy_run(live: Callable[..., LiveRun], tmp_path: Path, operator: list[dict[st
             **kw: Any) -> LiveRun:
     mission = load_mission(TOY)
     out = tmp_path / "run"
-    return live(lambda: run_mission(mission, out_dir=out, control="127.0.0.1:0", max_time=3600,
+    return live(lambda: run_mission(mission, out_dir=out, control=ControlServer("127.0.0.1:0"), max_time=3600,
                                     operator=PAUSE_AT_1 if operator is None else operator, **kw), out)
 
 
@@ -119,7 +119,7 @@ def scripted_run(live: Callable[..., LiveRun], tmp_path: Path, worlds: list[Any]
     out = tmp_path / "run"
     # approach 0.5 s → settle at 0.7 s (its tool runs 10 s): the script pauses the run at 2 s, in settle
     return live(lambda: drive(mission, WAITING, max_time=600, out_dir=out, on_world=worlds.append,
-                              control="127.0.0.1:0", operator=[{"t": 2.0, "action": "pause", "who": "script"}]), out)
+                              control=ControlServer("127.0.0.1:0"), operator=[{"t": 2.0, "action": "pause", "who": "script"}]), out)
 
 
 # -- pause / resume ------------------------------------------------------------------------------------
@@ -341,7 +341,7 @@ def viki():
 
 def test_operator_preemption_of_viki_hyco_aborts_with_the_car_stopped(viki, live, tmp_path):
     out = tmp_path / "viki"
-    run = live(lambda: run_mission(viki, seed=0, out_dir=out, control="127.0.0.1:0", operator=PAUSE_AT_1), out)
+    run = live(lambda: run_mission(viki, seed=0, out_dir=out, control=ControlServer("127.0.0.1:0"), operator=PAUSE_AT_1), out)
     s = run.wait(lambda s: s["paused"], timeout=30)
     assert s["state"] == "forward"
     run.client.send("preempt", who="alice")
@@ -357,7 +357,7 @@ def test_operator_preemption_of_viki_hyco_aborts_with_the_car_stopped(viki, live
 
 def test_hold_brings_the_viki_car_to_rest_while_sim_time_advances(viki, live, tmp_path):
     out = tmp_path / "viki"
-    run = live(lambda: run_mission(viki, seed=0, out_dir=out, control="127.0.0.1:0", operator=PAUSE_AT_1), out)
+    run = live(lambda: run_mission(viki, seed=0, out_dir=out, control=ControlServer("127.0.0.1:0"), operator=PAUSE_AT_1), out)
     run.wait(lambda s: s["paused"], timeout=30)
     run.client.send("hold", who="hank")
     run.wait(lambda s: s["t"] >= 3.0)
@@ -464,7 +464,7 @@ def test_the_endpoint_refuses_a_preempt_into_an_unwritten_read_then_takes_it_onc
     out = tmp_path / "run"
     # paused at 0.4 s in `away` (toy.mark not written), and at 2.25 s in `mark` (written on its first step)
     pauses = [{"t": 0.4, "action": "pause", "who": "script"}, {"t": 2.25, "action": "pause", "who": "script"}]
-    run = live(lambda: run_mission(mission, out_dir=out, control="127.0.0.1:0", operator=pauses), out)
+    run = live(lambda: run_mission(mission, out_dir=out, control=ControlServer("127.0.0.1:0"), operator=pauses), out)
     assert run.wait(lambda s: s["paused"])["state"] == "away"
     with pytest.raises(ControlError) as exc:
         run.client.send("preempt", who="erin", to="back")

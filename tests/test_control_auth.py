@@ -25,7 +25,7 @@ from taskflow.cli import main
 from taskflow.execution.runtime import RunResult, run_mission
 from taskflow.mission.loader import load_mission
 from taskflow.operate.control_http import ControlServer
-from taskflow.operate.view_http import serve_replay
+from taskflow.operate.replay import serve_replay
 
 HERE = Path(__file__).resolve().parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
@@ -64,7 +64,8 @@ def start_toy(out: Path, control: str | ControlServer = "127.0.0.1:0") -> tuple[
 
     def target() -> None:
         try:
-            box["result"] = run_mission(mission, out_dir=out, control=control, max_time=3600, operator=PAUSE_AT_1)
+            endpoint = ControlServer(control) if isinstance(control, str) else control
+            box["result"] = run_mission(mission, out_dir=out, control=endpoint, max_time=3600, operator=PAUSE_AT_1)
         except BaseException as exc:
             box["error"] = exc
 
@@ -182,16 +183,16 @@ def test_a_replay_off_loopback_needs_its_token_and_on_loopback_none(tmp_path, ca
 
 
 def test_taskflow_view_prints_the_token_with_the_pages_address_off_loopback(tmp_path, monkeypatch, capsys):
-    import taskflow.operate.view_http as view_http
+    import taskflow.operate.replay as replay
 
     out = tmp_path / "run"
     thread, box = start_toy(out)
     info = json.loads((out / "control.json").read_text())
     _end(thread, info["url"], info["token"], box)
     servers: list[Any] = []
-    real = view_http.serve_replay
-    monkeypatch.setattr(view_http, "serve_replay", lambda *a, **k: servers.append(real(*a, **k)) or servers[-1])
-    monkeypatch.setattr(view_http, "wait_forever", lambda server: server.stop())  # instead of waiting for Ctrl-C
+    real = replay.serve_replay
+    monkeypatch.setattr(replay, "serve_replay", lambda *a, **k: servers.append(real(*a, **k)) or servers[-1])
+    monkeypatch.setattr(replay, "wait_forever", lambda server: server.stop())  # instead of waiting for Ctrl-C
     assert main(["view", str(out), "--host", "0.0.0.0", "--port", "0"]) == 0
     err = capsys.readouterr().err
     assert f"view: {servers[0].url}/?token={servers[0].token}  (replay of {out}" in err

@@ -2,6 +2,10 @@
 never imports tasks/ or the framework's machinery (loader, compiler, executor): the plugins see the framework
 only through its public modules (:data:`PUBLIC_API`).
 
+Inside the framework the machinery sits in packages by concept, each importing only the layers below it
+(:data:`MACHINERY`, the table each package's ``__init__`` states); the public modules import none of them,
+and no two framework modules import each other, directly or round a longer circle, at any depth.
+
 The folders install as ``taskflow_tasks``, ``taskflow_robots`` and ``taskflow_sim`` (setup.py
 maps them), so a user's own ``tasks`` or ``sim`` package is never shadowed."""
 
@@ -31,6 +35,18 @@ PUBLIC_API = (
 )
 """The framework modules ``tasks/``, ``robots/`` and ``sim/`` may import; everything else in ``taskflow``
 (loader, schema, compiler, executor, runtime, records, cli, batch, ...) is the machinery that runs them."""
+MACHINERY: dict[str, frozenset[str]] = {
+    "mission": frozenset(),  # the format and its compiler: the bottom layer
+    "execution": frozenset({"mission"}),  # a run: engine, executor, runtime, what it writes
+    "readers": frozenset({"mission", "execution"}),  # a finished record read back
+    "operate": frozenset({"mission", "execution", "readers"}),  # the HTTP endpoint, the web view
+    "catalogue": frozenset({"mission"}),  # what is registered, described
+    "campaigns": frozenset({"mission", "execution", "readers", "catalogue"}),  # many runs, their statistics
+    "cli": frozenset({"mission", "execution", "readers", "operate", "catalogue", "campaigns"}),  # the command
+    "testing": frozenset({"mission", "execution"}),  # the pytest plugin (a top-level module)
+}
+"""Framework package → the machinery packages it may import (the public modules, :data:`PUBLIC_API`, it
+may always import)."""
 FORBIDDEN = {
     "tasks": ("pybullet", "pybullet_data", "taskflow_sim", "sim"),
     "robots": ("pybullet", "pybullet_data", "taskflow_sim", "sim", "taskflow_tasks", "tasks"),
@@ -105,3 +121,100 @@ def test_importing_tasks_and_robots_loads_no_simulator():
     )
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+def _framework_imports(path: Path) -> list[tuple[int, str]]:
+    """Every import of a ``taskflow`` module in the framework file ``path``, relative ones resolved, at any
+    depth (inside functions and ``if TYPE_CHECKING:`` too); ``from taskflow.x import y`` gives ``taskflow.x.y``
+    when ``y`` is a module, else ``taskflow.x``."""
+    rel = path.relative_to(ROOT).with_suffix("").parts
+    package = list(rel if rel[-1] == "__init__" else rel[:-1])
+    package = [p for p in package if p != "__init__"]
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names if _is(a.name, "taskflow")]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package[: len(package) - (node.level - 1)]
+                base = ".".join([*up, *([node.module] if node.module else [])])
+            if not _is(base, "taskflow"):
+                continue
+            subs = [f"{base}.{a.name}" for a in node.names]
+            subs = [m for m in subs if (ROOT / Path(*m.split("."))).with_suffix(".py").exists()
+                    or (ROOT / Path(*m.split("."))).is_dir()]
+            out += [(node.lineno, m) for m in (subs if len(subs) == len(node.names) else [base, *subs])]
+    return out
+
+
+def _module(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _layer(module: str) -> str | None:
+    """The machinery package (or ``testing``) a ``taskflow`` module belongs to; None for a public module."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[1] in MACHINERY else None
+
+
+FRAMEWORK_FILES = sorted((ROOT / "taskflow").rglob("*.py"))
+
+
+def test_every_machinery_package_says_what_it_holds_and_may_import():
+    for name in MACHINERY:
+        if name == "testing":
+            continue
+        doc = ast.get_docstring(ast.parse((ROOT / "taskflow" / name / "__init__.py").read_text())) or ""
+        assert "May import" in doc, f"taskflow/{name}/__init__.py: its docstring says what it may import"
+
+
+def test_machinery_packages_import_only_the_layers_below():
+    bad = []
+    for f in FRAMEWORK_FILES:
+        here = _layer(_module(f))
+        for line, mod in _framework_imports(f):
+            there = _layer(mod)
+            if there is None or there == here:
+                continue
+            if here is None:
+                bad.append(f"{f.relative_to(ROOT)}:{line}: a public module imports the machinery ({mod})")
+            elif there not in MACHINERY[here]:
+                bad.append(f"{f.relative_to(ROOT)}:{line}: taskflow.{here} imports {mod} "
+                           f"(may import: {', '.join(sorted(MACHINERY[here])) or 'the public modules only'})")
+    assert not bad, "\n".join(bad)
+
+
+def test_no_import_cycle_between_framework_modules():
+    modules = {_module(f) for f in FRAMEWORK_FILES}
+    graph = {_module(f): {m for _, m in _framework_imports(f) if m in modules and m != _module(f)}
+             for f in FRAMEWORK_FILES}
+    cycles: list[list[str]] = []
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(v: str) -> None:  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                cycles.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    assert not cycles, "modules that import each other: " + "; ".join(" <-> ".join(c) for c in cycles)

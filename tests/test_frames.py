@@ -19,7 +19,7 @@ from taskflow.cli import main
 from taskflow.execution.frames import DEFAULT_HZ, FrameRecorder, nearest, read_frames
 from taskflow.messages import Image
 from taskflow.mission.loader import load_mission
-from taskflow.operate.view_http import serve_replay
+from taskflow.operate.replay import serve_replay
 from taskflow.readers.telemetry import export_run
 from taskflow.testing import Script, ScriptedWorld, drive
 

@@ -19,8 +19,8 @@ import pytest
 from hostile_records import BATCH_CASES, RUN_CASES, SECRET, base_batch, base_run, make_case
 
 from taskflow.cli import main
+from taskflow.operate.replay import serve_replay
 from taskflow.operate.view import ViewError, open_run
-from taskflow.operate.view_http import serve_replay
 from taskflow.readers.recorded import RunDirError, load_run
 from taskflow.readers.report import format_report
 

@@ -28,7 +28,7 @@ from mcap.reader import make_reader
 
 from taskflow.cli import main
 from taskflow.mission.loader import CompiledMission, load_mission
-from taskflow.operate.view_http import serve_replay
+from taskflow.operate.replay import serve_replay
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = ROOT / "missions"

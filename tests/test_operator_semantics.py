@@ -22,10 +22,10 @@ import pytest
 import yaml
 
 from taskflow.cli import main
+from taskflow.execution.control import ControlError, OperatorChannel
 from taskflow.execution.records import read_trace
 from taskflow.execution.runtime import run_mission
 from taskflow.mission.loader import load_mission_text
-from taskflow.operate.control import ControlError, OperatorChannel
 from taskflow.testing import Script, assert_outcome, drive
 
 HERE = Path(__file__).resolve().parent

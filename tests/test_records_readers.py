@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 from taskflow.cli import main
-from taskflow.operate.view_http import serve_replay
+from taskflow.operate.replay import serve_replay
 from taskflow.readers.plots import metrics_figure
 from taskflow.readers.recorded import load_run
 

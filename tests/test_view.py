@@ -17,8 +17,8 @@ import pytest
 from taskflow.cli import main
 from taskflow.execution.runtime import run_mission
 from taskflow.mission.loader import load_mission
+from taskflow.operate.replay import serve_replay
 from taskflow.operate.view import RecordReader, RunView, ViewError, machine_json, open_run
-from taskflow.operate.view_http import serve_replay
 from taskflow.readers.recorded import load_run
 from taskflow.readers.scene import Scene, mission_scene
 from taskflow.testing import Script, drive

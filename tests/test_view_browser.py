@@ -28,7 +28,7 @@ from taskflow.execution.records import read_trace
 from taskflow.execution.runtime import RunResult
 from taskflow.mission.loader import load_mission
 from taskflow.operate.control_http import ControlClient, ControlServer
-from taskflow.operate.view_http import serve_replay
+from taskflow.operate.replay import serve_replay
 from taskflow.testing import Script, browser_paths, drive, headless_chromium
 
 HERE = Path(__file__).resolve().parent

@@ -248,7 +248,7 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
 def _write_files(root: Path, files: dict[str, bytes]) -> None:
     """A remote trial's run directory written under ``root``; a name leading outside it (``..``, an
     absolute path: a node is not trusted to say where the driver writes) is a :class:`BackendError`."""
-    from taskflow.readers.record_io import RunDirError, inside
+    from taskflow.execution.record_io import RunDirError, inside
 
     for rel, data in files.items():
         try:

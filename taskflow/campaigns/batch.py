@@ -40,7 +40,8 @@ import numpy as np
 from taskflow.campaigns.backends import BackendError, TrialInterrupted, TrialJob, WorkerLost, make_backend
 from taskflow.campaigns.campaign import Campaign, CampaignSpec, file_sha256, parse_sweep, read_value
 from taskflow.campaigns.stats import mean_interval, wilson_interval
-from taskflow.execution.records import clean_floats, write_json
+from taskflow.execution.records import write_json
+from taskflow.mission.data import clean_floats
 
 
 class BatchInterrupted(Exception):

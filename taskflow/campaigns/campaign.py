@@ -31,9 +31,10 @@ from typing import Any
 
 import yaml
 
-from taskflow.execution.records import clean_floats, write_json
+from taskflow.execution.record_io import NotJSONError, RunDirError, check_summary, read_json
+from taskflow.execution.records import write_json
+from taskflow.mission.data import clean_floats
 from taskflow.mission.yamlsrc import MissionLoader
-from taskflow.readers.record_io import NotJSONError, RunDirError, check_summary, read_json
 
 
 def read_value(text: str) -> Any:
@@ -248,7 +249,7 @@ class Campaign:
         conditions or seeds outside the spec, or cut short (not whole JSON: a record being written when
         the machine died) are ignored — such a trial runs again.  A record that is hostile or was not
         written by taskflow — a link out of the folder, too large, whole JSON with a field of the wrong
-        type — is a :class:`CampaignError` naming it (:mod:`taskflow.readers.record_io`)."""
+        type — is a :class:`CampaignError` naming it (:mod:`taskflow.execution.record_io`)."""
         wanted = {record_name(c.index, s): (c.index, s) for c in self.spec.conditions() for s in self.spec.seeds()}
         out = {}
         for f in sorted((self.root / TRIALS_DIR).glob("c*-s*.json")):

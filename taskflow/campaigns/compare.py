@@ -26,7 +26,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from taskflow.campaigns.campaign import CampaignError
 from taskflow.campaigns.stats import fisher_exact, mann_whitney, mean_interval, two_proportion_z, wilson_interval
-from taskflow.readers.record_io import RunDirError, SummaryFields, problem, read_json
+from taskflow.execution.record_io import RunDirError, SummaryFields, problem, read_json
 
 ALPHA = 0.05
 
@@ -67,7 +67,7 @@ class _Trial(SummaryFields):
 
 class BatchFields(BaseModel):
     """The fields of ``batch.json`` the readers (:func:`compare`, :mod:`taskflow.campaigns.campaign_plots`) use, with
-    their types: the trials (each a run summary, :class:`~taskflow.readers.record_io.SummaryFields`, with its
+    their types: the trials (each a run summary, :class:`~taskflow.execution.record_io.SummaryFields`, with its
     ``condition``), the aggregate and the conditions with theirs."""
 
     model_config = ConfigDict(extra="allow", strict=True)
@@ -80,7 +80,7 @@ class BatchFields(BaseModel):
 
 def load_batch(path: str | Path) -> dict[str, Any]:
     """``batch.json`` of a batch directory (or the file itself), read as untrusted input
-    (:mod:`taskflow.readers.record_io`: inside its folder, bounded, its fields' types checked); a
+    (:mod:`taskflow.execution.record_io`: inside its folder, bounded, its fields' types checked); a
     :class:`CampaignError` of one line naming the file and what is wrong otherwise."""
     p = Path(path)
     root, name = (p, "batch.json") if p.is_dir() else (p.parent, p.name)

@@ -20,7 +20,7 @@ from typing import Any
 from pydantic import BaseModel
 from pydantic.json_schema import models_json_schema
 
-from taskflow.campaigns.distributions import KINDS as DISTRIBUTIONS
+from taskflow.mission.distributions import KINDS as DISTRIBUTIONS
 from taskflow.mission.schema import mission_json_schema
 from taskflow.registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError
 

@@ -3,6 +3,9 @@ describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM) — ``run`` and ``batch`` alike, once the record is written.
+
+May import: every package of the framework (it is the top layer); nothing imports it but its entry point
+(``tests/test_dependency_direction.py`` enforces it).
 """
 
 from __future__ import annotations
@@ -168,7 +171,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def _operator_options(args: argparse.Namespace, mission):  # type: ignore[no-untyped-def]
     """The control endpoint (bound now, so a port in use is a usage error) and the operator script of ``run``."""
-    from taskflow.operate.control import ControlError, load_operator_script
+    from taskflow.execution.control import ControlError, load_operator_script
     from taskflow.operate.control_http import ControlServer
 
     operator = (load_operator_script(args.operator_script, mission, live=not args.no_control)
@@ -194,7 +197,7 @@ def _operator_options(args: argparse.Namespace, mission):  # type: ignore[no-unt
 def cmd_ctl(args: argparse.Namespace) -> int:
     import os
 
-    from taskflow.operate.control import ControlError
+    from taskflow.execution.control import ControlError
     from taskflow.operate.control_http import ControlClient
 
     if args.token is not None and args.url is None:
@@ -246,9 +249,9 @@ def _print_run(result) -> None:  # type: ignore[no-untyped-def]
 def cmd_view(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         raise UsageError(f"--port {args.port}: a TCP port — valid: 0 to 65535 (0: any free port)")
-    from taskflow.operate.control import ControlError
+    from taskflow.execution.control import ControlError
+    from taskflow.operate.replay import serve_replay, wait_forever
     from taskflow.operate.view import ViewError
-    from taskflow.operate.view_http import serve_replay, wait_forever
 
     def announce(url: str, run_dir: Path | None, token: str | None) -> None:
         page = f"{url}/?token={token}" if token else f"{url}/"

@@ -39,7 +39,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from taskflow.api import Command, Observation, Robot, Task, TaskContext, World
-from taskflow.execution.data import DataAccess
 from taskflow.execution.engine import START, MissionMachine, MissionState, leaf_paths
 from taskflow.execution.records import (
     CAUSES,
@@ -55,6 +54,7 @@ from taskflow.execution.records import (
     TransitionRecord,
 )
 from taskflow.mission.contracts import build_robot_params
+from taskflow.mission.data import DataAccess
 from taskflow.mission.model import (
     CompiledMission,
     DoneTransition,
@@ -641,7 +641,7 @@ class Executor:
             self.world.cancel_action(name)
         self._running_actions.clear()
 
-    # -- operator (taskflow/operate/control.py) -----------------------------------------------------------------
+    # -- operator (taskflow/execution/control.py) -----------------------------------------------------------------
     def preempt(self, target: str | None, who: str, t: float) -> None:
         """Operator pre-emption at sim time ``t``: leave every active state (their exits cancel running world
         actions) for the state path ``target`` — its initial leaf, or its history — recorded with cause

@@ -128,8 +128,8 @@ _FIELDS: dict[str, tuple[type, ...]] = {"t": (int, float), "tick": (int,), "sens
 def frame_from_dict(d: Any, run_dir: Path) -> FrameRecord:
     """One line of ``frames.jsonl`` (parsed JSON) as its :class:`FrameRecord`; :class:`ValueError` when a
     field is missing or of another type, or ``file`` is not a file inside ``run_dir``
-    (:func:`taskflow.readers.record_io.inside`)."""
-    from taskflow.readers.record_io import RunDirError, inside
+    (:func:`taskflow.execution.record_io.inside`)."""
+    from taskflow.execution.record_io import RunDirError, inside
 
     if not isinstance(d, dict):
         raise ValueError(f"a JSON object was expected, got {type(d).__name__}")
@@ -153,15 +153,15 @@ def frame_from_dict(d: Any, run_dir: Path) -> FrameRecord:
 
 def read_frames(run_dir: str | Path, *, offset: int = 0, first_line: int = 1) -> list[FrameRecord]:
     """The frames a run recorded, in the order written (empty when it recorded none).  Read as untrusted
-    input (:mod:`taskflow.readers.record_io`): a line of another shape, or one whose ``file`` leads outside the
-    run directory, is a :class:`~taskflow.readers.record_io.RunDirError` naming it; a last line cut short by a
+    input (:mod:`taskflow.execution.record_io`): a line of another shape, or one whose ``file`` leads outside the
+    run directory, is a :class:`~taskflow.execution.record_io.RunDirError` naming it; a last line cut short by a
     crash (no newline) is left out."""
     return [rec for rec, _, _ in frames_from(Path(run_dir), offset=offset, first_line=first_line)]
 
 
 def frames_from(run_dir: Path, *, offset: int = 0, first_line: int = 1) -> list[tuple[FrameRecord, int, int]]:
     """:func:`read_frames` from byte ``offset``, each record with its line number and the offset after it."""
-    from taskflow.readers.record_io import RunDirError, json_line, lines
+    from taskflow.execution.record_io import RunDirError, json_line, lines
 
     if not (run_dir / INDEX).exists() and not (run_dir / INDEX).is_symlink():
         return []
@@ -181,8 +181,8 @@ def frames_from(run_dir: Path, *, offset: int = 0, first_line: int = 1) -> list[
 
 def read_frame(run_dir: Path, rec: FrameRecord) -> bytes:
     """The bytes of a recorded frame's file: inside ``run_dir``, at most
-    :data:`~taskflow.readers.record_io.MAX_FRAME_BYTES` (:class:`~taskflow.readers.record_io.RunDirError` otherwise)."""
-    from taskflow.readers.record_io import MAX_FRAME_BYTES, read_bytes
+    :data:`~taskflow.execution.record_io.MAX_FRAME_BYTES` (:class:`~taskflow.execution.record_io.RunDirError` otherwise)."""
+    from taskflow.execution.record_io import MAX_FRAME_BYTES, read_bytes
 
     return read_bytes(run_dir, rec.file, MAX_FRAME_BYTES)
 

@@ -28,7 +28,7 @@ the same bytes.
 
 Read back, every reader parses a ``transitions.jsonl`` line with :func:`record_from_dict` (the one parse:
 an :class:`OperatorRecord` or a :class:`TransitionRecord`), a trace row with :func:`parse_trace_row`
-(:func:`read_trace`), through :mod:`taskflow.readers.record_io` (a record is untrusted input).
+(:func:`read_trace`), through :mod:`taskflow.execution.record_io` (a record is untrusted input).
 
 Rows are buffered and flushed every ``flush_every`` ticks; ``summary.json`` exists from the start
 (outcome ``aborted``, reason ``run did not finish``) and is replaced when the run ends, so a crash or
@@ -48,6 +48,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from taskflow.mission.data import clean_floats
+
 START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM = "start", "guard", "timeout", "event", "done", "next_item"
 OPERATOR = "operator"
 CAUSES = (START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM, OPERATOR)
@@ -61,7 +63,7 @@ class TransitionRecord:
     of its metrics that tick), ``timeout`` (an ``after`` ran out), ``event`` (``event``; with a condition,
     ``metrics`` too), ``done`` (the sub-machine of ``state`` finished with ``outcome``) or ``next_item``
     (the loop ``state`` moved to item ``item`` after an item that ended ``outcome``) or ``operator`` (``who``
-    pre-empted the run to ``target``: ``taskflow ctl preempt --to``, :mod:`taskflow.operate.control`).  ``state`` and
+    pre-empted the run to ``target``: ``taskflow ctl preempt --to``, :mod:`taskflow.execution.control`).  ``state`` and
     ``label`` name the declaring state and the transition as written; ``index`` is the transition's index
     in the mission; ``resumed`` says a history state was resumed where it was left."""
 
@@ -99,7 +101,7 @@ class OperatorRecord:
     of an injection), ``who`` asked for it, and the sim time ``t`` and index ``tick`` of the control tick at
     whose start it was applied, with the ``state`` active then; ``refused``, when the run could not take it
     (a pre-emption whose target reads mission data not written yet), says why — the action then changed
-    nothing.  A list of these is an operator script (:func:`taskflow.operate.control.script_from_records`):
+    nothing.  A list of these is an operator script (:func:`taskflow.execution.control.script_from_records`):
     replayed, it gives the same run."""
 
     t: float
@@ -159,21 +161,6 @@ def write_json(path: Path, data: Any) -> None:
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(json.dumps(data, indent=2, default=_json_default, allow_nan=False) + "\n")
     os.replace(tmp, path)
-
-
-def clean_floats(data: Any) -> Any:
-    """NaN/inf → None, numpy → Python, recursively (summary.json must be strict JSON)."""
-    if isinstance(data, dict):
-        return {str(k): clean_floats(v) for k, v in data.items()}
-    if isinstance(data, (list, tuple)):
-        return [clean_floats(v) for v in data]
-    if isinstance(data, np.ndarray):
-        return clean_floats(data.tolist())
-    if isinstance(data, np.generic):
-        data = data.item()
-    if isinstance(data, float) and not math.isfinite(data):
-        return None
-    return data
 
 
 class RunRecorder:
@@ -283,9 +270,9 @@ TRACE_FIXED = ("t", "state", "events")
 
 
 def check_trace_header(cells: list[str], where: str) -> list[str]:
-    """``trace.csv``'s header ``cells``, or a :class:`~taskflow.readers.record_io.RunDirError` (at ``where``) when it
+    """``trace.csv``'s header ``cells``, or a :class:`~taskflow.execution.record_io.RunDirError` (at ``where``) when it
     does not start with :data:`TRACE_FIXED` or names a column twice."""
-    from taskflow.readers.record_io import RunDirError
+    from taskflow.execution.record_io import RunDirError
 
     if cells[:3] != list(TRACE_FIXED) or len(set(cells)) != len(cells):
         raise RunDirError(f"{where}: header {','.join(cells)[:80]!r} — a trace starts t,state,events and names "
@@ -296,8 +283,8 @@ def check_trace_header(cells: list[str], where: str) -> list[str]:
 def parse_trace_row(header: list[str], cells: list[str], where: str) -> list[Any]:
     """One row of ``trace.csv``: ``[t, state, events, numbers…]`` (NaN where a cell is empty); a row of
     more cells than columns, or a cell that is no number where one belongs, is a
-    :class:`~taskflow.readers.record_io.RunDirError` at ``where`` (``FILE:LINE``)."""
-    from taskflow.readers.record_io import RunDirError
+    :class:`~taskflow.execution.record_io.RunDirError` at ``where`` (``FILE:LINE``)."""
+    from taskflow.execution.record_io import RunDirError
 
     if len(cells) > len(header):
         raise RunDirError(f"{where}: {len(cells)} cells for {len(header)} columns")
@@ -317,12 +304,12 @@ def parse_trace_row(header: list[str], cells: list[str], where: str) -> list[Any
 def read_trace(run_dir: str | Path) -> dict[str, np.ndarray]:
     """The trace as columns of numpy arrays (numeric columns as float, NaN where empty).
 
-    Read as untrusted input (:mod:`taskflow.readers.record_io`): inside the run directory, bounded, and a cell
-    that is no number where one belongs is a :class:`~taskflow.readers.record_io.RunDirError` naming its line;
+    Read as untrusted input (:mod:`taskflow.execution.record_io`): inside the run directory, bounded, and a cell
+    that is no number where one belongs is a :class:`~taskflow.execution.record_io.RunDirError` naming its line;
     a last row cut short by a crash (no newline) is left out."""
     import csv
 
-    from taskflow.readers.record_io import RunDirError, lines
+    from taskflow.execution.record_io import RunDirError, lines
 
     where = Path(run_dir) / "trace.csv"
     header: list[str] = []
@@ -404,8 +391,8 @@ def read_transitions(run_dir: str | Path, *, offset: int = 0, first_line: int = 
                      complete_only: bool = False) -> Iterator[tuple[TransitionRecord | OperatorRecord, int, int]]:
     """The records of ``transitions.jsonl`` (:func:`record_from_dict`) from byte ``offset``, each with
     its line number and the offset after its line; a malformed line is a
-    :class:`~taskflow.readers.record_io.RunDirError` naming it."""
-    from taskflow.readers.record_io import RunDirError, json_line, lines
+    :class:`~taskflow.execution.record_io.RunDirError` naming it."""
+    from taskflow.execution.record_io import RunDirError, json_line, lines
 
     where = Path(run_dir) / "transitions.jsonl"
     for n, text, end in lines(Path(run_dir), "transitions.jsonl", offset=offset, first_line=first_line,

@@ -34,13 +34,13 @@ from taskflow.api import World
 from taskflow.execution.executor import Executor, TaskFactory
 from taskflow.execution.frames import DEFAULT_HZ, FrameRecorder
 from taskflow.execution.provenance import versions
-from taskflow.execution.records import RunRecorder, TimingRecord, TransitionRecord, clean_floats
+from taskflow.execution.records import RunRecorder, TimingRecord, TransitionRecord
+from taskflow.mission.data import clean_floats
 from taskflow.mission.model import CompiledMission
 from taskflow.units import parse_max_time
 
 if TYPE_CHECKING:
-    from taskflow.operate.control import OperatorAction, OperatorChannel
-    from taskflow.operate.control_http import ControlServer
+    from taskflow.execution.control import ControlEndpoint, OperatorAction, OperatorChannel
 
 OUTCOMES = ("succeeded", "failed", "aborted", "timeout")
 
@@ -146,7 +146,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                 gui: bool = False, max_time: float | None = None, progress: Progress | None = None,
                 world: World | None = None, task_factory: TaskFactory | None = None,
                 record: bool = True, on_start: Callable[[Executor], None] | None = None,
-                safe_stop_s: float = 1.0, control: str | ControlServer | None = None,
+                safe_stop_s: float = 1.0, control: ControlEndpoint | None = None,
                 operator: Sequence[OperatorAction | dict[str, Any]] | None = None,
                 frames_hz: float | None = DEFAULT_HZ) -> RunResult:
     """Run ``mission`` to its end and return the outcome and summary.
@@ -160,10 +160,11 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     (tests and batches that only need the summary).  ``world`` replaces the registered world (the
     scripted backend of :mod:`taskflow.testing` uses it).
 
-    ``control`` opens the operator endpoint (:mod:`taskflow.operate.control_http`: ``"HOST:PORT"`` or a
-    :class:`~taskflow.operate.control_http.ControlServer`); ``operator`` is an operator script (a list of
-    :class:`~taskflow.operate.control.OperatorAction` or their mappings) applied at its sim times.  A bad script, an
-    unknown state or event in it, raises :class:`~taskflow.operate.control.ControlError` before the run starts.
+    ``control`` is the operator endpoint to serve the run from (a
+    :class:`~taskflow.execution.control.ControlEndpoint`: :class:`taskflow.operate.control_http.ControlServer`,
+    bound by the caller, e.g. ``ControlServer("127.0.0.1:0")``); ``operator`` is an operator script (a list of
+    :class:`~taskflow.execution.control.OperatorAction` or their mappings) applied at its sim times.  A bad script, an
+    unknown state or event in it, raises :class:`~taskflow.execution.control.ControlError` before the run starts.
 
     ``frames_hz`` is the rate (frames per simulated second) at which the camera images the world puts in
     its observations are recorded into the run directory (:mod:`taskflow.execution.frames`); 0 or None records none.
@@ -245,7 +246,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             if t >= max_time - 1e-9:
                 executor.outcome, executor.reason = "timeout", f"max_time {max_time:g} s reached"
                 break
-            if channel is not None:  # operator actions, at this tick boundary only (taskflow/operate/control.py)
+            if channel is not None:  # operator actions, at this tick boundary only (taskflow/execution/control.py)
                 obs = channel.begin_tick(k, obs, executor, lambda: stop.reason is not None)
                 if stop.reason is not None or executor.outcome is not None:
                     break
@@ -327,17 +328,15 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     return RunResult(outcome, summary, recorder.dir if recorder else None, executor, timing_summary)
 
 
-def _operator(mission: CompiledMission, control: str | ControlServer | None,
-              operator: Sequence[OperatorAction | dict[str, Any]] | None) -> tuple[OperatorChannel | None, ControlServer | None]:
+def _operator(mission: CompiledMission, control: ControlEndpoint | None,
+              operator: Sequence[OperatorAction | dict[str, Any]] | None,
+              ) -> tuple[OperatorChannel | None, ControlEndpoint | None]:
     """The operator channel and endpoint a run asked for (none by default: nothing is checked per tick)."""
     if control is None and not operator:
         return None, None
-    from taskflow.operate.control import OperatorChannel
-    from taskflow.operate.control_http import ControlServer
+    from taskflow.execution.control import OperatorChannel
 
-    channel = OperatorChannel(mission, operator or (), live=control is not None)
-    server = ControlServer(control) if isinstance(control, str) else control
-    return channel, server
+    return OperatorChannel(mission, operator or (), live=control is not None), control
 
 
 def _safe_stop(world: World, executor: Executor, recorder: RunRecorder | None, t: float, dt: float,

@@ -20,7 +20,7 @@ is compared with; comparing a length metric with ``3 deg`` is a load-time error.
 metric has no value this tick is false.
 
 A metric named ``data.<key>`` reads the run's mission data instead of the tick's metrics
-(:mod:`taskflow.execution.data`): a scalar key as a number, a flag as 1 (true) or 0 (false), and component ``i`` of
+(:mod:`taskflow.mission.data`): a scalar key as a number, a flag as 1 (true) or 0 (false), and component ``i`` of
 a 1-D array key as ``data.<key>[i]`` (``data.viki.object[0] < 2 m``); the key's declared unit converts
 the quantity.  Which names exist is the loader's business (it passes them with their units); a key
 with no value yet compares false, as a missing metric does.

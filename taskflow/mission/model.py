@@ -17,8 +17,8 @@ from typing import Any
 from pydantic import BaseModel
 
 from taskflow.api import Robot, Task, World
-from taskflow.campaigns.distributions import sample, world_rng
-from taskflow.execution.data import DATA_PREFIX, DataCatalogue, json_value
+from taskflow.mission.data import DATA_PREFIX, DataCatalogue, json_value
+from taskflow.mission.distributions import sample, world_rng
 from taskflow.mission.guards import Guard, Predicate
 from taskflow.mission.schema import Mission
 

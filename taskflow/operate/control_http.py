@@ -4,7 +4,7 @@
 ``GET /mission``  ``{mission, actions, states, events}``: what may be asked of this run
 ``POST /pause``, ``/hold``, ``/resume``, ``/preempt`` ``{to?}``, ``/inject`` ``{event}`` — every body may give
                   ``who``; the answer is ``{"queued": ACTION, "who": WHO}``: the action takes effect at the
-                  next tick boundary (:mod:`taskflow.operate.control`).  A bad request is HTTP 400 ``{"error": MESSAGE}``.
+                  next tick boundary (:mod:`taskflow.execution.control`).  A bad request is HTTP 400 ``{"error": MESSAGE}``.
 
 The server is starlette on uvicorn, run in a daemon thread (uvicorn installs no signal handler off the
 main thread, so the run loop's Ctrl-C / SIGTERM handling stays as it is).  It binds ``127.0.0.1`` unless
@@ -41,7 +41,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from taskflow.operate.control import ACTIONS, ControlError, OperatorAction, OperatorChannel
+from taskflow.execution.control import ACTIONS, ControlError, OperatorAction, OperatorChannel
 
 if TYPE_CHECKING:
     from taskflow.operate.view import RunView

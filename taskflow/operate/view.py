@@ -23,7 +23,7 @@ loop — so serving it costs the loop nothing per tick: the routes read ``trace.
                             its tick's in ``X-Frame-T``; 404 with ``{error}`` when there is none
 
 The record is untrusted input (it may be a colleague's run or a CI artifact): every route reads files
-only inside the run directory, bounded (:mod:`taskflow.readers.record_io`), and answers a malformed or hostile
+only inside the run directory, bounded (:mod:`taskflow.execution.record_io`), and answers a malformed or hostile
 record — a frame whose ``file`` leads outside the folder or is a link out of it, a line too long, a field
 of the wrong type — with 422 and ``{error}``, one line naming the file and line, serving nothing of it.
 """
@@ -37,6 +37,7 @@ from typing import Any
 
 from taskflow.execution.frames import INDEX as FRAMES_INDEX
 from taskflow.execution.frames import FrameRecord, frames_from, nearest, read_frame
+from taskflow.execution.record_io import RunDirError, check_summary, lines, read_json
 from taskflow.execution.records import (
     OperatorRecord,
     TransitionRecord,
@@ -55,7 +56,6 @@ from taskflow.mission.model import (
     TimeoutTransition,
     Transition,
 )
-from taskflow.readers.record_io import RunDirError, check_summary, lines, read_json
 from taskflow.readers.scene import Scene, mission_scene
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
@@ -170,11 +170,11 @@ class RecordReader:
     the complete lines written since the last one (the recorder may be half-way through a line).  Used
     from the server's one event-loop thread.
 
-    The record is untrusted input (:mod:`taskflow.readers.record_io`): files are read inside the run directory
-    only, a line at most :data:`~taskflow.readers.record_io.MAX_LINE_BYTES` long, and every line is parsed by
+    The record is untrusted input (:mod:`taskflow.execution.record_io`): files are read inside the run directory
+    only, a line at most :data:`~taskflow.execution.record_io.MAX_LINE_BYTES` long, and every line is parsed by
     the readers' one parse (:func:`taskflow.execution.records.parse_trace_row`,
     :func:`taskflow.execution.records.record_from_dict`, :func:`taskflow.execution.frames.frame_from_dict`); a malformed or
-    hostile one is a :class:`~taskflow.readers.record_io.RunDirError` naming its file and line (the routes answer
+    hostile one is a :class:`~taskflow.execution.record_io.RunDirError` naming its file and line (the routes answer
     it with 422), and is read again, not skipped, on the next call."""
 
     def __init__(self, run_dir: Path) -> None:
@@ -238,7 +238,7 @@ class RecordReader:
     def frame(self, sensor: str, t: float | None) -> tuple[FrameRecord, bytes] | None:
         """The frame of ``sensor`` nearest sim time ``t`` (its latest when None) and its file's bytes; None
         when the sensor has none; a file outside the run directory or too large is a
-        :class:`~taskflow.readers.record_io.RunDirError` (:func:`taskflow.execution.frames.read_frame`)."""
+        :class:`~taskflow.execution.record_io.RunDirError` (:func:`taskflow.execution.frames.read_frame`)."""
         self.refresh()
         rec = nearest(self.frames, sensor, t)
         if rec is None:
@@ -247,7 +247,7 @@ class RecordReader:
 
     def summary(self) -> dict[str, Any]:
         """``summary.json`` (empty until it is on disk), its fields checked
-        (:func:`~taskflow.readers.record_io.check_summary`)."""
+        (:func:`~taskflow.execution.record_io.check_summary`)."""
         if not self.present("summary.json"):
             return {}
         return check_summary(read_json(self.dir, "summary.json"), self.dir / "summary.json")

@@ -1,24 +1,23 @@
-"""The web view's routes, added to the control app (:mod:`taskflow.operate.control_http`), and ``taskflow view``.
+"""The web view's routes, added to the control app (:mod:`taskflow.operate.control_http`).
 
 A live run (``taskflow run --view``) serves them from its control endpoint; ``taskflow view RUN_DIR``
-serves a finished run with the same app, without a run loop (``GET /state`` then tells the run's end, and
+(:mod:`taskflow.operate.replay`) serves a finished run with the same app, without a run loop (``GET /state`` then tells the run's end, and
 the operator POSTs answer 409).  :mod:`taskflow.operate.view` says what each route returns.
 """
 
 from __future__ import annotations
 
 import math
-import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from taskflow.operate.view import WEB_DIR, RunView, open_run
-from taskflow.readers.record_io import RunDirError
+from taskflow.execution.record_io import RunDirError
+from taskflow.operate.view import WEB_DIR, RunView
 
 
 def _refusing_bad_records(endpoint: Callable[[Any], Any]) -> Callable[[Any], Any]:
-    """``endpoint``, answering a malformed or hostile record (:class:`~taskflow.readers.record_io.RunDirError`:
+    """``endpoint``, answering a malformed or hostile record (:class:`~taskflow.execution.record_io.RunDirError`:
     a file outside the run folder, a line too long, a field of the wrong type) with 422 ``{error}`` —
     one line naming the file and line — instead of serving it."""
     from starlette.responses import JSONResponse
@@ -87,27 +86,3 @@ def view_routes(view: RunView) -> list[Any]:
             Route("/view/transitions", guard(transitions)), Route("/view/summary", guard(summary)),
             Route("/view/frames", guard(frames)), Route("/view/frame", guard(frame)),
             Mount("/web", app=StaticFiles(directory=WEB_DIR), name="web")]
-
-
-def serve_replay(run_dir: str | Path, address: str,
-                 announce: Callable[[str, Path | None, str | None], None] | None = None) -> Any:
-    """Start serving the finished run ``run_dir`` on ``address`` (``HOST:PORT``) from a daemon thread and
-    return its :class:`~taskflow.operate.control_http.ControlServer` (``.url``; ``.token``: None on loopback, else
-    the secret every request must carry; ``.stop()``).  Raises
-    :class:`~taskflow.operate.view.ViewError` or :class:`~taskflow.operate.control.ControlError` with the reason."""
-    from taskflow.operate.control_http import ControlServer
-
-    view = open_run(run_dir)
-    server = ControlServer(address, announce)
-    server.start(None, None, view=view)
-    return server
-
-
-def wait_forever(server: Any) -> None:
-    """Block until Ctrl-C (``taskflow view``: the way to end it, not an error), then stop ``server``."""
-    try:
-        threading.Event().wait()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        server.stop()

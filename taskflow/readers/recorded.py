@@ -18,10 +18,10 @@ from pydantic import BaseModel
 
 from taskflow.errors import MissionError
 from taskflow.execution.frames import FrameRecord, read_frames
+from taskflow.execution.record_io import MAX_FRAME_BYTES, RunDirError, check_summary, inside, read_bytes, read_json
 from taskflow.execution.records import OperatorRecord, TransitionRecord, read_trace, read_transitions
 from taskflow.mission.guards import Comparison
 from taskflow.mission.model import CompiledMission, EventTransition, GuardTransition
-from taskflow.readers.record_io import MAX_FRAME_BYTES, RunDirError, check_summary, inside, read_bytes, read_json
 from taskflow.readers.scene import Scene, mission_scene
 
 __all__ = ["RecordedRun", "RunDirError", "Threshold", "load_run"]
@@ -189,7 +189,7 @@ def _load_mission(run_dir: Path) -> CompiledMission:
 
 def load_run(run_dir: str | Path) -> RecordedRun:
     """Read ``run_dir``; :class:`RunDirError` (one line) when it is not a run record, or a malformed or
-    hostile one: every file is read inside ``run_dir`` and bounded (:mod:`taskflow.readers.record_io`)."""
+    hostile one: every file is read inside ``run_dir`` and bounded (:mod:`taskflow.execution.record_io`)."""
     d = Path(run_dir)
     if not (d / "trace.csv").is_file():
         what = ("no such folder" if not d.exists() else

@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from taskflow.execution.frames import FrameRecord, read_frame
-from taskflow.execution.records import clean_floats
+from taskflow.mission.data import clean_floats
 from taskflow.readers.recorded import RecordedRun, RunDirError, load_run
 
 FORMATS = ("mcap",)

@@ -136,7 +136,7 @@ def test_a_history_self_transition_on_the_first_entry_resumes_the_active_leaf():
 
 
 def test_an_operator_preempt_into_the_active_history_state_resumes_where_it_is():
-    from taskflow.operate.control import OperatorAction
+    from taskflow.execution.control import OperatorAction
 
     r = drive(mission(HISTORY), Script(events=[(1.5, "target_found")]), max_time=4.0,
               operator=[OperatorAction(t=2.5, action="preempt", args={"to": "h"})])

@@ -14,8 +14,8 @@ from toys import MARK, ToyReturn
 
 from taskflow.api import Observation, StepResult, Task
 from taskflow.errors import MissionError
-from taskflow.execution.data import DataAccess, DataAccessError
 from taskflow.execution.runtime import run_mission
+from taskflow.mission.data import DataAccess, DataAccessError
 from taskflow.mission.loader import load_mission_text
 from taskflow.registry import TASKS
 from taskflow.testing import assert_outcome, assert_path

@@ -240,7 +240,7 @@ def test_graphs_draw_regions_as_concurrent_blocks():
 
 
 def test_an_operator_preempts_into_a_parallel_state_but_not_into_one_region():
-    from taskflow.operate.control import ControlError, OperatorAction
+    from taskflow.execution.control import ControlError, OperatorAction
 
     text = TIMED.replace("A_AFTER", "5 s").replace("B_AFTER", "5 s").replace("A_OUTCOME", "succeeded") \
         .replace("B_OUTCOME", "succeeded").replace("OUTCOME_MAP", "") + "    again:\n      transitions: [{to: both, after: 1 s}]\n"

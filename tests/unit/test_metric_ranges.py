@@ -14,7 +14,7 @@ from taskflow.api import DISTANCE, FLAG, WRAPPED_ANGLE, MemoryKey, Metric, flag,
 from taskflow.catalogue.catalogue import build
 from taskflow.catalogue.catalogue_render import describe_text
 from taskflow.errors import MissionError
-from taskflow.execution.data import DataCatalogue
+from taskflow.mission.data import DataCatalogue
 from taskflow.mission.guards import bind_units, never_holds, parse_guard
 from taskflow.mission.loader import load_mission_text
 

@@ -8,8 +8,8 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from taskflow.execution.data import not_finite
 from taskflow.mission.compile.context import Compilation
+from taskflow.mission.data import not_finite
 from taskflow.mission.diagnostics import clean_loc
 from taskflow.mission.model import StateNode, UnknownRef, YPath, resolve_refs, with_model_defaults
 from taskflow.mission.schema import State

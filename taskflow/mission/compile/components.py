@@ -10,9 +10,9 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from taskflow.api import World
-from taskflow.campaigns.distributions import DistributionError, distributions_in, replaced, sample, support, world_rng
 from taskflow.mission.compile.context import Compilation
 from taskflow.mission.contracts import world_problem
+from taskflow.mission.distributions import DistributionError, distributions_in, replaced, sample, support, world_rng
 from taskflow.mission.model import YPath, with_model_defaults
 from taskflow.registry import ROBOTS, WORLDS, RegistryError, UnknownName, describe_choices
 

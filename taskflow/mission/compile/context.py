@@ -9,7 +9,7 @@ from pydantic import BaseModel, ValidationError
 
 from taskflow.api import Robot, World
 from taskflow.errors import MissionError, Problem
-from taskflow.execution.data import DataCatalogue
+from taskflow.mission.data import DataCatalogue
 from taskflow.mission.diagnostics import dedupe, pydantic_problems
 from taskflow.mission.model import StateNode, Transition, YPath, with_model_defaults
 from taskflow.mission.schema import Machine, Mission, Region, State

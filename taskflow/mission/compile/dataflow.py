@@ -32,9 +32,9 @@ from __future__ import annotations
 from collections import deque
 from typing import Any
 
-from taskflow.execution.data import DataCatalogue, from_yaml, guard_names
 from taskflow.mission.compile.context import Compilation
 from taskflow.mission.compile.structure import finishing_outcomes
+from taskflow.mission.data import DataCatalogue, from_yaml, guard_names
 from taskflow.mission.guards import DATA_PREFIX
 from taskflow.mission.model import DoneTransition, EventTransition, GuardTransition, StateNode, data_refs
 from taskflow.registry import describe_choices

@@ -1,4 +1,4 @@
-"""Mission data at run time: the keys a mission's tasks declare, the run's values, each task's checked
+"""Mission data: the keys a mission's tasks declare, the run's values, each task's checked
 view of them, and the values' JSON form (the summary's ``outputs``, ``$data`` parameters).
 
 On the model of py_trees' blackboard clients: a task declares the :class:`~taskflow.api.MemoryKey` it
@@ -21,7 +21,6 @@ from typing import Any
 import numpy as np
 
 from taskflow.api import FLAG, MemoryKey, Metric, Task
-from taskflow.execution.records import clean_floats
 from taskflow.mission.guards import (
     DATA_PREFIX,  # what a guard writes before a key's name (data.viki.object[0]); $data. in a parameter
 )
@@ -93,6 +92,21 @@ class DataAccess(MutableMapping[str, Any]):
 
     def __len__(self) -> int:
         return sum(1 for k in self.values if k in self._readable)
+
+
+def clean_floats(data: Any) -> Any:
+    """NaN/inf → None, numpy → Python, recursively (summary.json must be strict JSON)."""
+    if isinstance(data, dict):
+        return {str(k): clean_floats(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [clean_floats(v) for v in data]
+    if isinstance(data, np.ndarray):
+        return clean_floats(data.tolist())
+    if isinstance(data, np.generic):
+        data = data.item()
+    if isinstance(data, float) and not math.isfinite(data):
+        return None
+    return data
 
 
 def json_value(value: Any) -> Any:

@@ -31,7 +31,7 @@ import queue
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
@@ -186,6 +186,19 @@ def script_from_records(records: Sequence[dict[str, Any]]) -> list[OperatorActio
     ``cause: operator`` and an ``action`` (pre-emption transition records are left out: the action makes them)."""
     return [OperatorAction(t=r["t"], action=r["action"], args=r.get("args", {}), who=r["who"])
             for r in records if r.get("cause") == OPERATOR and "action" in r]
+
+
+class ControlEndpoint(Protocol):
+    """What a run needs of its operator endpoint (:func:`taskflow.execution.runtime.run_mission`'s
+    ``control``): served from the run's start to its end.  The HTTP one is
+    :class:`taskflow.operate.control_http.ControlServer`; the run never imports it (the operating layer sits
+    above the run)."""
+
+    def start(self, channel: OperatorChannel | None, run_dir: Path | None) -> None:
+        """Serve ``channel`` (the run's; the record lands in ``run_dir``) from now on."""
+
+    def stop(self) -> None:
+        """Stop serving (the run has ended)."""
 
 
 class OperatorChannel:
