@@ -87,7 +87,7 @@ def key_unit(key: str, values: list[Any], mission: CompiledMission | None) -> st
     parameter ``parameters.NAME``'s declared quantity, else the one the world's or the robot's parameter
     model declares for ``world.params.A.B`` / ``robot.params.A.B`` ('' when it declares none), else
     :data:`UNKNOWN_UNIT`."""
-    from taskflow.catalogue.catalogue import params_of
+    from taskflow.catalogue.declarations import params_of
 
     q = _quantities(values)
     if q is not None:

@@ -11,39 +11,36 @@ worlds (and robots) that provide it and the tasks that read it.
 :func:`entry_to_json` is the JSON form (``--json``; :func:`entry_from_json` reads it back);
 :mod:`taskflow.catalogue.catalogue_render` renders entries as terminal text (``taskflow list`` / ``taskflow
 describe``) and markdown (``taskflow describe --all --markdown``, the generated ``docs/reference.md``).
-
-A parameter's unit is read from its declaration, first found: ``Field(json_schema_extra={"unit": "m"})``;
-the field's description (``"(m)"``, ``"(m/s), paper: 1.0"``, a leading ``"s without ..."``, a trailing
-``"... m, m, rad"``); its model's docstring (``"``max_age`` (s)"``); its name's suffix (``_px``, ``_s``,
-``_hz``, ``_m``, ``_rad``).  No unit found is shown as nothing, never guessed further.
+A parameter's unit, type label, bounds and default are read by :mod:`taskflow.catalogue.declarations`.
 """
 
 from __future__ import annotations
 
-import collections.abc
 import dataclasses
-import inspect
-import json
-import math
-import re
-import types
 import typing
-from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Literal, Union
+from typing import Any, Literal
 
-import annotated_types
-import numpy as np
-from pydantic import BaseModel
-from pydantic.fields import FieldInfo
 from pydantic_core import to_jsonable_python
 
 from taskflow import api
 from taskflow.api import ObsSpec, Robot, Task, World
+from taskflow.catalogue.declarations import (
+    Model,
+    Param,
+    class_doc,
+    nested_models,
+    own_doc,
+    params_of,
+    slot_required,
+    source_of,
+    strict_json,
+    summary_of,
+    type_label,
+)
 from taskflow.fidelity import Fidelity
 from taskflow.mission.contracts import hosts, task_problem
 from taskflow.registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError, describe_choices
-from taskflow.units import UNITS, suffix_unit
 
 Kind = Literal["task", "robot", "world", "sensor"]
 KINDS: tuple[Kind, ...] = ("task", "robot", "world", "sensor")
@@ -52,30 +49,6 @@ SENSOR_PREFIX = "sensors."
 
 
 # -- the data model ----------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Param:
-    """One field of a parameter, profile or robot-parameter model: ``type`` as a mission writes it
-    (``float``, ``[float, float]``, ``"front" | "rear"``, a model's name), ``default`` as JSON (None with
-    ``required``), ``unit`` (empty: none declared), ``bounds`` (``"> 0, ≤ 100"``)."""
-
-    name: str
-    type: str
-    required: bool
-    default: Any = None
-    unit: str = ""
-    bounds: str = ""
-    description: str = ""
-
-
-@dataclass(frozen=True)
-class Model:
-    """A pydantic model (or message class) a parameter's type names: its name, summary and fields."""
-
-    name: str
-    summary: str
-    fields: tuple[Param, ...] = ()
-
-
 @dataclass(frozen=True)
 class Slot:
     """A profile slot: ``bind: {name: PROFILE}`` names a profile of ``profiles.<profile_kind>`` (or gives
@@ -188,160 +161,6 @@ class UnknownEntry(LookupError):
     """A name no entry has (or several have, without ``kind``); the message names the valid ones."""
 
 
-# -- reading declarations -----------------------------------------------------------------------------
-def _own_doc(obj: object) -> str:
-    """The object's own docstring, dedented ('' when it only inherits one)."""
-    doc = vars(obj).get("__doc__") if isinstance(obj, type) else getattr(obj, "__doc__", None)
-    return inspect.cleandoc(doc) if isinstance(doc, str) else ""
-
-
-def _class_doc(cls: type) -> str:
-    """A registered class's docstring, followed by its module's when it refers the reader there."""
-    doc = _own_doc(cls)
-    if "module docstring" in doc:
-        module = inspect.getmodule(cls)
-        if module is not None and module.__doc__:
-            doc += "\n\n" + inspect.cleandoc(module.__doc__)
-    return doc
-
-
-def summary_of(doc: str) -> str:
-    """The first sentence of a docstring's first paragraph, on one line."""
-    para = " ".join(doc.split("\n\n", 1)[0].split())
-    m = re.search(r"(?<![.\w]\w)(?<!e\.g)(?<!i\.e)(?<!eq)(?<!eqs)\.(\s|$)", para)
-    return para[: m.start() + 1] if m else para
-
-
-_EXTRA_UNITS = ("m/s²", "rad/s²", "N·m", "N/m", "N·s/m", "kg", "1/s", "m²")
-_UNIT_WORDS = {u for u in UNITS if u} | set(_EXTRA_UNITS)
-_UNIT = "|".join(re.escape(u) for u in sorted(_UNIT_WORDS, key=len, reverse=True))
-_UNIT_LIST = rf"(?:{_UNIT})(?:,\s*(?:{_UNIT}))*"
-_PAREN_UNIT = re.compile(rf"\(({_UNIT_LIST})(?:[);,]|\s*$)")
-_LEADING_UNIT = re.compile(rf"^({_UNIT})(?=[\s:,])")
-_TRAILING_UNIT = re.compile(rf"\)\s+({_UNIT_LIST})\s*$")
-
-
-def param_unit(name: str, info: FieldInfo, model_doc: str = "") -> str:
-    """The unit field ``name`` declares: explicitly, in its description, in its model's docstring
-    ``model_doc`` or by its name's suffix (in that order; '' when none does)."""
-    extra = info.json_schema_extra
-    if isinstance(extra, dict) and isinstance(extra.get("unit"), str):
-        return str(extra["unit"])
-    text = info.description or ""
-    for pattern in (_PAREN_UNIT, _LEADING_UNIT, _TRAILING_UNIT):
-        m = pattern.search(text)
-        if m:
-            return m.group(1)
-    m = re.search(rf"``{re.escape(name)}``\s*\(({_UNIT_LIST})[);,]", model_doc)
-    if m:
-        return m.group(1)
-    return suffix_unit(name) or ""
-
-
-def type_label(t: Any) -> str:
-    """A field's type as a mission author reads it."""
-    origin, args = typing.get_origin(t), typing.get_args(t)
-    if t is type(None):
-        return "null"
-    if origin is typing.Annotated:
-        return type_label(args[0])
-    if origin is Literal:
-        return " | ".join(json.dumps(a) for a in args)
-    if origin in (Union, types.UnionType):
-        return " | ".join(type_label(a) for a in args)
-    if origin is tuple:
-        if len(args) == 2 and args[1] is Ellipsis:
-            return f"[{type_label(args[0])}, ...]"
-        return "[" + ", ".join(type_label(a) for a in args) + "]"
-    if origin in (list, typing.Sequence, set, frozenset):
-        return f"list[{type_label(args[0])}]" if args else "list"
-    if origin in (dict, typing.Mapping):
-        return f"map[{type_label(args[0])}, {type_label(args[1])}]" if args else "map"
-    if origin is np.ndarray:
-        dtype = typing.get_args(args[1]) if len(args) == 2 else ()
-        return f"array[{dtype[0].__name__}]" if dtype and isinstance(dtype[0], type) else "array"
-    if origin is collections.abc.Callable:
-        return f"({', '.join(type_label(a) for a in args[0])}) -> {type_label(args[1])}" if args else "callable"
-    if t is typing.Any:
-        return "any"
-    if isinstance(t, type):
-        return t.__name__
-    return str(t).replace("typing.", "")
-
-
-def _models_in(t: Any) -> list[type[BaseModel]]:
-    """Pydantic models a type names (inside unions, lists, tuples, Annotated)."""
-    if isinstance(t, type) and issubclass(t, BaseModel):
-        return [t]
-    return [m for a in typing.get_args(t) for m in _models_in(a)]
-
-
-_BOUNDS = ((annotated_types.Gt, "gt", ">"), (annotated_types.Ge, "ge", "≥"), (annotated_types.Lt, "lt", "<"),
-           (annotated_types.Le, "le", "≤"), (annotated_types.MinLen, "min_length", "length ≥"),
-           (annotated_types.MaxLen, "max_length", "length ≤"))
-
-
-def _bounds(info: FieldInfo) -> str:
-    out = []
-    for meta in info.metadata:
-        for cls, attr, sym in _BOUNDS:
-            if isinstance(meta, cls):
-                out.append(f"{sym} {getattr(meta, attr):g}")
-    return ", ".join(out)
-
-
-def _default(info: FieldInfo) -> Any:
-    """The field's default as strict JSON (non-finite numbers as the strings ``"inf"``, ``"-inf"``, ``"nan"``)."""
-    return _strict_json(to_jsonable_python(info.get_default(call_default_factory=True), fallback=repr))
-
-
-def _strict_json(v: Any) -> Any:
-    if isinstance(v, float) and not math.isfinite(v):
-        return str(v)
-    if isinstance(v, list):
-        return [_strict_json(x) for x in v]
-    if isinstance(v, dict):
-        return {k: _strict_json(x) for k, x in v.items()}
-    return v
-
-
-def params_of(model: type[BaseModel] | None) -> tuple[Param, ...]:
-    """Every field of ``model`` (by its YAML key: the alias when it has one)."""
-    if model is None:
-        return ()
-    doc = _own_doc(model)
-    out = []
-    for name, info in model.model_fields.items():
-        required = info.is_required()
-        out.append(Param(name=info.alias or name, type=type_label(info.annotation), required=required,
-                         default=None if required else _default(info), unit=param_unit(name, info, doc),
-                         bounds=_bounds(info), description=" ".join((info.description or "").split())))
-    return tuple(out)
-
-
-def _nested_models(roots: Iterable[type[BaseModel] | None]) -> tuple[Model, ...]:
-    """The models the fields of ``roots`` name, recursively, each once, in order of first mention."""
-    seen: dict[type[BaseModel], None] = {}
-    todo = [r for r in roots if r is not None]
-    top = set(todo)
-    while todo:
-        model = todo.pop(0)
-        for info in model.model_fields.values():
-            for m in _models_in(info.annotation):
-                if m not in seen and m not in top:
-                    seen[m] = None
-                    todo.append(m)
-    return tuple(Model(m.__name__, summary_of(_own_doc(m)), params_of(m)) for m in seen)
-
-
-def _slot_required(model: type[BaseModel]) -> bool:
-    return any(info.is_required() for info in model.model_fields.values())
-
-
-def _source(cls: type) -> str:
-    return f"{cls.__module__}:{cls.__qualname__}"
-
-
 def _loaded(registry: Registry[Any], broken: dict[str, str]) -> dict[str, type]:
     """The registry's classes by name; an entry point that fails to load is noted in ``broken``."""
     out = {}
@@ -408,41 +227,41 @@ def _worlds_for(task: type[Task], robot: type[Robot], worlds: dict[str, type]) -
 
 
 def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type]) -> Entry:
-    doc = _class_doc(task)
+    doc = class_doc(task)
     slots = tuple(Slot(name=s, profile_kind=getattr(m, "kind", None) or s, model=m.__name__,
-                       required=_slot_required(m), summary=summary_of(_own_doc(m)), fields=params_of(m))
+                       required=slot_required(m), summary=summary_of(own_doc(m)), fields=params_of(m))
                   for s, m in task.slots.items())
     works = tuple(f"{r.name} on {w}" for r in robots.values() for w in _worlds_for(task, r, worlds))
     return Entry(
-        kind="task", name=task.name, summary=summary_of(doc), doc=doc, source=_source(task),
-        params_doc=_own_doc(task.Params), params=params_of(task.Params), slots=slots,
+        kind="task", name=task.name, summary=summary_of(doc), doc=doc, source=source_of(task),
+        params_doc=own_doc(task.Params), params=params_of(task.Params), slots=slots,
         metrics=_metrics(task.metrics), events=tuple(task.events),
         requires=tuple(Stream(k, str(s), _providers(k, s, robots, worlds)) for k, s in task.requires.items()),
         command_interface=task.command_interface, robot_params=params_of(task.robot_params),
-        works_with=works, types=_nested_models([task.Params, *task.slots.values(), task.robot_params]))
+        works_with=works, types=nested_models([task.Params, *task.slots.values(), task.robot_params]))
 
 
 def robot_entry(robot: type[Robot], tasks: dict[str, type], worlds: dict[str, type]) -> Entry:
-    doc = _class_doc(robot)
+    doc = class_doc(robot)
     drivers = [f"task {n}" for n, t in tasks.items() if _worlds_for(t, robot, worlds)]
     hosting = [f"world {n}" for n, w in worlds.items() if hosts(w, robot)]
     return Entry(
-        kind="robot", name=robot.name, summary=summary_of(doc), doc=doc, source=_source(robot),
-        params_doc=_own_doc(robot.Params), params=params_of(robot.Params),
+        kind="robot", name=robot.name, summary=summary_of(doc), doc=doc, source=source_of(robot),
+        params_doc=own_doc(robot.Params), params=params_of(robot.Params),
         command_interface=robot.command_interface,
         command_keys=tuple(Param(k, f"array[{n}]", True) for k, n in robot.command_keys.items()),
         provides=tuple(Stream(k, str(s), _readers(k, s, tasks)) for k, s in robot.observations.items()),
         sensors=tuple(Param(m, k, True) for m, k in robot.sensors.items()),
-        works_with=tuple(hosting + drivers), types=_nested_models([robot.Params]))
+        works_with=tuple(hosting + drivers), types=nested_models([robot.Params]))
 
 
 def world_entry(world: type[World], tasks: dict[str, type], robots: dict[str, type]) -> Entry:
-    doc = _class_doc(world)
+    doc = class_doc(world)
     action_models = [world.action_params.get(a) for a in world.actions]
     needs = world.needs
     return Entry(
-        kind="world", name=world.name, summary=summary_of(doc), doc=doc, source=_source(world),
-        params_doc=_own_doc(world.Params), params=params_of(world.Params),
+        kind="world", name=world.name, summary=summary_of(doc), doc=doc, source=source_of(world),
+        params_doc=own_doc(world.Params), params=params_of(world.Params),
         metrics=_metrics(world.metrics), events=tuple(world.events),
         actions=tuple(Action(a, tuple(ends), params_of(world.action_params.get(a)))
                       for a, ends in world.actions.items()),
@@ -451,7 +270,7 @@ def world_entry(world: type[World], tasks: dict[str, type], robots: dict[str, ty
         sensors=tuple(Param(m, k, True) for m, k in needs.sensors.items()), needs_body=needs.body,
         ground_truth_keys=tuple(world.ground_truth_keys), fidelity=fidelity_levels(world.Params),
         works_with=tuple(f"robot {n}" for n, r in robots.items() if hosts(world, r)),
-        types=_nested_models([world.Params, *action_models]))
+        types=nested_models([world.Params, *action_models]))
 
 
 def fidelity_levels(params: type) -> tuple[FidelityLevel, ...]:
@@ -459,7 +278,7 @@ def fidelity_levels(params: type) -> tuple[FidelityLevel, ...]:
     if not (isinstance(params, type) and issubclass(params, Fidelity)):
         return ()
     def value(v: Any) -> Any:
-        return _strict_json(to_jsonable_python(v, fallback=repr))
+        return strict_json(to_jsonable_python(v, fallback=repr))
 
     return tuple(FidelityLevel(name, tuple(FidelityValue(k, value(v.value), v.source) for k, v in level.items()))
                  for name, level in params.FIDELITY.items())
@@ -470,7 +289,7 @@ def _message_model(cls: type | None) -> tuple[Model, ...]:
         return ()
     hints = typing.get_type_hints(cls)
     fields = tuple(Param(f.name, type_label(hints.get(f.name, f.type)), True) for f in dataclasses.fields(cls))
-    return (Model(cls.__name__, summary_of(_own_doc(cls)), fields),)
+    return (Model(cls.__name__, summary_of(own_doc(cls)), fields),)
 
 
 def sensor_entries(tasks: dict[str, type], robots: dict[str, type], worlds: dict[str, type]) -> list[Entry]:

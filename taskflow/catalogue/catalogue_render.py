@@ -12,7 +12,8 @@ import json
 import re
 from typing import Any, NamedTuple
 
-from taskflow.catalogue.catalogue import KINDS, Catalogue, Entry, Kind, Param
+from taskflow.catalogue.catalogue import KINDS, Catalogue, Entry, Kind
+from taskflow.catalogue.declarations import Param
 
 REFERENCE_COMMAND = "taskflow describe --all --markdown > docs/reference.md"
 """The command ``docs/reference.md`` is generated with (its header and the README say so)."""
