@@ -12,7 +12,8 @@ import pytest
 
 from taskflow.errors import MissionError
 from taskflow.mission.loader import load_mission, load_mission_text
-from taskflow.mission.submission import MAX_EXPANDED_STATES, MAX_STATE_DEPTH, MAX_USE_DEPTH, MAX_USE_FILES
+from taskflow.mission.statetree import MAX_STATE_DEPTH
+from taskflow.mission.submission import MAX_EXPANDED_STATES, MAX_USE_DEPTH, MAX_USE_FILES
 from taskflow.mission.yamlsrc import MAX_BYTES, Graft, SourceMap
 
 MISSION = """\

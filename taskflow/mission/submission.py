@@ -30,7 +30,7 @@ refused with the chain.
 
 Bad input is bounded: a ``use:`` path must be relative and resolve inside the folder of the mission given
 to taskflow; expansion stops at the first budget that runs out (:data:`MAX_USE_DEPTH`, :data:`MAX_USE_FILES`,
-:data:`MAX_EXPANDED_STATES`, :data:`MAX_STATE_DEPTH`), with one problem where it ran out.
+:data:`MAX_EXPANDED_STATES`, :data:`~taskflow.mission.statetree.MAX_STATE_DEPTH`), with one problem where it ran out.
 """
 
 from __future__ import annotations
@@ -41,11 +41,10 @@ import re
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
-
 from taskflow.errors import MissionError, Problem
-from taskflow.mission.diagnostics import pydantic_problems
 from taskflow.mission.model import YPath, has_refs
+from taskflow.mission.statetree import MAX_STATE_DEPTH, count_states, loop_items, state_level, sub_machines, too_deep
+from taskflow.mission.submission_file import Submission, check_submission, with_via
 from taskflow.mission.yamlsrc import Graft, SourceMap, load_yaml_file
 from taskflow.registry import describe_choices
 
@@ -56,29 +55,12 @@ MAX_USE_FILES = 64
 MAX_EXPANDED_STATES = 2_000
 """At most this many states spliced in by all the ``use:`` of a mission together (a file used twice counts
 twice): files that each use the next one twice would otherwise double the mission at every level."""
-MAX_STATE_DEPTH = 32
-"""States nest at most this many levels, sub-missions' included (the passes walk the tree recursively)."""
 
 USE_KEYS = ("use", "with")
 """The keys of a using state that this module consumes (the shape check never sees them)."""
 
-_MACHINE_KEYS = ("initial", "states", "task", "bind")
 _NOT_WITH_USE = ("states", "initial", "final")
 _GUARD_REF = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
-
-
-class Submission(BaseModel):
-    """A sub-mission file's top level (its machine is checked with the mission it is spliced into)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    submission: str = Field(description="name of the sub-mission")
-    description: str = ""
-    parameters: dict[str, Any] = Field(default_factory=dict, description="name → default; null: required")
-    profiles: dict[str, dict[str, dict[str, Any]]] = Field(default_factory=dict)
-    exits: list[str] = Field(default_factory=list, description="states of the using mission that transitions of "
-                                                               "this machine may go to (by name)")
-    machine: dict[str, Any]
 
 
 class _Scope:
@@ -127,7 +109,7 @@ class _Expander:
                 return
             if isinstance(state, dict):
                 where = ypath + (name,)
-                if _level(where) > MAX_STATE_DEPTH:
+                if state_level(where) > MAX_STATE_DEPTH:
                     self.stop(where, f"states nest more than {MAX_STATE_DEPTH} levels deep here (sub-missions "
                               "included)", f"a mission's states may nest at most {MAX_STATE_DEPTH} levels; flatten it")
                     return
@@ -147,7 +129,7 @@ class _Expander:
         if "use" in st or "with" in st:
             self.use(st, ypath, inner)
         else:
-            for sub, where in _sub_machines(st, ypath):
+            for sub, where in sub_machines(st, ypath):
                 self.states(sub, where, inner)
 
     def rename_state(self, st: dict[str, Any], ypath: YPath, scope: _Scope) -> None:
@@ -244,7 +226,7 @@ class _Expander:
         if loaded is None:
             return
         doc, inner_map = loaded
-        self.spliced += _count_states(doc.machine.get("states"))
+        self.spliced += count_states(doc.machine.get("states"))
         if self.spliced > MAX_EXPANDED_STATES:
             self.stop(ypath + ("use",), f"the sub-missions used expand to more than {MAX_EXPANDED_STATES} states "
                       f"(this use brings the total to {self.spliced})",
@@ -262,7 +244,7 @@ class _Expander:
             mine = profiles.setdefault(kind, {})
             for pname, values in named.items():
                 if pname in mine and mine[pname] != values:
-                    self.problems.append(_with_via(inner_map.problem(
+                    self.problems.append(with_via(inner_map.problem(
                         ("profiles", kind, pname), f"profile {kind}.{pname} is also defined by the using mission, "
                         "with other values", "rename one of them (profiles share one namespace)"), via))
                 elif pname not in mine:
@@ -308,43 +290,12 @@ class _Expander:
                     hint += "; " + describe_choices(path.name, near)
                 self.err(ypath + ("use",), f"sub-mission {target!r}: {first.message} ({path})", hint)
             else:
-                self.problems.extend(_with_via(p, self.via(ypath + ("use",))) for p in got.problems)
+                self.problems.extend(with_via(p, self.via(ypath + ("use",))) for p in got.problems)
             return None
         data, inner_map = got
-        via = self.via(ypath + ("use",))
-        if not isinstance(data, dict):
-            self.problems.append(_with_via(inner_map.problem((), "a sub-mission is a mapping of keys",
-                                                             "start with `submission: NAME`"), via))
-            return None
-        if "mission" in data:
-            self.problems.append(_with_via(inner_map.problem(
-                ("mission",), "a used file is a sub-mission, not a mission",
-                "write `submission: NAME` instead of `mission:`, and no robot, world, rate_hz, seed or max_time"), via))
-            return None
-        try:
-            doc = Submission.model_validate(data)
-        except ValidationError as exc:
-            self.problems.extend(_with_via(p, via) for p in pydantic_problems(exc, inner_map, (), Submission))
-            return None
-        odd = [k for k in doc.machine if k not in _MACHINE_KEYS]
-        if odd:
-            self.problems.append(_with_via(inner_map.problem(
-                ("machine", odd[0]), f"unknown key {odd[0]!r}", describe_choices(odd[0], list(_MACHINE_KEYS))), via))
-            return None
-        deep = _too_deep(doc.machine.get("states"), ("machine", "states"))
-        if deep is not None:
-            self.problems.append(_with_via(inner_map.problem(deep, f"states nest more than {MAX_STATE_DEPTH} levels "
-                                                             "deep here", f"a mission's states may nest at most "
-                                                             f"{MAX_STATE_DEPTH} levels; flatten it"), via))
-            return None
-        own = _state_names(doc.machine.get("states"))
-        for tpath, to in _targets(doc.machine.get("states"), ("machine", "states")):
-            if to.split(".")[0] not in own and to not in doc.exits:
-                self.problems.append(_with_via(inner_map.problem(
-                    tpath, f"target {to!r} is not a state of this sub-mission",
-                    f"name one of its states ({', '.join(sorted(own))}), or list {to!r} under `exits:` when it "
-                    "is a state of the mission that uses it"), via))
-        return doc, inner_map
+        doc, problems = check_submission(data, inner_map, self.via(ypath + ("use",)))
+        self.problems += problems
+        return None if doc is None else (doc, inner_map)
 
     def bind_parameters(self, doc: Submission, inner_map: SourceMap, with_: dict[str, Any], ypath: YPath,
                         scope: _Scope, via: tuple[str, ...]) -> dict[str, str] | None:
@@ -394,39 +345,13 @@ class _Expander:
         return env if ok else None
 
 
-def _with_via(p: Problem, via: tuple[str, ...]) -> Problem:
-    return Problem(p.file, p.line, p.col, p.message, p.hint, p.via + via)
-
-
-def _items(states: Any) -> set[str]:
-    """Every ``foreach as:`` name under ``states`` (the loop items a mission's ``with:`` may pass)."""
-    out: set[str] = set()
-    for st in (states.values() if isinstance(states, dict) else []):
-        if isinstance(st, dict):
-            fe = st.get("foreach")
-            if isinstance(fe, dict) and isinstance(fe.get("as"), str):
-                out.add(fe["as"])
-            for sub, _ in _sub_machines(st, ()):
-                out |= _items(sub)
-    return out
-
-
-def _sub_machines(st: dict[str, Any], ypath: YPath) -> list[tuple[Any, YPath]]:
-    """A state's sub-machines with where they are: its ``states``, or each parallel region's ``states``."""
-    regions = st.get("regions")
-    if isinstance(regions, dict) and regions:
-        return [(r.get("states"), ypath + ("regions", name, "states")) for name, r in regions.items()
-                if isinstance(r, dict)]
-    return [(st.get("states"), ypath + ("states",))]
-
-
 def expand_uses(data: dict[str, Any], smap: SourceMap) -> dict[str, Any]:
     """``data`` with every ``use:`` resolved into its state tree (a copy; ``data`` is left as it was).
     Grafts and uses are recorded in ``smap``; every problem found is raised together."""
     machine = data.get("machine")
     if not isinstance(machine, dict):
         return data
-    deep = _too_deep(machine.get("states"), ("machine", "states"))
+    deep = too_deep(machine.get("states"), ("machine", "states"))
     if deep is not None:
         raise MissionError([smap.problem(deep, f"states nest more than {MAX_STATE_DEPTH} levels deep here",
                                          f"a mission's states may nest at most {MAX_STATE_DEPTH} levels; flatten it")])
@@ -437,67 +362,14 @@ def expand_uses(data: dict[str, Any], smap: SourceMap) -> dict[str, Any]:
     if ex.params is not data.get("parameters"):
         data["parameters"] = ex.params
     top = Path(smap.file).resolve() if not smap.file.startswith("<") else Path.cwd() / smap.file
-    known = set(ex.params) | _items(data["machine"].get("states"))
+    known = set(ex.params) | loop_items(data["machine"].get("states"))
     ex.states(data["machine"].get("states"), ("machine", "states"), _Scope(smap.file, (top,), None, known))
     if ex.problems:
         raise MissionError(ex.problems)
     return data
 
 
-def _state_names(states: Any) -> set[str]:
-    """Every state name at any depth under ``states``."""
-    out: set[str] = set()
-    for name, st in (states.items() if isinstance(states, dict) else []):
-        out.add(str(name))
-        if isinstance(st, dict):
-            for sub, _ in _sub_machines(st, ()):
-                out |= _state_names(sub)
-    return out
-
-
-def _targets(states: Any, ypath: YPath) -> list[tuple[YPath, str]]:
-    """``(where, to)`` of every transition under ``states``."""
-    out: list[tuple[YPath, str]] = []
-    for name, st in (states.items() if isinstance(states, dict) else []):
-        if not isinstance(st, dict):
-            continue
-        for i, tr in enumerate(st.get("transitions") or [] if isinstance(st.get("transitions"), list) else []):
-            if isinstance(tr, dict) and isinstance(tr.get("to"), str):
-                out.append((ypath + (name, "transitions", i, "to"), tr["to"]))
-        for sub, where in _sub_machines(st, ypath + (name,)):
-            out += _targets(sub, where)
-    return out
-
-
 def _has_use(states: Any) -> bool:
     return isinstance(states, dict) and any(
-        isinstance(st, dict) and (any(k in st for k in USE_KEYS) or any(_has_use(sub) for sub, _ in _sub_machines(st, ())))
+        isinstance(st, dict) and (any(k in st for k in USE_KEYS) or any(_has_use(sub) for sub, _ in sub_machines(st, ())))
         for st in states.values())
-
-
-def _level(ypath: YPath) -> int:
-    """How many states deep ``ypath`` (``machine, states, a, states, b`` or ``…regions, r, states, b``) is."""
-    return sum(1 for i in range(2, len(ypath)) if ypath[i - 1] == "states")
-
-
-def _too_deep(states: Any, ypath: YPath) -> YPath | None:
-    """The first state under ``states`` nested more than :data:`MAX_STATE_DEPTH` levels deep (found without
-    recursion, so a document nested hundreds of levels deep gets this answer instead of a ``RecursionError``)."""
-    todo: list[tuple[Any, YPath, int]] = [(states, ypath, 1)]
-    while todo:
-        here, where, level = todo.pop()
-        if not isinstance(here, dict):
-            continue
-        for name, st in here.items():
-            if not isinstance(st, dict):
-                continue
-            if level > MAX_STATE_DEPTH:
-                return where + (name,)
-            todo += [(sub, w, level + 1) for sub, w in _sub_machines(st, where + (name,))]
-    return None
-
-
-def _count_states(states: Any) -> int:
-    """How many states, at any depth, ``states`` holds (depth already bounded by :func:`_too_deep`)."""
-    return sum(1 + sum(_count_states(sub) for sub, _ in _sub_machines(st, ()))
-               for st in (states.values() if isinstance(states, dict) else []) if isinstance(st, dict))
