@@ -54,9 +54,9 @@ import taskflow_tasks.visual_path  # noqa: F401
 
 from taskflow.campaigns.batch import run_batch
 from taskflow.campaigns.stats import mean_interval, wilson_interval
-from taskflow.execution.records import read_trace
 from taskflow.execution.runtime import run_mission
 from taskflow.mission.loader import load_mission
+from taskflow.readers.run_files import read_trace
 
 EXPERIMENTS = {
     "pose_regulation": ("visual_path_pose_regulation.yaml",

@@ -23,10 +23,10 @@ import pytest
 from taskflow.cli import main
 from taskflow.errors import MissionError
 from taskflow.execution.control import ControlError, OperatorAction, load_operator_script, script_from_records
-from taskflow.execution.records import read_trace
 from taskflow.execution.runtime import RunResult, run_mission
 from taskflow.mission.loader import load_mission
 from taskflow.operate.control_http import ControlClient, ControlServer
+from taskflow.readers.run_files import read_trace
 from taskflow.testing import Script, drive
 
 HERE = Path(__file__).resolve().parent

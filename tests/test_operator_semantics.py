@@ -23,9 +23,9 @@ import yaml
 
 from taskflow.cli import main
 from taskflow.execution.control import ControlError, OperatorChannel
-from taskflow.execution.records import read_trace
 from taskflow.execution.runtime import run_mission
 from taskflow.mission.loader import load_mission_text
+from taskflow.readers.run_files import read_trace
 from taskflow.testing import Script, assert_outcome, drive
 
 HERE = Path(__file__).resolve().parent

@@ -24,11 +24,11 @@ from typing import Any
 
 import pytest
 
-from taskflow.execution.records import read_trace
 from taskflow.execution.runtime import RunResult
 from taskflow.mission.loader import load_mission
 from taskflow.operate.control_http import ControlClient, ControlServer
 from taskflow.operate.replay import serve_replay
+from taskflow.readers.run_files import read_trace
 from taskflow.testing import Script, browser_paths, drive, headless_chromium
 
 HERE = Path(__file__).resolve().parent

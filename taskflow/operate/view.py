@@ -38,13 +38,7 @@ from typing import Any
 from taskflow.execution.frames import INDEX as FRAMES_INDEX
 from taskflow.execution.frames import FrameRecord, frames_from, nearest, read_frame
 from taskflow.execution.record_io import RunDirError, check_summary, lines, read_json
-from taskflow.execution.records import (
-    OperatorRecord,
-    TransitionRecord,
-    check_trace_header,
-    parse_trace_row,
-    read_transitions,
-)
+from taskflow.execution.records import OperatorRecord, TransitionRecord
 from taskflow.markers import Marker
 from taskflow.mission.guards import Guard, Node
 from taskflow.mission.model import (
@@ -56,6 +50,7 @@ from taskflow.mission.model import (
     TimeoutTransition,
     Transition,
 )
+from taskflow.readers.run_files import check_trace_header, parse_trace_row, read_transitions
 from taskflow.readers.scene import Scene, mission_scene
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
@@ -172,8 +167,8 @@ class RecordReader:
 
     The record is untrusted input (:mod:`taskflow.execution.record_io`): files are read inside the run directory
     only, a line at most :data:`~taskflow.execution.record_io.MAX_LINE_BYTES` long, and every line is parsed by
-    the readers' one parse (:func:`taskflow.execution.records.parse_trace_row`,
-    :func:`taskflow.execution.records.record_from_dict`, :func:`taskflow.execution.frames.frame_from_dict`); a malformed or
+    the readers' one parse (:func:`taskflow.readers.run_files.parse_trace_row`,
+    :func:`taskflow.readers.run_files.record_from_dict`, :func:`taskflow.execution.frames.frame_from_dict`); a malformed or
     hostile one is a :class:`~taskflow.execution.record_io.RunDirError` naming its file and line (the routes answer
     it with 422), and is read again, not skipped, on the next call."""
 

@@ -19,9 +19,10 @@ from pydantic import BaseModel
 from taskflow.errors import MissionError
 from taskflow.execution.frames import FrameRecord, read_frames
 from taskflow.execution.record_io import MAX_FRAME_BYTES, RunDirError, check_summary, inside, read_bytes, read_json
-from taskflow.execution.records import OperatorRecord, TransitionRecord, read_trace, read_transitions
+from taskflow.execution.records import OperatorRecord, TransitionRecord
 from taskflow.mission.guards import Comparison
 from taskflow.mission.model import CompiledMission, EventTransition, GuardTransition
+from taskflow.readers.run_files import read_trace, read_transitions
 from taskflow.readers.scene import Scene, mission_scene
 
 __all__ = ["RecordedRun", "RunDirError", "Threshold", "load_run"]
@@ -45,7 +46,7 @@ class Threshold:
 class RecordedRun:
     """Everything one run directory holds, plus what its mission declares.
 
-    ``trace`` maps column → array (:func:`~taskflow.execution.records.read_trace`); ``transitions`` are the records of
+    ``trace`` maps column → array (:func:`~taskflow.readers.run_files.read_trace`); ``transitions`` are the records of
     ``transitions.jsonl`` in order that change the active leaf (the operator's pre-emptions included),
     ``operator`` its operator actions (pause, hold, resume, preempt, inject: :class:`OperatorRecord`) in
     order; ``frames`` the camera frames ``frames.jsonl`` indexes (:mod:`taskflow.execution.frames`, each file
