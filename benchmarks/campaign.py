@@ -39,8 +39,8 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from taskflow.campaigns.backends import LocalRayCluster
 from taskflow.campaigns.batch import run_batch
+from taskflow.campaigns.ray_cluster import LocalRayCluster
 
 ROOT = Path(__file__).resolve().parents[1]
 
