@@ -9,7 +9,7 @@ Two ways to drive a mission in a test:
 * :func:`run_on_world` — the mission on its real registered world (PyBullet), recording nothing
   unless asked.  Checks the *behaviour*.
 
-Both return a :class:`~taskflow.execution.runtime.RunResult` (``outcome``, ``summary`` — the dict of
+Both return a :class:`~taskflow.execution.summary.RunResult` (``outcome``, ``summary`` — the dict of
 ``summary.json``, recorded or not —, ``run_dir``, ``executor``, ``timing``; its docstring lists the
 summary's keys); assert on it with :func:`assert_path`, :func:`assert_outcome` and :func:`time_in` ::
 
@@ -36,7 +36,8 @@ import numpy as np
 import pytest
 
 from taskflow.api import Observation, Robot, StepResult, Task, TaskContext, World
-from taskflow.execution.runtime import RunResult, run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.execution.summary import RunResult
 from taskflow.mission.contracts import build_robot_params
 from taskflow.mission.data import DataAccess
 from taskflow.mission.loader import CompiledMission

@@ -23,7 +23,8 @@ import pytest
 from taskflow.cli import main
 from taskflow.errors import MissionError
 from taskflow.execution.control import ControlError, OperatorAction, load_operator_script, script_from_records
-from taskflow.execution.runtime import RunResult, run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.execution.summary import RunResult
 from taskflow.mission.loader import load_mission
 from taskflow.operate.control_http import ControlClient, ControlServer
 from taskflow.readers.run_files import read_trace

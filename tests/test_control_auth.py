@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from taskflow.cli import main
-from taskflow.execution.runtime import RunResult, run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.execution.summary import RunResult
 from taskflow.mission.loader import load_mission
 from taskflow.operate.control_http import ControlServer
 from taskflow.operate.replay import serve_replay

@@ -42,7 +42,8 @@ from hypothesis import strategies as st
 from taskflow.api import Observation, StepResult, Task, TaskContext
 from taskflow.errors import MissionError
 from taskflow.execution.executor import CAUSES
-from taskflow.execution.runtime import OUTCOMES, run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.execution.summary import OUTCOMES
 from taskflow.mission.loader import load_mission_text
 from taskflow.mission.model import (
     CompiledMission,

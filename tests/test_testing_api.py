@@ -7,7 +7,7 @@ import dataclasses
 import re
 from pathlib import Path
 
-from taskflow.execution.runtime import RunResult
+from taskflow.execution.summary import RunResult
 from taskflow.mission.loader import load_mission_text
 from taskflow.testing import Script, assert_outcome, drive
 

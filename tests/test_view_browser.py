@@ -24,7 +24,7 @@ from typing import Any
 
 import pytest
 
-from taskflow.execution.runtime import RunResult
+from taskflow.execution.summary import RunResult
 from taskflow.mission.loader import load_mission
 from taskflow.operate.control_http import ControlClient, ControlServer
 from taskflow.operate.replay import serve_replay
