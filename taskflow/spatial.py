@@ -34,11 +34,13 @@ Pinocchio's ``SE3.action`` and finite differences of moving frames, the rotation
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
+Floats = Sequence[float] | Array  # a short vector read element by element (PyBullet's tuples)
 
 _EYE3 = np.eye(3)
 
@@ -164,10 +166,10 @@ def rotation_from_rotvec(w: Array) -> Array:
 # -- quaternions (x, y, z, w) --------------------------------------------------------------------------
 
 
-def rotation_from_quaternion(q: ArrayLike) -> Array:
+def rotation_from_quaternion(q: Floats) -> Array:
     """Rotation of a quaternion ``(x, y, z, w)``, normalised on the way (Bullet's ``btMatrix3x3``
     formula: equal to ``pybullet.getMatrixFromQuaternion`` to the bit)."""
-    x, y, z, w = (float(v) for v in q)  # type: ignore[union-attr]
+    x, y, z, w = (float(v) for v in q)
     s = 2.0 / (x * x + y * y + z * z + w * w)
     xs, ys, zs = x * s, y * s, z * s
     wx, wy, wz = w * xs, w * ys, w * zs
@@ -178,12 +180,12 @@ def rotation_from_quaternion(q: ArrayLike) -> Array:
                      [xz - wy, yz + wx, 1.0 - (xx + yy)]])
 
 
-def rotation_from_unit_quaternion(q: ArrayLike) -> Array:
+def rotation_from_unit_quaternion(q: Floats) -> Array:
     """Rotation of a quaternion ``(x, y, z, w)`` assumed of unit norm (not normalised):
     ``[[1 − 2(y² + z²), 2(xy − zw), 2(xz + yw)], …]``.  The ViKi world's perception uses this form;
     :func:`rotation_from_quaternion` (Bullet's) differs from it in the last bits, so it is kept to keep
     those runs' records."""
-    x, y, z, w = q  # type: ignore[misc]
+    x, y, z, w = (float(v) for v in q)
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
@@ -214,10 +216,10 @@ def quaternion_from_yaw(yaw: float) -> list[float]:
     return [0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)]
 
 
-def yaw_from_quaternion(q: ArrayLike) -> float:
+def yaw_from_quaternion(q: Floats) -> float:
     """Heading of the frame's x axis projected on the parent's xy plane, ``atan2(R10, R00)`` — the
     yaw of :func:`rotation_from_rpy`, robust to small roll and pitch."""
-    x, y, z, w = q  # type: ignore[misc]
+    x, y, z, w = (float(v) for v in q)
     r00 = 1.0 - 2.0 * (y * y + z * z)
     r10 = 2.0 * (x * y + z * w)
     return math.atan2(r10, r00)
@@ -244,14 +246,14 @@ def inverse(T_a_b: Array) -> Array:
     return out
 
 
-def transform_from_pose(position: ArrayLike, quaternion: ArrayLike) -> Array:
+def transform_from_pose(position: ArrayLike, quaternion: Floats) -> Array:
     """``T_parent_frame`` from a PyBullet pose: ``position`` and quaternion ``(x, y, z, w)``."""
     return transform(rotation_from_quaternion(quaternion), position)
 
 
-def transform_from_xyz_rpy(xyz: ArrayLike, rpy: ArrayLike) -> Array:
+def transform_from_xyz_rpy(xyz: ArrayLike, rpy: Floats) -> Array:
     """``T_parent_child`` of a URDF origin: translation ``xyz`` (m), fixed-axis ``rpy`` (rad)."""
-    r, p, y = rpy  # type: ignore[misc]
+    r, p, y = (float(v) for v in rpy)
     return transform(rotation_from_rpy(r, p, y), np.asarray(xyz, dtype=np.float64))
 
 
@@ -266,10 +268,8 @@ def transform_xyz_yaw(x: float, y: float, z: float, yaw: float) -> Array:
 
 
 # -- planar transforms ---------------------------------------------------------------------------------
-# A planar pose ``T_a_b = (x, y, yaw)`` is frame ``b``'s origin and heading in frame ``a`` (a ground
-# robot's odometry pose is ``T_odom_base``).  Each function evaluates the expressions the paper code
-# wrote inline, in the same order (records stay the same to the bit when a site switches): one pose is
-# turned with ``math.cos``/``math.sin``, an ``(N, 3)`` stack of poses with ``numpy.cos``/``numpy.sin``.
+# ``T_a_b = (x, y, yaw)``: frame b's origin and heading in a (odometry is ``T_odom_base``).  The expressions
+# are the paper code's inline ones, in its order; one pose turns by math.cos/sin, an (N, 3) stack by numpy's.
 
 
 def _planar(T_a_b: ArrayLike) -> tuple[float, float, float]:
