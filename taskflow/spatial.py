@@ -27,7 +27,7 @@ mode) stayed the same to the bit.  Two consequences of that: :func:`rotation_fro
 ViKi world's formula) stands beside :func:`rotation_from_quaternion` (Bullet's, equal to
 ``pybullet.getMatrixFromQuaternion`` to the bit), and the two worlds that invert a rigid transform with
 ``numpy.linalg.inv`` keep doing so (:func:`inverse`'s closed form differs in the last bits, which the
-screw missions' traces showed).  ``tests/unit/test_spatial.py`` checks the twist maps against
+screw missions' traces showed).  ``tests/unit/framework/test_spatial.py`` checks the twist maps against
 Pinocchio's ``SE3.action`` and finite differences of moving frames, the rotations against scipy.
 """
 

@@ -1,5 +1,5 @@
 """The quadcopter's command response models (``taskflow_sim.quad_response``) and their use in ``quad_room``:
-ViSP's Bebop 2 ``setVelocity`` as relative moves, the command delay line (tests/unit/test_command_delay.py) and the frame latency."""
+ViSP's Bebop 2 ``setVelocity`` as relative moves, the command delay line (tests/unit/sim/test_command_delay.py) and the frame latency."""
 
 from __future__ import annotations
 
