@@ -12,7 +12,7 @@ Phases (:class:`Phase`)::
 Every activation, and every fastening with nothing coupled, opens an :class:`Operation` in the
 :class:`OperationLog`; a fastening of the coupled bolt continues the operation that coupled it.  The
 machine sees the world only through numbers handed in (simulation time, the bit's errors to a bolt):
-no simulator, so it is tested on its own (``tests/unit/test_screwdriver.py``).  Outcome and failure
+no simulator, so it is tested on its own (``tests/unit/sim/test_screwdriver.py``).  Outcome and failure
 names are those of the summary's ``operation_log`` (module docstring of :mod:`taskflow_sim.screw_world`).
 """
 

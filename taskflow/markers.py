@@ -12,11 +12,12 @@ poses a world declares in :attr:`taskflow.api.World.poses`.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from .spatial import planar_apply
 
 ROLES = ("goal", "waypoint", "keyframe", "obstacle", "object", "start", "boundary")
 """What a marker is; figures style each role one way (a goal a cross, an obstacle a filled polygon …)."""
@@ -52,9 +53,9 @@ class Marker:
     @classmethod
     def box(cls, role: str, label: str, x: float, y: float, width: float, depth: float, yaw: float = 0.0) -> Marker:
         """A ``width`` (along x before ``yaw``) x ``depth`` rectangle centred on ``(x, y)``, turned by ``yaw``."""
-        c, s = math.cos(yaw), math.sin(yaw)
         corners = [(-width / 2, -depth / 2), (width / 2, -depth / 2), (width / 2, depth / 2), (-width / 2, depth / 2)]
-        return cls(role, label, tuple((x + c * a - s * b, y + s * a + c * b) for a, b in corners), closed=True)
+        points = planar_apply((x, y, yaw), corners).tolist()
+        return cls(role, label, tuple((px, py) for px, py in points), closed=True)
 
 
 @dataclass(frozen=True)

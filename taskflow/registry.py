@@ -16,7 +16,7 @@ from __future__ import annotations
 import difflib
 from collections.abc import Callable
 from importlib import import_module, metadata
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 from taskflow.api import Robot, Task, World
 
@@ -58,11 +58,11 @@ class Registry(Generic[T]):
 
     def __init__(self, kind: str, base: type, group: str) -> None:
         self.kind, self.base, self.group = kind, base, group
-        self._items: dict[str, type] = {}
+        self._items: dict[str, T] = {}
         self._entry_points: dict[str, metadata.EntryPoint] | None = None
 
     # -- registration --------------------------------------------------------------------------
-    def add(self, name: str, cls: type) -> type:
+    def add(self, name: str, cls: T) -> T:
         if not isinstance(cls, type) or not issubclass(cls, self.base):
             raise RegistryError(f"{self.kind} {name!r}: {cls!r} is not a subclass of {self.base.__name__}")
         if not name.isidentifier():
@@ -76,7 +76,7 @@ class Registry(Generic[T]):
             raise RegistryError(
                 f"{self.kind} {name!r} is already registered by {existing.__module__}.{existing.__qualname__}"
             )
-        cls.name = name
+        type.__setattr__(cls, "name", name)  # set on any base: a body class declares no `name`
         self._items[name] = cls
         return cls
 
@@ -104,7 +104,7 @@ class Registry(Generic[T]):
     def get(self, name: str) -> T:
         cls = self._items.get(name)
         if cls is not None:
-            return cls  # type: ignore[return-value]
+            return cls
         ep = self._eps().get(name)
         if ep is None:
             raise UnknownName(self.kind, name, self.names())
@@ -114,7 +114,7 @@ class Registry(Generic[T]):
             raise RegistryError(f"{self.kind} {name!r}: entry point {ep.value!r} failed to load: {exc}") from exc
         if self._items.get(name) is None:
             self.add(name, loaded)
-        return self._items[name]  # type: ignore[return-value]
+        return self._items[name]
 
     def __contains__(self, name: str) -> bool:
         return name in self._items or name in self._eps()
@@ -124,7 +124,7 @@ class Registry(Generic[T]):
         return {n: self.get(n) for n in self.names()}
 
 
-TASKS: Registry[type[Task]] = Registry("task", Task, "taskflow.tasks")
+TASKS: Registry[type[Task[Any, Any]]] = Registry("task", Task, "taskflow.tasks")
 ROBOTS: Registry[type[Robot]] = Registry("robot", Robot, "taskflow.robots")
 WORLDS: Registry[type[World]] = Registry("world", World, "taskflow.worlds")
 BODIES: Registry[type] = Registry("body", object, "taskflow.bodies")

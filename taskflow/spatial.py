@@ -27,18 +27,20 @@ mode) stayed the same to the bit.  Two consequences of that: :func:`rotation_fro
 ViKi world's formula) stands beside :func:`rotation_from_quaternion` (Bullet's, equal to
 ``pybullet.getMatrixFromQuaternion`` to the bit), and the two worlds that invert a rigid transform with
 ``numpy.linalg.inv`` keep doing so (:func:`inverse`'s closed form differs in the last bits, which the
-screw missions' traces showed).  ``tests/unit/test_spatial.py`` checks the twist maps against
+screw missions' traces showed).  ``tests/unit/framework/test_spatial.py`` checks the twist maps against
 Pinocchio's ``SE3.action`` and finite differences of moving frames, the rotations against scipy.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
+Floats = Sequence[float] | Array  # a short vector read element by element (PyBullet's tuples)
 
 _EYE3 = np.eye(3)
 
@@ -164,10 +166,10 @@ def rotation_from_rotvec(w: Array) -> Array:
 # -- quaternions (x, y, z, w) --------------------------------------------------------------------------
 
 
-def rotation_from_quaternion(q: ArrayLike) -> Array:
+def rotation_from_quaternion(q: Floats) -> Array:
     """Rotation of a quaternion ``(x, y, z, w)``, normalised on the way (Bullet's ``btMatrix3x3``
     formula: equal to ``pybullet.getMatrixFromQuaternion`` to the bit)."""
-    x, y, z, w = (float(v) for v in q)  # type: ignore[union-attr]
+    x, y, z, w = (float(v) for v in q)
     s = 2.0 / (x * x + y * y + z * z + w * w)
     xs, ys, zs = x * s, y * s, z * s
     wx, wy, wz = w * xs, w * ys, w * zs
@@ -178,12 +180,12 @@ def rotation_from_quaternion(q: ArrayLike) -> Array:
                      [xz - wy, yz + wx, 1.0 - (xx + yy)]])
 
 
-def rotation_from_unit_quaternion(q: ArrayLike) -> Array:
+def rotation_from_unit_quaternion(q: Floats) -> Array:
     """Rotation of a quaternion ``(x, y, z, w)`` assumed of unit norm (not normalised):
     ``[[1 − 2(y² + z²), 2(xy − zw), 2(xz + yw)], …]``.  The ViKi world's perception uses this form;
     :func:`rotation_from_quaternion` (Bullet's) differs from it in the last bits, so it is kept to keep
     those runs' records."""
-    x, y, z, w = q  # type: ignore[misc]
+    x, y, z, w = (float(v) for v in q)
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
@@ -214,10 +216,10 @@ def quaternion_from_yaw(yaw: float) -> list[float]:
     return [0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)]
 
 
-def yaw_from_quaternion(q: ArrayLike) -> float:
+def yaw_from_quaternion(q: Floats) -> float:
     """Heading of the frame's x axis projected on the parent's xy plane, ``atan2(R10, R00)`` — the
     yaw of :func:`rotation_from_rpy`, robust to small roll and pitch."""
-    x, y, z, w = q  # type: ignore[misc]
+    x, y, z, w = (float(v) for v in q)
     r00 = 1.0 - 2.0 * (y * y + z * z)
     r10 = 2.0 * (x * y + z * w)
     return math.atan2(r10, r00)
@@ -244,14 +246,14 @@ def inverse(T_a_b: Array) -> Array:
     return out
 
 
-def transform_from_pose(position: ArrayLike, quaternion: ArrayLike) -> Array:
+def transform_from_pose(position: ArrayLike, quaternion: Floats) -> Array:
     """``T_parent_frame`` from a PyBullet pose: ``position`` and quaternion ``(x, y, z, w)``."""
     return transform(rotation_from_quaternion(quaternion), position)
 
 
-def transform_from_xyz_rpy(xyz: ArrayLike, rpy: ArrayLike) -> Array:
+def transform_from_xyz_rpy(xyz: ArrayLike, rpy: Floats) -> Array:
     """``T_parent_child`` of a URDF origin: translation ``xyz`` (m), fixed-axis ``rpy`` (rad)."""
-    r, p, y = rpy  # type: ignore[misc]
+    r, p, y = (float(v) for v in rpy)
     return transform(rotation_from_rpy(r, p, y), np.asarray(xyz, dtype=np.float64))
 
 
@@ -263,6 +265,92 @@ def transform_xyz_yaw(x: float, y: float, z: float, yaw: float) -> Array:
     T[:2, :2] = [[c, -s], [s, c]]
     T[:3, 3] = (x, y, z)
     return T
+
+
+# -- planar transforms ---------------------------------------------------------------------------------
+# ``T_a_b = (x, y, yaw)``: frame b's origin and heading in a (odometry is ``T_odom_base``).  The expressions
+# are the paper code's inline ones, in its order; one pose turns by math.cos/sin, an (N, 3) stack by numpy's.
+
+
+def _planar(T_a_b: ArrayLike) -> tuple[float, float, float]:
+    a = np.asarray(T_a_b, dtype=np.float64)
+    if a.shape != (3,):
+        raise ValueError(f"a planar pose is (x, y, yaw), got shape {a.shape}")
+    return float(a[0]), float(a[1]), float(a[2])
+
+
+def _planar_turn(T_a_b: ArrayLike) -> tuple[float | Array, float | Array, float | Array, float | Array]:
+    """``(x, y, cos yaw, sin yaw)`` of one pose ``(3,)`` (floats) or of a stack ``(N, 3)`` (columns)."""
+    a = np.asarray(T_a_b, dtype=np.float64)
+    if a.ndim == 1:
+        x, y, th = _planar(a)
+        return x, y, math.cos(th), math.sin(th)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"planar poses are (x, y, yaw) rows, got shape {a.shape}")
+    return a[:, 0], a[:, 1], np.cos(a[:, 2]), np.sin(a[:, 2])
+
+
+def _points(p: ArrayLike) -> tuple[Array, Array]:
+    a = np.asarray(p, dtype=np.float64)
+    if a.shape[-1:] != (2,) or a.ndim > 2:
+        raise ValueError(f"planar points are (x, y) or (N, 2) rows, got shape {a.shape}")
+    return a[..., 0], a[..., 1]
+
+
+def planar_apply(T_a_b: ArrayLike, p_b: ArrayLike) -> Array:
+    """``p_a``: points ``p_b`` (``(2,)`` or ``(N, 2)``) expressed in ``a``,
+    ``(x + c px - s py, y + s px + c py)``; ``T_a_b`` one pose or ``(N, 3)`` poses (broadcast)."""
+    x, y, c, s = _planar_turn(T_a_b)
+    px, py = _points(p_b)
+    return np.stack([x + c * px - s * py, y + s * px + c * py], axis=-1)
+
+
+def planar_apply_inverse(T_a_b: ArrayLike, p_a: ArrayLike) -> Array:
+    """``p_b``: points ``p_a`` expressed in ``b`` (``planar_apply(planar_inverse(T_a_b), p_a)`` without
+    inverting), ``(c dx + s dy, -s dx + c dy)`` with ``(dx, dy) = p_a - (x, y)``."""
+    x, y, c, s = _planar_turn(T_a_b)
+    px, py = _points(p_a)
+    dx, dy = px - x, py - y
+    return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
+
+
+def planar_compose(T_a_b: ArrayLike, T_b_c: ArrayLike, *, wrap: bool = True) -> Array:
+    """``T_a_c = T_a_b ∘ T_b_c``; the yaw ``yaw_a_b + yaw_b_c`` wrapped by :func:`wrap_angle` unless
+    ``wrap=False`` (for a caller that integrates an unwrapped heading)."""
+    x, y, th = _planar(T_a_b)
+    u, v, ph = _planar(T_b_c)
+    c, s = math.cos(th), math.sin(th)
+    yaw = th + ph
+    return np.array([x + c * u - s * v, y + s * u + c * v, wrap_angle(yaw) if wrap else yaw])
+
+
+def planar_inverse(T_a_b: ArrayLike) -> Array:
+    """``T_b_a``: ``(-c x - s y, s x - c y, -yaw)``."""
+    x, y, th = _planar(T_a_b)
+    c, s = math.cos(th), math.sin(th)
+    return np.array([-c * x - s * y, s * x - c * y, wrap_angle(-th)])
+
+
+def planar_between(T_w_a: ArrayLike, T_w_b: ArrayLike) -> Array:
+    """``T_a_b`` from two poses in one frame ``w`` (``planar_inverse(T_w_a) ∘ T_w_b`` without
+    inverting): ``b``'s offset turned into ``a``'s axes, the yaw difference wrapped."""
+    x, y, th = _planar(T_w_a)
+    u, v, ph = _planar(T_w_b)
+    c, s = math.cos(th), math.sin(th)
+    dx, dy = u - x, v - y
+    return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(ph - th)])
+
+
+def T_from_planar(T_a_b: ArrayLike, z: float = 0.0) -> Array:
+    """The 4x4 ``T_a_b`` of a planar pose, at height ``z`` (:func:`transform_xyz_yaw`)."""
+    x, y, th = _planar(T_a_b)
+    return transform_xyz_yaw(x, y, z, th)
+
+
+def planar_from_T(T_a_b: ArrayLike) -> Array:
+    """The planar pose ``(x, y, yaw)`` of a 4x4 ``T_a_b`` (its z translation, roll and pitch dropped)."""
+    R, t = _rt(T_a_b)
+    return np.array([float(t[0]), float(t[1]), math.atan2(float(R[1, 0]), float(R[0, 0]))])
 
 
 # -- twists --------------------------------------------------------------------------------------------

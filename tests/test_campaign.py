@@ -206,6 +206,7 @@ def _batch(*args: str) -> subprocess.Popen[str]:
                             start_new_session=True)
 
 
+@pytest.mark.mission
 def test_an_interrupted_campaign_resumes_to_the_batch_json_of_an_uninterrupted_one(tmp_path: Path) -> None:
     common = ["--trials", "8", "--max-time", "8 s", "--sweep", "world.params.dropout=0,0.3"]
     cut, whole = tmp_path / "cut", tmp_path / "whole"
@@ -250,6 +251,7 @@ def _children(pid: int) -> list[int]:
     return kids
 
 
+@pytest.mark.mission
 def test_a_lost_worker_leaves_the_finished_trials_and_the_campaign_resumes(tmp_path: Path) -> None:
     out = tmp_path / "lost"
     proc = _batch(FAST, "--trials", "6", "--max-time", "8 s", "--workers", "2", "--out", str(out))

@@ -61,6 +61,7 @@ def test_without_the_mission_the_units_come_from_the_names(toy_batch: Path) -> N
     assert metric_unit("sim_time_s", None) == "s" and metric_unit("gt_speed_mps", None) == "m/s"
 
 
+@pytest.mark.mission
 def test_world_and_robot_parameters_carry_their_declared_units(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # the racecar on PyBullet, one trial per condition cut to 0.5 s simulated
     a, b = tmp_path / "a", tmp_path / "b"

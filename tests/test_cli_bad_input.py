@@ -55,6 +55,7 @@ def test_bad_input_gets_one_line_and_exit_1(name: str, table: dict[str, BadInput
     assert case.fragment in lines[0], lines[0]
 
 
+@pytest.mark.mission
 def test_max_time_takes_units_like_the_file(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     assert main(["run", CAR, "--max-time", "0.2 min", "--quiet", "--out", str(tmp_path / "r")]) == 1
     out, err = capsys.readouterr()

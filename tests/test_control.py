@@ -340,6 +340,7 @@ def viki():
     return load_mission(VIKI, ["world.params.perception=geometric"])
 
 
+@pytest.mark.mission
 def test_operator_preemption_of_viki_hyco_aborts_with_the_car_stopped(viki, live, tmp_path):
     out = tmp_path / "viki"
     run = live(lambda: run_mission(viki, seed=0, out_dir=out, control=ControlServer("127.0.0.1:0"), operator=PAUSE_AT_1), out)
@@ -356,6 +357,7 @@ def test_operator_preemption_of_viki_hyco_aborts_with_the_car_stopped(viki, live
                                          "who": "alice", "state": "forward", "args": {}}
 
 
+@pytest.mark.mission
 def test_hold_brings_the_viki_car_to_rest_while_sim_time_advances(viki, live, tmp_path):
     out = tmp_path / "viki"
     run = live(lambda: run_mission(viki, seed=0, out_dir=out, control=ControlServer("127.0.0.1:0"), operator=PAUSE_AT_1), out)

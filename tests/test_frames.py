@@ -147,6 +147,7 @@ def test_the_same_seed_writes_the_same_frames_byte_for_byte(rendered_run_dir: Pa
     assert (rendered_run_dir / "frames.jsonl").read_bytes() == (again / "frames.jsonl").read_bytes()
 
 
+@pytest.mark.mission
 def test_frames_off_records_none(tmp_path: Path) -> None:
     from conftest import RENDERED, RENDERED_LOW_RES
 

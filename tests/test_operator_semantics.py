@@ -62,6 +62,7 @@ def _closest(trace: dict[str, np.ndarray], goal: tuple[float, float], since: flo
 
 # -- 1. a pre-emption never ends `succeeded` unless the mission's own rule holds --------------------------
 
+@pytest.mark.mission
 def test_car_preempted_to_done_after_one_of_three_waypoints_fails_naming_the_operator(tmp_path):
     # unhindered, waypoint 1 is reached at 7.2 s and waypoint 2 at 14.55 s: at 10 s one item has succeeded
     code, summary, out = _car_run(tmp_path, [{"t": 10.0, "action": "preempt", "args": {"to": "done"}, "who": "alice"}])
@@ -166,6 +167,7 @@ def test_an_undisturbed_run_has_no_operator_fields():
 
 # -- 2. time under hold does not count toward `after` and `for` ----------------------------------------
 
+@pytest.mark.mission
 def test_car_held_longer_than_every_timeout_completes_after_resume(tmp_path):
     # held in `drive.approach` from 3 s to 103 s: longer than approach's 30 s, settle's 15 s and the whole
     # loop's 90 s; before the change, resume fired `drive`'s `after: 90 s` at once (outcome failed)

@@ -68,6 +68,7 @@ def _drawn_point(machine: dict, columns: list[str], row: list) -> tuple[float, f
     return x + a * c - b * s, y + a * s + b * c
 
 
+@pytest.mark.mission
 def test_the_car_view_has_its_three_waypoints_and_draws_the_control_point_as_the_figure_does(car_run):
     view = open_run(car_run)
     machine = view.machine()

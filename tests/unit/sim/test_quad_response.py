@@ -1,5 +1,5 @@
 """The quadcopter's command response models (``taskflow_sim.quad_response``) and their use in ``quad_room``:
-ViSP's Bebop 2 ``setVelocity`` as relative moves, the command delay line (tests/unit/test_command_delay.py) and the frame latency."""
+ViSP's Bebop 2 ``setVelocity`` as relative moves, the command delay line (tests/unit/sim/test_command_delay.py) and the frame latency."""
 
 from __future__ import annotations
 
@@ -33,6 +33,7 @@ def _world(**params) -> QuadRoom:
     return w
 
 
+@pytest.mark.sim
 def test_relative_moves_lose_what_a_command_period_does_not_finish():
     """Each 40 ms command is a move of v·40 ms from where the drone is, approached with τ = 0.1 s and
     replaced by the next: after 25 periods the drone has gone 25 (1 − e^(−0.4)) v·0.04 (hand:
@@ -48,6 +49,7 @@ def test_relative_moves_lose_what_a_command_period_does_not_finish():
         w.close()
 
 
+@pytest.mark.sim
 def test_command_delay_and_frame_latency_in_the_world():
     """With a 0.12 s command delay the drone does not move for three 40 ms periods; with a 0.04 s frame
     latency each frame is stamped (and seen) one period late."""

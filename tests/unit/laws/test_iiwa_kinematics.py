@@ -90,6 +90,7 @@ def test_robot_params_reject_bad_values():
         MobileIiwa.Params(tool={"length": 0.02, "bit_length": 0.03})
 
 
+@pytest.mark.sim
 def test_pybullet_and_pinocchio_tool_frames_agree_within_0_1_mm(robot):
     import pybullet as p
     from taskflow_sim.screw_robot import MobileIiwaBody
