@@ -12,7 +12,8 @@ every physics step, one with ``poll="advance"`` once at the end of every ``advan
 :meth:`SteppedWorld.start_streams` at the end of ``reset``):
 
 1. **Rate.**  A :class:`~taskflow_sim.core.stepped.SensorSchedule` at ``rate_hz`` decides whether a
-   reading is captured at ``t`` (a disabled stream, ``enabled = False``, captures nothing).
+   reading is captured at ``t``; ``rate_hz=None`` captures at every poll (odometry read every control
+   tick).  A disabled stream (``enabled = False``) is not polled at all.
 2. **Capture**, in this order, which is also the order of the random draws (all from ``rng``):
    a fault interval active at ``t`` → an empty reading (no draw); ``dropout`` with
    ``dropout_first=True`` → one uniform draw, below ``dropout`` → empty (the sensor is not read at
@@ -75,7 +76,7 @@ class SensorStream(Generic[V]):
     def __init__(
         self,
         read: Callable[[float, Any], V | None],
-        rate_hz: float,
+        rate_hz: float | None,
         *,
         latency: float = 0.0,
         delivery: Delivery = "each",
@@ -102,7 +103,7 @@ class SensorStream(Generic[V]):
         if delivery == "past" and snapshot is None:
             raise ValueError('delivery="past" needs a snapshot() of the state to capture from')
         self.read = read
-        self.schedule = SensorSchedule(rate_hz)
+        self.schedule = SensorSchedule(rate_hz) if rate_hz is not None else None
         self.latency = float(latency)
         self.delivery: Delivery = delivery
         self.corrupt = corrupt
@@ -125,7 +126,10 @@ class SensorStream(Generic[V]):
     def restart(self, t0: float, rate_hz: float | None = None) -> None:
         """A new stream at ``t0`` (a reset, a sensor switched on): the schedule restarts, nothing is in
         flight, nothing delivered, never seen.  The rng is the caller's (re-seed it on reset)."""
-        self.schedule.restart(t0, rate_hz)
+        if self.schedule is not None:
+            self.schedule.restart(t0, rate_hz)
+        elif rate_hz is not None:
+            self.schedule = SensorSchedule(rate_hz, t0)
         self.queue: list[Reading[V]] = []
         self._log: list[tuple[float, Any]] = []
         self.latest: Reading[V] | None = None
@@ -152,10 +156,10 @@ class SensorStream(Generic[V]):
         if self.delivery == "past":
             assert self.snapshot is not None
             self._log.append((t, self.snapshot()))
-            if self.schedule.poll(t):
+            if self.schedule is None or self.schedule.poll(t):
                 self._deliver(self._capture(*self._past(t)))
         else:
-            if self.schedule.poll(t):
+            if self.schedule is None or self.schedule.poll(t):
                 self.queue.append(self._capture(t, None))
             if self.queue:
                 self._deliver_due(t)

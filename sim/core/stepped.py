@@ -100,7 +100,7 @@ class SteppedWorld(World, Generic[SceneT]):
     of one ``advance``.  A world that keeps its simulator in ``self.scene`` (built by ``reset``) gets
     :meth:`close` and :meth:`_require_scene`."""
 
-    scene: SceneT | None
+    scene: SceneT | None  # type: ignore[assignment]  # the instance's simulator, built by reset(); shadows World.scene (the class's figure markers) on instances
 
     def __init__(self, robot: Robot, params: BaseModel, seed: int, gui: bool = False) -> None:
         super().__init__(robot, params, seed, gui)
