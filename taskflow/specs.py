@@ -174,7 +174,8 @@ class ObsKey(Generic[T]):
 
     def __call__(self, obs: ObservationLike) -> T:
         try:
-            return (obs.sensors if self.sensors else obs.state)[self.entry]  # type: ignore[no-any-return]  # the declared type, checked by the conformance check
+            value: T = (obs.sensors if self.sensors else obs.state)[self.entry]  # its declared type (conformance-checked)
+            return value
         except KeyError:
             if self.optional:
                 return None  # type: ignore[return-value]  # T is X | None for an optional key (the overloads)

@@ -21,7 +21,7 @@ every physics step, one with ``poll="advance"`` once at the end of every ``advan
    view); a value and ``dropout_first=False`` → one uniform draw, below ``dropout`` → empty; a value left
    → ``corrupt(value, stamp, rng)`` (the noise).  ``dropout=None`` draws nothing; ``dropout=0.0``
    still draws (so a mission's draw order does not depend on the probability).  ``on_capture`` sees
-   every captured :class:`Reading`.
+   every captured :class:`Reading`, ``on_deliver`` every delivered one (before its lost/found event).
 3. **Latency and delivery.**  A captured reading waits in a queue until ``stamp + latency <= t``
    (within :data:`~taskflow_sim.core.stepped.EPS_T`).  ``delivery="each"`` delivers every due reading
    in capture order; ``delivery="newest"`` delivers only the newest due one (older due ones are dropped
@@ -70,8 +70,10 @@ class SensorStream(Generic[V]):
     ``read(stamp, state)``: the true value at capture (``state`` is the snapshot of ``delivery="past"``,
     else ``None``).  ``corrupt(value, stamp, rng)``: the noise.  ``faults``: intervals (or an
     :class:`IntervalFault`) of empty readings.  After a poll: ``latest`` (the last delivered reading,
-    empty or not), ``last_present`` (the last delivered present one), ``new`` (something was delivered
-    since the current ``advance`` began), ``delivered`` / ``dropped`` / ``captured`` counters."""
+    empty or not), ``last_present`` (the last delivered present one; ``presents`` counts them — a
+    message's ``seq``), ``new`` (something was delivered since the current ``advance`` began),
+    ``delivered`` / ``dropped`` / ``captured`` counters.  ``on_capture`` / ``on_deliver`` see each reading
+    as it is captured / delivered (a world scoring perception error against the truth at capture)."""
 
     def __init__(
         self,
@@ -90,6 +92,7 @@ class SensorStream(Generic[V]):
         present: Callable[[V], bool] | None = None,
         emit: Callable[[str], None] | None = None,
         on_capture: Callable[[Reading[V]], None] | None = None,
+        on_deliver: Callable[[Reading[V]], None] | None = None,
         snapshot: Callable[[], Any] | None = None,
         poll: PollPoint = "physics_step",
         enabled: bool = True,
@@ -117,6 +120,7 @@ class SensorStream(Generic[V]):
         self.events: list[str] = []
         self.emit: Callable[[str], None] = emit if emit is not None else self.events.append
         self.on_capture = on_capture
+        self.on_deliver = on_deliver
         self.snapshot = snapshot
         self.poll_point: PollPoint = poll
         self.enabled = enabled
@@ -140,6 +144,7 @@ class SensorStream(Generic[V]):
         self.new = False
         self.captured = 0
         self.delivered = 0
+        self.presents = 0
         self.dropped = 0
         self.events.clear()
 
@@ -224,6 +229,9 @@ class SensorStream(Generic[V]):
         is_present = value is not None and (self.present is None or self.present(value))
         if is_present:
             self.last_present = reading
+            self.presents += 1
+        if self.on_deliver is not None:
+            self.on_deliver(reading)
         names = self.event_names
         if self.lost_after is not None:
             if is_present:

@@ -285,3 +285,15 @@ def test_reproduces_the_room_world_frame_latency():
         else:
             ref.append(ref[-1])
     assert got == ref
+
+
+def test_hooks_see_every_capture_and_delivery_and_presents_counts_seen_readings():
+    captured, delivered = [], []
+    vals = iter([1.0, None, 2.0, 3.0])
+    s = SensorStream(lambda t, _: next(vals), None, latency=1.0, on_capture=captured.append,
+                     on_deliver=delivered.append)
+    for t in (0.0, 1.0, 2.0, 3.0):
+        s.poll(t)
+    assert [r.stamp for r in captured] == [0.0, 1.0, 2.0, 3.0]
+    assert [r.value for r in delivered] == [1.0, None, 2.0]
+    assert s.presents == 2 and s.delivered == 3 and s.last_present == Reading(2.0, 2.0)
