@@ -9,6 +9,10 @@ A task names what it reads with :class:`ObsKey` s: ``MARKER = ObsKey("sensors.ma
 optional=True)`` goes in its ``requires`` (``requires = (POSE, MARKER)``, checked at load against what
 the robot and world provide) and reads the observation (``MARKER(obs)``: the typed value; ``None`` for an
 absent optional entry; a :class:`MissingObservation` naming the key for an absent required one).
+
+The same vocabulary types the run's other declared values: :class:`Metric` (a published metric's unit
+and range, with the ranged units ``DISTANCE``, ``SPEED`` …) and :class:`MemoryKey` (an entry of mission
+data).  All of it is re-exported by :mod:`taskflow.api` (``from taskflow.api import MemoryKey``).
 """
 
 from __future__ import annotations
