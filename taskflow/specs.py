@@ -142,6 +142,7 @@ class MissingObservation(KeyError):
 
 
 T = TypeVar("T")
+_ABSENT: Any = object()
 
 
 class ObsKey(Generic[T]):
@@ -177,13 +178,12 @@ class ObsKey(Generic[T]):
         self.optional = spec.optional
 
     def __call__(self, obs: ObservationLike) -> T:
-        try:
-            value: T = (obs.sensors if self.sensors else obs.state)[self.entry]  # its declared type (conformance-checked)
-            return value
-        except KeyError:
+        value: T = (obs.sensors if self.sensors else obs.state).get(self.entry, _ABSENT)  # its declared type
+        if value is _ABSENT:
             if self.optional:
                 return None  # type: ignore[return-value]  # T is X | None for an optional key (the overloads)
-            raise MissingObservation(f"observation has no {self.name!r} (required, {self.spec})") from None
+            raise MissingObservation(f"observation has no {self.name!r} (required, {self.spec})")
+        return value
 
     def __repr__(self) -> str:
         return f"ObsKey({self.name!r}, {self.spec})"
