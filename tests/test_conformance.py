@@ -9,12 +9,13 @@ import pytest
 from toys import ToyLine, ToyPoint
 
 from taskflow.api import ObsSpec, array, scalar
-from taskflow.catalogue.conformance import check_pair, pairs
+from taskflow.catalogue.conformance import IMPURE, check_pair, pairs
 
 SHIPPED_WORLDS = sorted(ep.name for ep in metadata.entry_points(group="taskflow.worlds"))
 SHIPPED_ROBOTS = sorted(ep.name for ep in metadata.entry_points(group="taskflow.robots"))
 FAST = {"quad_room": {"perception": "geometric"}}  # projected landmarks instead of rendered frames
 PAIRS = pairs(SHIPPED_WORLDS, SHIPPED_ROBOTS)
+OBSERVE_NOT_YET_PURE = {"viki_ground"}  # captures frames in observe() until its world moves onto SensorStream
 
 
 def test_every_shipped_robot_has_a_world_and_ground_robots_share_flat_ground():
@@ -28,7 +29,25 @@ def test_every_shipped_robot_has_a_world_and_ground_robots_share_flat_ground():
 @pytest.mark.parametrize("world_cls, robot_cls", PAIRS, ids=[f"{w.name}-{r.name}" for w, r in PAIRS])
 def test_shipped_pair_conforms(world_cls, robot_cls):
     res = check_pair(world_cls, robot_cls, FAST.get(world_cls.name), steps=4)
+    if world_cls.name in OBSERVE_NOT_YET_PURE:
+        res.problems = [p for p in res.problems if not p.startswith(IMPURE)]
     assert res.ok, str(res)
+
+
+def test_an_impure_observe_is_reported():
+    class Impure(ToyLine):
+        observations: dict[str, ObsSpec] = {"state.x": scalar()}
+
+        def observe(self):
+            self.x += 1.0  # observing moves the world
+            return super().observe()
+
+    Impure.name = "toy_impure"
+    res = check_pair(Impure, ToyPoint, steps=2)
+    assert IMPURE + " (after reset)" in res.problems and IMPURE + " (after an advance)" in res.problems
+    pure = check_pair(type("Pure", (ToyLine,), {"observations": {"state.x": scalar()}, "name": "toy_pure"}),
+                      ToyPoint, steps=2)
+    assert not any(p.startswith(IMPURE) for p in pure.problems), pure.problems
 
 
 def test_robots_of_one_interface_share_one_command_layout():

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from taskflow.errors import MissionError
@@ -63,3 +64,72 @@ def test_a_partial_mapping_changes_one_field_of_a_default_sub_model():
     assert m.robot_params.rear_camera == RacecarParams().rear_camera
     with pytest.raises(MissionError, match="front_camera.width"):
         load_mission(viki, overrides=["robot.params.front_camera.width=-3"])
+
+
+def _keyed_task(speed_key: str) -> type:
+    from taskflow.api import Observation, ObsKey, StepResult, Task, array, scalar
+
+    pose = ObsKey("state.pose", array(3))
+    speed = ObsKey(speed_key, scalar())
+
+    class KeyedHold(Task):
+        """Holds still; reads its pose and speed through keys."""
+
+        command_interface = "ackermann"
+        requires = (pose, speed)
+
+        def step(self, obs: Observation) -> StepResult:
+            speed(obs), pose(obs)
+            return StepResult({"v": np.zeros(1), "steer": np.zeros(1)})
+
+    return KeyedHold
+
+
+KEYED = """mission: keyed
+robot: racecar
+world: flat_ground
+rate_hz: 20
+max_time: 1 s
+machine:
+  initial: go
+  states:
+    go:
+      task: {name: keyed_hold}
+      transitions:
+        - {to: done, after: 0.5 s}
+    done: {final: succeeded}
+"""
+
+
+@pytest.mark.parametrize("key, ok", [("state.v", True), ("state.vv", False), ("sensors.v", False)])
+def test_a_misspelt_observation_key_is_an_error_at_load(key, ok):
+    """A task reading ``state.vv`` (meaning ``state.v``) through an :class:`ObsKey` in its ``requires``
+    is refused when the mission loads — not a robot that holds still because the read came back empty."""
+    import taskflow_robots.racecar  # noqa: F401 - registration
+    import taskflow_sim.ground.flat_ground  # noqa: F401 - registration
+
+    from taskflow.registry import TASKS
+
+    TASKS.add("keyed_hold", _keyed_task(key))
+    try:
+        if ok:
+            m = load_mission_text(KEYED, "keyed.yaml")
+            assert run_mission(m, record=False).outcome == "succeeded"
+            return
+        with pytest.raises(MissionError) as exc:
+            load_mission_text(KEYED, "keyed.yaml")
+        p = exc.value.problems[0]
+        assert f"task 'keyed_hold' reads observation {key} (scalar)" in p.message
+        assert "state.v (scalar)" in p.hint and p.line == 10
+    finally:
+        TASKS.remove("keyed_hold")
+
+
+def test_an_absent_required_key_read_names_the_key():
+    from taskflow.api import MissingObservation, Observation, ObsKey, scalar
+
+    obs = Observation(t=0.0, state={"v": 0.0})
+    assert ObsKey("state.v", scalar())(obs) == 0.0
+    assert ObsKey("sensors.range", scalar(optional=True))(obs) is None
+    with pytest.raises(MissingObservation, match="'state.vv'"):
+        ObsKey("state.vv", scalar())(obs)

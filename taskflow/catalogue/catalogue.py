@@ -11,7 +11,7 @@ worlds (and robots) that provide it and the tasks that read it.
 :func:`entry_to_json` is the JSON form (``--json``; :func:`entry_from_json` reads it back);
 :mod:`taskflow.catalogue.catalogue_render` renders entries as terminal text (``taskflow list`` / ``taskflow
 describe``) and markdown (``taskflow describe --all --markdown``, the generated ``docs/reference.md``).
-A parameter's unit, type label, bounds and default are read by :mod:`taskflow.catalogue.declarations`.
+A parameter's unit, type label, bounds and default are read by :mod:`taskflow.catalogue.catalogue.declarations`.
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from typing import Any, Literal
 from pydantic_core import to_jsonable_python
 
 from taskflow import api
-from taskflow.api import ObsSpec, Robot, Task, World
-from taskflow.catalogue.declarations import (
+from taskflow.api import ObsSpec, Robot, Task, World, required_specs
+from taskflow.catalogue.catalogue.declarations import (
     Model,
     Param,
     class_doc,
@@ -236,7 +236,7 @@ def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type
         kind="task", name=task.name, summary=summary_of(doc), doc=doc, source=source_of(task),
         params_doc=own_doc(task.Params), params=params_of(task.Params), slots=slots,
         metrics=_metrics(task.metrics), events=tuple(task.events),
-        requires=tuple(Stream(k, str(s), _providers(k, s, robots, worlds)) for k, s in task.requires.items()),
+        requires=tuple(Stream(k, str(s), _providers(k, s, robots, worlds)) for k, s in required_specs(task.requires).items()),
         command_interface=task.command_interface, robot_params=params_of(task.robot_params),
         works_with=works, types=nested_models([task.Params, *task.slots.values(), task.robot_params]))
 

@@ -4,7 +4,9 @@ For every registered world and every registered robot it can host (:func:`taskfl
 
 1. **build** the world with the robot's default parameters and the world's (plus the caller's
    ``params`` for that world, e.g. a fast perception mode), and ``reset()`` it;
-2. **reset twice with one seed**: the first observations after each reset must be equal;
+2. **reset twice with one seed**: the first observations after each reset must be equal; **observe
+   is pure**: two ``observe()`` calls in a row (after the reset, and after an ``advance``) return equal
+   observations (a world captures, draws noise and clears events while it advances, never in ``observe``);
 3. **observation spec**: every ``state`` / ``sensors`` entry must be declared (by the robot's
    ``observations`` or the world's) and match its :class:`~taskflow.api.ObsSpec`; every declared
    non-optional entry must be present; ``ground_truth()`` must give exactly ``ground_truth_keys``;
@@ -33,6 +35,10 @@ from taskflow.registry import ROBOTS, WORLDS, RegistryError
 
 MAX_STEPS = 10_000
 """Ticks a seeded rollout of ``taskflow check`` may take (a conformance check is a short rollout)."""
+
+
+IMPURE = ("two observe() calls in a row return different observations: observe() must be pure (capture "
+          "readings, draw noise and clear events while advancing, e.g. with taskflow_sim.core.sensors.SensorStream)")
 
 
 @dataclass
@@ -126,6 +132,8 @@ def check_pair(world_cls: type[World], robot_cls: type[Robot], params: Mapping[s
         world = build()
         try:
             first = world.observe()
+            if not _observation_equal(first, world.observe()):
+                res.problems.append(IMPURE + " (after reset)")
             world.reset()
             again = world.observe()
             if not _observation_equal(first, again):
@@ -139,6 +147,8 @@ def check_pair(world_cls: type[World], robot_cls: type[Robot], params: Mapping[s
             world.apply(robot.stop_command())
             world.advance(h)
             after = world.observe()
+            if not _observation_equal(after, world.observe()):
+                res.problems.append(IMPURE + " (after an advance)")
             if not math.isclose(after.t - again.t, h, rel_tol=1e-9, abs_tol=1e-12):
                 res.problems.append(f"advance({h:g}) after the stop command moved the clock by {after.t - again.t:g} s")
             res.problems += [f"after stop: {p}" for p in spec_problems(after, specs)]

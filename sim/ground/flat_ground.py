@@ -1,13 +1,16 @@
 """``flat_ground``: a wheeled robot alone on a flat floor — the world of the kinematic states.
 
-Any robot with a registered ground body (:mod:`taskflow_sim.bodies`, entry point group
+Any robot with a registered ground body (:mod:`taskflow_sim.core.bodies`, entry point group
 ``taskflow.bodies``) drives here: the world builds the body by the robot's name and never names a robot.
 The observation's ``state`` is the body's proprioception (``pose``, ``v`` and what the robot adds, e.g.
 the racecar's ``steer``).
 
-Odometry (``obs.state["pose"]``) is ground truth plus optional white Gaussian noise drawn from
-``np.random.default_rng(seed)`` (re-seeded by every :meth:`FlatGround.reset`), so a run with a given seed
-is bit-for-bit reproducible.  Time is the simulation clock: a count of physics steps.
+Odometry (``obs.state["pose"]``) is the sensor stream ``odometry`` (:mod:`taskflow_sim.core.sensors`):
+ground truth read at every control tick (the end of each ``advance``, and at reset) plus optional white
+Gaussian noise drawn from ``np.random.default_rng(seed)`` (re-seeded by every :meth:`FlatGround.reset`)
+when the reading is captured, so :meth:`FlatGround.observe` is pure and a run with a given seed is
+bit-for-bit reproducible.  A subclass adds a sensor by declaring another stream in ``_populate``.  Time is
+the simulation clock: a count of physics steps.
 """
 
 from __future__ import annotations
@@ -18,10 +21,12 @@ from typing import Any, ClassVar, cast
 
 import numpy as np
 import pybullet as p
+from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
-from taskflow_sim.bodies import BodyOptions, GroundBody, make_body
 from taskflow_sim.car_scene import add_floor, connect
-from taskflow_sim.stepped import SteppedWorld, check_command
+from taskflow_sim.core.bodies import BodyOptions, GroundBody, make_body
+from taskflow_sim.core.sensors import SensorStream
+from taskflow_sim.core.stepped import SteppedWorld, check_command
 
 from taskflow.api import Command, Marker, Observation, Robot, RobotNeeds, StrictModel
 from taskflow.registry import register_world
@@ -84,7 +89,7 @@ class FlatGround(SteppedWorld[GroundScene]):
     needs: ClassVar[RobotNeeds] = RobotNeeds(body=True)
 
     @classmethod
-    def scene(cls, params: BaseModel) -> list[Marker]:
+    def scene(cls, params: BaseModel) -> list[Marker]:  # type: ignore[override]  # World.scene (figure markers); the instance's simulator is SteppedWorld's attribute of that name
         """The start pose of the robot frame."""
         x, y, yaw = cast(FlatGroundParams, params).start
         return [Marker.point("start", "start", x, y, yaw=yaw)]
@@ -103,27 +108,41 @@ class FlatGround(SteppedWorld[GroundScene]):
         client = connect(self.gui, self.physics_hz)
         floor = add_floor(client, wp.floor_half_size, wp.friction)
         body.spawn(client, wp.start)
-        self.scene = GroundScene(client, floor, body)
+        self.scene = GroundScene(client, floor, body)  # type: ignore[assignment, method-assign]  # the instance's simulator shadows the classmethod (see scene)
         self.restart_clock()
         self._rng = np.random.default_rng(self.seed)
+        noisy = wp.odom_noise > 0.0 or wp.odom_yaw_noise > 0.0
+        self.streams.clear()
+        self.odometry = self.add_stream("odometry", SensorStream(
+            self._read_odometry, None, poll="advance", corrupt=self._odometry_noise if noisy else None, rng=self._rng))
         self._populate()
+        self.start_streams()
         if self.gui:
             x, y, _ = wp.start
-            p.resetDebugVisualizerCamera(3.0, 0.0, -45.0, [x, y, 0.0], physicsClientId=self.scene.client)
+            p.resetDebugVisualizerCamera(3.0, 0.0, -45.0, [x, y, 0.0], physicsClientId=client)
 
     def _populate(self) -> None:
-        """Hook for subclasses: add bodies and sensors to ``self.scene`` after the robot is built."""
+        """Hook for subclasses: add bodies to ``self.scene`` and sensor streams (:meth:`add_stream`) after
+        the robot and its odometry are built."""
+
+    # --- sensors ---------------------------------------------------------------------------------
+    def _read_odometry(self, t: float, _state: object) -> NDArray[np.float64]:
+        return np.array(self._require_scene().car.pose(), dtype=np.float64)
+
+    def _odometry_noise(self, pose: NDArray[np.float64], t: float, rng: np.random.Generator) -> NDArray[np.float64]:
+        wp = self.params
+        if wp.odom_noise > 0.0:
+            pose[:2] += rng.normal(0.0, wp.odom_noise, 2)
+        if wp.odom_yaw_noise > 0.0:
+            pose[2] = math.remainder(pose[2] + rng.normal(0.0, wp.odom_yaw_noise), 2.0 * math.pi)
+        return pose
 
     # --- the loop ------------------------------------------------------------------------------
     def observe(self) -> Observation:
         car = self._require_scene().car
-        pose = car.pose()
-        wp = self.params
-        if wp.odom_noise > 0.0:
-            pose[:2] += self._rng.normal(0.0, wp.odom_noise, 2)
-        if wp.odom_yaw_noise > 0.0:
-            pose[2] = math.remainder(pose[2] + self._rng.normal(0.0, wp.odom_yaw_noise), 2.0 * math.pi)
-        state: dict[str, Any] = {**car.proprioception(), "pose": pose}
+        reading = self.odometry.latest
+        assert reading is not None and reading.value is not None  # captured at reset and every advance
+        state: dict[str, Any] = {**car.proprioception(), "pose": reading.value.copy()}
         return Observation(t=self.t, state=state)
 
     def apply(self, command: Command) -> None:
