@@ -11,7 +11,7 @@ worlds (and robots) that provide it and the tasks that read it.
 :func:`entry_to_json` is the JSON form (``--json``; :func:`entry_from_json` reads it back);
 :mod:`taskflow.catalogue.catalogue_render` renders entries as terminal text (``taskflow list`` / ``taskflow
 describe``) and markdown (``taskflow describe --all --markdown``, the generated ``docs/reference.md``).
-A parameter's unit, type label, bounds and default are read by :mod:`taskflow.catalogue.catalogue.declarations`.
+A parameter's unit, type label, bounds and default are read by :mod:`taskflow.catalogue.declarations`.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from pydantic_core import to_jsonable_python
 
 from taskflow import api
 from taskflow.api import ObsSpec, Robot, Task, World, required_specs
-from taskflow.catalogue.catalogue.declarations import (
+from taskflow.catalogue.declarations import (
     Model,
     Param,
     class_doc,
