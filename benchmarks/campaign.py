@@ -2,7 +2,7 @@
 cluster of two single-CPU worker nodes, the scaling efficiency, and Ray's overhead per trial.
 
 The three runs are the same campaign (``--trials`` seeds of ``--mission``, default the ViKi-HyCo
-complete placement in geometric perception) through :func:`taskflow.batch.run_batch`:
+complete placement in geometric perception) through :func:`taskflow.campaigns.batch.run_batch`:
 
 * ``pool_1`` — the trials one after another in this process (``--workers 1``);
 * ``pool_2`` — a local process pool of two workers;
@@ -39,8 +39,8 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from taskflow.backends import LocalRayCluster
-from taskflow.batch import run_batch
+from taskflow.campaigns.backends import LocalRayCluster
+from taskflow.campaigns.batch import run_batch
 
 ROOT = Path(__file__).resolve().parents[1]
 

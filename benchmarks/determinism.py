@@ -26,8 +26,8 @@ MODES = {  # world → the perception modes it has besides its default (override
 
 
 def _run(job: tuple[str, list[str], int, str]) -> tuple[str, float]:
-    from taskflow.loader import load_mission
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
+    from taskflow.mission.loader import load_mission
 
     path, overrides, seed, out = job
     r = run_mission(load_mission(path, overrides), seed=seed, out_dir=out)
@@ -40,7 +40,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--only", nargs="*", default=None, help="mission file stems to run (default: all)")
     args = ap.parse_args()
-    from taskflow.loader import load_mission
+    from taskflow.mission.loader import load_mission
 
     cases = []
     for f in sorted((ROOT / "missions").glob("*.yaml")):

@@ -3,7 +3,7 @@
 Both arms run the same rendered mission and seed (default: the quadcopter's pose regulation, perception
 ``rendered``, 320x240 camera at 25 Hz, the control at 25 Hz) for ``--max-time`` simulated seconds; the arms
 alternate, ``--repeats`` times each; each run's real-time factor comes from its ``timing.json``.  Also
-timed in-process, on a frame of the recorded run: :meth:`taskflow.frames.FrameRecorder.offer` on a tick
+timed in-process, on a frame of the recorded run: :meth:`taskflow.execution.frames.FrameRecorder.offer` on a tick
 with no frame due (µs), and one frame encoded and written (ms).  ``ratio`` is median RTF with frames /
 without.
 
@@ -47,7 +47,7 @@ def micro(run_dir: Path) -> dict[str, float]:
     """``offer`` with no frame due (µs) and one frame written (ms), on the run's first recorded image."""
     import cv2
 
-    from taskflow.frames import FrameRecorder, read_frames
+    from taskflow.execution.frames import FrameRecorder, read_frames
     from taskflow.messages import Image
 
     first = read_frames(run_dir)[0]

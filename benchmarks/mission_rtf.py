@@ -29,8 +29,8 @@ def overrides(stem: str, mode: str) -> list[str]:
 
 
 def main(argv: list[str]) -> None:
-    from taskflow.loader import load_mission
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
+    from taskflow.mission.loader import load_mission
 
     if len(argv) < 2:
         raise SystemExit(__doc__)

@@ -31,8 +31,8 @@ MISSIONS = Path(taskflow_missions.__file__).resolve().parent  # the installed ch
 
 
 def _fingerprints(job: tuple[str, list[str], str, list[str]]) -> dict[str, object]:
-    from taskflow.loader import load_mission
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
+    from taskflow.mission.loader import load_mission
 
     path, overrides, out, skip = job
     result = run_mission(load_mission(path, overrides), seed=0, out_dir=out)
@@ -58,7 +58,7 @@ def main() -> None:
     ap.add_argument("--skip-summary-key", nargs="*", default=[], metavar="KEY",
                     help="top-level summary keys left out of the summary's fingerprint (listed in each row)")
     args = ap.parse_args()
-    from taskflow.loader import load_mission
+    from taskflow.mission.loader import load_mission
 
     tmp = Path(tempfile.mkdtemp(prefix="record-hashes-"))
     jobs = []

@@ -13,7 +13,7 @@ ground truth.
 
 ``--robustness`` instead runs the conveyor mission over part speeds (30, 50, 65, 80 mm/s) and bolt
 layouts (``world.params.bolts`` with the matching operation poses ``parameters.screws``) with
-:func:`taskflow.batch.run_batch` (one campaign per layout and arm, the speeds swept; seeds 0..N-1 in
+:func:`taskflow.campaigns.batch.run_batch` (one campaign per layout and arm, the speeds swept; seeds 0..N-1 in
 every condition), with the prediction profile on and, on the default layout, off (the paper's law):
 bolts fastened with their Wilson 95 % interval, sequences that met the mission's rule with theirs, and
 the ground-truth translation error while the screwdriver ran (mean over every sample at a bolt, max).
@@ -50,7 +50,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from taskflow.stats import mean_interval, wilson_interval
+from taskflow.campaigns.stats import mean_interval, wilson_interval
 
 PAPER = {  # papers/002, Tables 1 and 2 (real robot, 10 sequences x 4 screws per scenario)
     "conveyor": {"time_per_screw": (9.45, 2.07), "screwing": (5.28, 1.88), "success": 92.5,
@@ -71,8 +71,8 @@ def run_one(job: tuple[str, int, bool, str, str]) -> dict[str, Any]:
     """One sequence: (mission file, seed, feed-forward, perception, fidelity) → its numbers."""
     mission_file, seed, ff, perception, fidelity = job
     _register()
-    from taskflow.loader import load_mission
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
+    from taskflow.mission.loader import load_mission
 
     overrides = [f"profiles.prediction.feedforward.enabled={'true' if ff else 'false'}",
                  f"world.params.perception={perception}", f"world.params.fidelity={fidelity}"]
@@ -254,11 +254,11 @@ def robustness_row(trials: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def robustness(sequences: int, workers: int, out: Path | None) -> dict[str, Any]:
-    """The robustness table (see the module docstring): one :func:`taskflow.batch.run_batch` campaign per
+    """The robustness table (see the module docstring): one :func:`taskflow.campaigns.batch.run_batch` campaign per
     layout and arm, sweeping ``world.params.speed``."""
     import tempfile
 
-    from taskflow.batch import run_batch
+    from taskflow.campaigns.batch import run_batch
 
     root = Path(tempfile.mkdtemp(prefix="screw-robustness-")) if out is None else out
     sweep = ["world.params.speed=" + ",".join(f"{v:g}" for v in SPEEDS)]

@@ -31,9 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from taskflow.api import Observation, Robot, StepResult, Task, World
-from taskflow.executor import Executor
-from taskflow.loader import load_mission_text
-from taskflow.records import RunRecorder
+from taskflow.execution.executor import Executor
+from taskflow.execution.records import RunRecorder
+from taskflow.mission.loader import load_mission_text
 from taskflow.registry import ROBOTS, TASKS, WORLDS
 
 

@@ -1,6 +1,6 @@
 """ViKi-HyCo Monte Carlo campaign next to the paper's numbers (REFERENCE.md §1), plus costs.
 
-Batches (``taskflow.batch.run_batch``, trial ``i`` with seed ``seed + i``, object kind/pose drawn per
+Batches (``taskflow.campaigns.batch.run_batch``, trial ``i`` with seed ``seed + i``, object kind/pose drawn per
 trial from the missions' distributions):
 
 * geometric perception, ``--trials`` each: forward positioning, backward positioning, complete placement
@@ -49,9 +49,9 @@ from taskflow_tasks.viki_hyco import ViKiGains, ViKiHyCo
 from taskflow_tasks.viki_laws import ServoInputs, viki_velocity
 
 from taskflow.api import Observation
-from taskflow.batch import run_batch
+from taskflow.campaigns.batch import run_batch
+from taskflow.campaigns.stats import mean_interval, wilson_interval
 from taskflow.messages import Detection
-from taskflow.stats import mean_interval, wilson_interval
 from taskflow.testing import task_context
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -160,8 +160,8 @@ def render_costs(sizes: tuple[tuple[int, int], ...] = ((320, 180), (640, 360)), 
 
 def single_process_rtf(rendered_overrides: list[str], seed: int) -> dict[str, float]:
     """Real-time factor of one complete placement run alone in this process (no batch workers competing)."""
-    from taskflow.loader import load_mission
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
+    from taskflow.mission.loader import load_mission
 
     out = {}
     for name, ov in (("geometric", []), ("rendered", rendered_overrides)):

@@ -1,7 +1,7 @@
 """ViKi-HyCo complete placement on held-out conditions: bearing, distance, dropout rate and burst length.
 
 One command regenerates the robustness table of BENCHMARKS.md ("ViKi-HyCo on held-out conditions"):
-each row is one ``taskflow.batch.run_batch`` campaign of ``missions/viki_hyco.yaml`` (trial ``i`` with
+each row is one ``taskflow.campaigns.batch.run_batch`` campaign of ``missions/viki_hyco.yaml`` (trial ``i`` with
 seed ``seed + i``; the object's kind and yaw, and whatever the row leaves to the mission, drawn per
 trial) with the row's world parameters set.  Reported from the simulator's ground truth per row:
 success with its Wilson 95 % interval, the trials that touched the object (``contact``), the smallest
@@ -38,8 +38,8 @@ import taskflow_sim.viki_world  # noqa: F401  registers viki_ground (forked batc
 import taskflow_tasks.viki_hyco
 import taskflow_tasks.viki_rotation  # noqa: F401  registers viki_rotate
 
-from taskflow.batch import run_batch
-from taskflow.stats import wilson_interval
+from taskflow.campaigns.batch import run_batch
+from taskflow.campaigns.stats import wilson_interval
 
 MISSION = Path(__file__).resolve().parents[1] / "missions" / "viki_hyco.yaml"
 WIDE_BEARING = "world.params.object_bearing={uniform: [-0.45, 0.45]}"

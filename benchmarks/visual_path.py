@@ -16,7 +16,7 @@ control (excluding rendering) with the real-time factor of the whole run.  The l
 
 ``--perception geometric`` runs the same missions with the world's geometric camera (landmarks
 projected with pixel noise, no rendering) over ``--seeds`` seeds (RANSAC draws and pixel noise
-differ), as :func:`taskflow.batch.run_batch` trials on every core, and prints success rates (with their
+differ), as :func:`taskflow.campaigns.batch.run_batch` trials on every core, and prints success rates (with their
 Wilson 95 % intervals; the t interval of the mean final error) with the
 mean time and final error of the successes.
 
@@ -26,7 +26,7 @@ prints the same table; ``ideal`` (default) is the simulation as the missions shi
 
 ``--shapes`` flies the shipped oval's mission (``visual_path_oval.yaml``, no feed-forward) over other
 taught paths built by :func:`path_shapes` (a tighter oval, an S-bend, a rounded rectangle), seeds 0 …
-``--seeds`` − 1 with the geometric camera, as :func:`taskflow.batch.run_batch` trials, and prints success
+``--seeds`` − 1 with the geometric camera, as :func:`taskflow.campaigns.batch.run_batch` trials, and prints success
 [Wilson 95 %], the maximum deviation from the taught path (mean and worst over the seeds) and the final
 error.
 """
@@ -52,11 +52,11 @@ import taskflow_robots.quadcopter  # noqa: F401 - registration
 import taskflow_sim.room_world  # noqa: F401
 import taskflow_tasks.visual_path  # noqa: F401
 
-from taskflow.batch import run_batch
-from taskflow.loader import load_mission
-from taskflow.records import read_trace
-from taskflow.runtime import run_mission
-from taskflow.stats import mean_interval, wilson_interval
+from taskflow.campaigns.batch import run_batch
+from taskflow.campaigns.stats import mean_interval, wilson_interval
+from taskflow.execution.records import read_trace
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
 
 EXPERIMENTS = {
     "pose_regulation": ("visual_path_pose_regulation.yaml",
@@ -228,7 +228,7 @@ def time_ratios(path_times: dict[str, float]) -> dict[str, float]:
 
 
 def batch(names: list[str], out: Path, perception: str, seeds: int, overrides: list[str]) -> dict:
-    """Every experiment over seeds 0 … ``seeds`` − 1 (:func:`taskflow.batch.run_batch`, one process per
+    """Every experiment over seeds 0 … ``seeds`` − 1 (:func:`taskflow.campaigns.batch.run_batch`, one process per
     core): success rate, time and final error of the successes."""
     rows = {}
     for name in names:

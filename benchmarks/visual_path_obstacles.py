@@ -7,10 +7,10 @@
 
 Each trial of ``visual_path_obstacles`` and ``visual_path_pose_regulation`` (geometric camera by default)
 draws its columns' places from the seed (``world.params.obstacles`` with ``{uniform: [a, b]}`` inside,
-:mod:`taskflow.distributions`): every column anywhere within ``--offset`` (0.2 m) of the taught line
+:mod:`taskflow.campaigns.distributions`): every column anywhere within ``--offset`` (0.2 m) of the taught line
 across it and over a stretch of the line along it (``PLACEMENTS``), with the shipped sizes times
 ``--scale`` (and the collision references σ alike: the task starts at the same distance).  The trials
-run through :func:`taskflow.batch.run_batch`; collisions, clearance and final error are the world's
+run through :func:`taskflow.campaigns.batch.run_batch`; collisions, clearance and final error are the world's
 ground truth (``quad_room``: PyBullet ``getClosestPoints`` between the drone's collision shapes and the
 columns).  Printed per mission: success with its Wilson 95 % interval, trials with a collision, the
 minimum obstacle clearance (over all trials and its median), final position error of the successes,
@@ -36,9 +36,9 @@ import taskflow_robots.quadcopter  # noqa: F401 - registration
 import taskflow_sim.room_world  # noqa: F401
 import taskflow_tasks.visual_path  # noqa: F401
 
-from taskflow.batch import run_batch
-from taskflow.loader import load_mission
-from taskflow.stats import wilson_interval
+from taskflow.campaigns.batch import run_batch
+from taskflow.campaigns.stats import wilson_interval
+from taskflow.mission.loader import load_mission
 
 # per mission: each column's stretch along the taught line (x, m; the line runs along y = 0) and its
 # size (as shipped); its distance across the line is drawn within ±offset

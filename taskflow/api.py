@@ -29,8 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict
 
-from .markers import ControlPoint, Marker, TaskScene
-from .specs import ObsSpec, RobotNeeds, array, flag, instance, mapping, message, scalar, sequence, text
+from taskflow.markers import ControlPoint, Marker, TaskScene
+from taskflow.specs import ObsSpec, RobotNeeds, array, flag, instance, mapping, message, scalar, sequence, text
 
 __all__ = ["AGE", "COUNT", "DISTANCE", "FLAG", "FORCE", "ROTATION_ANGLE", "SPEED", "WEIGHT", "WRAPPED_ANGLE", "Command", "ControlPoint", "Marker", "MemoryKey", "Metric", "NO_DEFAULT", "NoParams", "ObsSpec", "Observation", "Robot",
            "RobotNeeds", "StepResult", "StrictModel", "Task", "TaskContext", "TaskScene", "World", "array", "flag",
@@ -273,7 +273,7 @@ class Task(Generic[ParamsT, RobotParamsT]):
     * ``writes`` — the mission-data keys (:class:`MemoryKey`) it may write (and read, whether written yet
       or not); ``reads`` — the keys it needs written before its state is entered.  The loader checks that
       every key a state reads is written on every path into it or has a default
-      (:mod:`taskflow.compile.dataflow`); at run time ``ctx.memory`` refuses any other key.
+      (:mod:`taskflow.mission.compile.dataflow`); at run time ``ctx.memory`` refuses any other key.
     """
 
     name: ClassVar[str] = ""

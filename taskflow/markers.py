@@ -3,8 +3,8 @@
 A world says what its parameters put in the scene (:meth:`taskflow.api.World.scene`: obstacles, the
 object, keyframes, walls, the start pose); a task says what its parameters aim at and which point of
 the robot its guards measure (:meth:`taskflow.api.Task.scene`: a goal, the control point ``d`` ahead of
-the rear axle).  :mod:`taskflow.scene` collects both for a mission; :mod:`taskflow.plots` and
-:mod:`taskflow.telemetry` draw them without knowing any mission.
+the rear axle).  :mod:`taskflow.readers.scene` collects both for a mission; :mod:`taskflow.readers.plots` and
+:mod:`taskflow.readers.telemetry` draw them without knowing any mission.
 
 Every coordinate is in the world frame of the robot's ground-truth pose (m, rad), the frame of the
 poses a world declares in :attr:`taskflow.api.World.poses`.

@@ -12,7 +12,7 @@ Every message is a frozen dataclass with
 
 Producers declare each entry with :func:`taskflow.api.message` (``"sensors.marker": message(MarkerPose)``)
 and tasks list the ones they read in ``requires``; the compiler matches the two by class and
-:mod:`taskflow.conformance` checks real observations against the declaration.  Arrays handed over in
+:mod:`taskflow.catalogue.conformance` checks real observations against the declaration.  Arrays handed over in
 messages are read-only where the producer keeps them (keyframe images, landmark views); consumers never
 write into them.  Field names of transforms follow :mod:`taskflow.spatial`: ``T_a_b`` maps coordinates in
 ``b`` to ``a`` (the pose of ``b`` in ``a``).

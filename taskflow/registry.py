@@ -18,7 +18,7 @@ from collections.abc import Callable
 from importlib import import_module, metadata
 from typing import Generic, TypeVar
 
-from .api import Robot, Task, World
+from taskflow.api import Robot, Task, World
 
 T = TypeVar("T", bound=type)
 

@@ -1,8 +1,8 @@
 """Observation specs: the declared type of each observation entry, and what a world needs from a robot.
 
 Robots and worlds declare what they provide (``"state.pose": array(3)``, ``"sensors.detection":
-message(Detection)``), tasks what they require; the compiler matches the two (:mod:`taskflow.contracts`)
-and :mod:`taskflow.conformance` checks real observations against them.  Re-exported by
+message(Detection)``), tasks what they require; the compiler matches the two (:mod:`taskflow.mission.contracts`)
+and :mod:`taskflow.catalogue.conformance` checks real observations against them.  Re-exported by
 :mod:`taskflow.api`, where task, robot and world authors import them from.
 """
 
@@ -25,7 +25,7 @@ class ObsSpec:
     when it is set, e.g. the keyframes' :class:`taskflow.messages.Image`) or ``"mapping"`` (a dict).  ``optional``
     entries may be absent or ``None`` on a tick (a camera between frames, a perception mode that does
     not produce them).  Robots and worlds declare what they provide, tasks what they require; the
-    compiler matches the two and :mod:`taskflow.conformance` checks real observations against them.
+    compiler matches the two and :mod:`taskflow.catalogue.conformance` checks real observations against them.
     """
 
     kind: Literal["array", "scalar", "flag", "text", "message", "sequence", "mapping"]

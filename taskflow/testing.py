@@ -9,7 +9,7 @@ Two ways to drive a mission in a test:
 * :func:`run_on_world` — the mission on its real registered world (PyBullet), recording nothing
   unless asked.  Checks the *behaviour*.
 
-Both return a :class:`~taskflow.runtime.RunResult` (``outcome``, ``summary`` — the dict of
+Both return a :class:`~taskflow.execution.runtime.RunResult` (``outcome``, ``summary`` — the dict of
 ``summary.json``, recorded or not —, ``run_dir``, ``executor``, ``timing``; its docstring lists the
 summary's keys); assert on it with :func:`assert_path`, :func:`assert_outcome` and :func:`time_in` ::
 
@@ -35,12 +35,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from .api import Observation, Robot, StepResult, Task, TaskContext, World
-from .contracts import build_robot_params
-from .data import DataAccess
-from .loader import CompiledMission
-from .loader import load_mission as _load
-from .runtime import RunResult, run_mission
+from taskflow.api import Observation, Robot, StepResult, Task, TaskContext, World
+from taskflow.execution.data import DataAccess
+from taskflow.execution.runtime import RunResult, run_mission
+from taskflow.mission.contracts import build_robot_params
+from taskflow.mission.loader import CompiledMission
+from taskflow.mission.loader import load_mission as _load
 
 
 @dataclass
@@ -148,7 +148,7 @@ def drive(mission: CompiledMission, script: Script, *, max_time: float | None = 
 
     ``on_world`` receives the :class:`ScriptedWorld` (its ``started``, ``cancelled`` and
     ``applied`` lists record what the machine asked of the hardware); ``control`` and ``operator``
-    are :func:`~taskflow.runtime.run_mission`'s (operator endpoint and script, :mod:`taskflow.control`)."""
+    are :func:`~taskflow.execution.runtime.run_mission`'s (operator endpoint and script, :mod:`taskflow.operate.control`)."""
     robot = mission.build_robot()
     world = ScriptedWorld(robot, script, mission)
     if on_world is not None:

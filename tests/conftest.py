@@ -17,8 +17,8 @@ RENDERED_LOW_RES = ["robot.params.camera.width=64", "robot.params.camera.height=
 def rendered_run(out: Path, seed: int = 5, max_time: float = 3.0) -> Path:
     """A short run of a rendered world (the quadcopter's ``quad_room``, perception ``rendered``, a 64x48
     camera) recording its frames at the default rate into ``out``."""
-    from taskflow.loader import load_mission
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
+    from taskflow.mission.loader import load_mission
 
     run_mission(load_mission(RENDERED, RENDERED_LOW_RES), seed=seed, max_time=max_time, out_dir=out)
     return out

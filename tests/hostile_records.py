@@ -1,7 +1,7 @@
 """A corpus of hostile run and batch directories, each made from a real small record.
 
 :func:`base_run` runs the toy mission (tests/toys.py) with an operator script, so its record holds state
-changes and operator actions, and adds camera frames written by the real :class:`taskflow.frames.
+changes and operator actions, and adds camera frames written by the real :class:`taskflow.execution.frames.
 FrameRecorder`; :func:`base_batch` runs a two-trial campaign.  Each case of :data:`RUN_CASES` /
 :data:`BATCH_CASES` copies one and damages it in one way: traversal and links out of the folder, huge
 lines and files, malformed JSON, wrong types, a missing file.  Next to every copy lies ``secret.txt``
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from taskflow.frames import FrameRecorder
+from taskflow.execution.frames import FrameRecorder
 from taskflow.messages import Image
 
 SECRET = "S3CRET-of-the-machine-7f1c"
@@ -31,8 +31,8 @@ HUGE = 2 << 20  # bytes: past record_io.MAX_LINE_BYTES
 
 def base_run(out: Path) -> Path:
     """A real toy run with operator actions, plus two camera frames of sensor ``image``."""
-    from taskflow.loader import load_mission
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
+    from taskflow.mission.loader import load_mission
 
     run_mission(load_mission(TOY), out_dir=out, max_time=60, operator=SCRIPT)
     frames = FrameRecorder(out, hz=1.0)
@@ -46,7 +46,7 @@ def base_run(out: Path) -> Path:
 
 def base_batch(out: Path) -> Path:
     """A real two-trial campaign of the toy mission (``campaign.json``, ``trials/``, ``batch.json``)."""
-    from taskflow.batch import run_batch
+    from taskflow.campaigns.batch import run_batch
 
     run_batch(str(TOY), trials=2, workers=1, out=out)
     return out

@@ -13,7 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from taskflow.batch import BatchProgress, resume_batch, run_batch
+from taskflow.campaigns.batch import BatchProgress, resume_batch, run_batch
 
 HERE = Path(__file__).resolve().parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"

@@ -21,7 +21,7 @@ import pytest
 import yaml
 
 from taskflow.errors import MissionError, Problem
-from taskflow.loader import load_mission, load_mission_text
+from taskflow.mission.loader import load_mission, load_mission_text
 
 BROKEN = Path(__file__).parent / "broken"
 TOY = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"

@@ -21,11 +21,11 @@ from typing import Any
 
 import pytest
 
-from taskflow.batch import run_batch
-from taskflow.campaign import Campaign, CampaignError, grid, parse_sweep
+from taskflow.campaigns.batch import run_batch
+from taskflow.campaigns.campaign import Campaign, CampaignError, grid, parse_sweep
+from taskflow.campaigns.compare import compare
+from taskflow.campaigns.stats import fisher_exact, wilson_interval
 from taskflow.cli import main
-from taskflow.compare import compare
-from taskflow.stats import fisher_exact, wilson_interval
 
 HERE = Path(__file__).parent
 ROOT = HERE.parent

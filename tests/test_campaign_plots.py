@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from taskflow import campaign_plots
-from taskflow.batch import run_batch
-from taskflow.campaign_plots import campaign_figures, metric_unit, plot_campaign, plot_success_comparison
-from taskflow.compare import load_batch
-from taskflow.loader import load_mission
+from taskflow.campaigns import campaign_plots
+from taskflow.campaigns.batch import run_batch
+from taskflow.campaigns.campaign_plots import campaign_figures, metric_unit, plot_campaign, plot_success_comparison
+from taskflow.campaigns.compare import load_batch
+from taskflow.mission.loader import load_mission
 
 HERE = Path(__file__).resolve().parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"

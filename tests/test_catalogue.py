@@ -21,11 +21,11 @@ import pytest
 from pydantic import Field
 
 from taskflow.api import StrictModel
-from taskflow.catalogue import Catalogue, Entry, build, entry_from_json, entry_to_json, param_unit, params_of
+from taskflow.catalogue.catalogue import Catalogue, Entry, build, entry_from_json, entry_to_json, param_unit, params_of
+from taskflow.catalogue.completions import completed_json_schema
 from taskflow.cli import main
-from taskflow.completions import completed_json_schema
+from taskflow.mission.yamlsrc import load_yaml_file
 from taskflow.registry import ROBOTS, TASKS, WORLDS
-from taskflow.yamlsrc import load_yaml_file
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))

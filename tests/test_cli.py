@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from taskflow.cli import main
-from taskflow.records import read_trace
+from taskflow.execution.records import read_trace
 
 HERE = Path(__file__).parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"

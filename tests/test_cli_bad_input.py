@@ -81,7 +81,7 @@ def test_batch_refuses_a_bad_sweep_before_importing_the_statistics(sweep: str, t
     import sys
 
     code = ("import sys; from taskflow.cli import main; rc = main(sys.argv[1:]); "
-            "print(rc, sorted(m for m in ('scipy', 'taskflow.batch', 'taskflow.backends') if m in sys.modules))")
+            "print(rc, sorted(m for m in ('scipy', 'taskflow.campaigns.batch', 'taskflow.campaigns.backends') if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code, "batch", CAR, "--trials", "2", "--sweep", sweep],
                           capture_output=True, text=True, timeout=60, cwd=tmp_path)
     assert done.stdout.strip() == "1 []", (done.stdout, done.stderr)

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from taskflow.batch import run_batch
+from taskflow.campaigns.batch import run_batch
+from taskflow.campaigns.stats import mann_whitney
 from taskflow.cli import main
-from taskflow.stats import mann_whitney
 
 TOY = Path(__file__).resolve().parent / "machine" / "missions" / "toy_full.yaml"
 

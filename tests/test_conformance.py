@@ -1,4 +1,4 @@
-"""The conformance check (``taskflow/conformance.py``) over every shipped world x every shipped robot it
+"""The conformance check (``taskflow/catalogue/conformance.py``) over every shipped world x every shipped robot it
 hosts, and proof that it catches what it claims to (on the toy world)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import pytest
 from toys import ToyLine, ToyPoint
 
 from taskflow.api import ObsSpec, array, scalar
-from taskflow.conformance import check_pair, pairs
+from taskflow.catalogue.conformance import check_pair, pairs
 
 SHIPPED_WORLDS = sorted(ep.name for ep in metadata.entry_points(group="taskflow.worlds"))
 SHIPPED_ROBOTS = sorted(ep.name for ep in metadata.entry_points(group="taskflow.robots"))

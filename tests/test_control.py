@@ -1,4 +1,4 @@
-"""Operator control of a running mission, through the real endpoint (taskflow.control, taskflow.control_http).
+"""Operator control of a running mission, through the real endpoint (taskflow.operate.control, taskflow.operate.control_http).
 
 Each live test starts a run in a thread with the control server on 127.0.0.1 port 0, finds it through
 RUN_DIR/control.json and talks HTTP to it with the client `taskflow ctl` uses.  A scripted pause
@@ -21,12 +21,12 @@ from typing import Any
 import pytest
 
 from taskflow.cli import main
-from taskflow.control import ControlError, OperatorAction, load_operator_script, script_from_records
-from taskflow.control_http import ControlClient, ControlServer
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission
-from taskflow.records import read_trace
-from taskflow.runtime import RunResult, run_mission
+from taskflow.execution.records import read_trace
+from taskflow.execution.runtime import RunResult, run_mission
+from taskflow.mission.loader import load_mission
+from taskflow.operate.control import ControlError, OperatorAction, load_operator_script, script_from_records
+from taskflow.operate.control_http import ControlClient, ControlServer
 from taskflow.testing import Script, drive
 
 HERE = Path(__file__).resolve().parent
@@ -413,7 +413,7 @@ def test_taskflow_run_opens_the_endpoint_by_default_and_ctl_drives_it(tmp_path, 
 
 
 def test_a_mission_declares_its_own_operator_event_and_an_injected_one_fires_it():
-    from taskflow.loader import load_mission_text
+    from taskflow.mission.loader import load_mission_text
 
     m = load_mission_text("""
 mission: m
@@ -458,7 +458,7 @@ machine:
 def test_the_endpoint_refuses_a_preempt_into_an_unwritten_read_then_takes_it_once_written(live, tmp_path):
     from test_operator_semantics import MARKED  # away → mark (writes toy.mark) → back (reads it) → done
 
-    from taskflow.loader import load_mission_text
+    from taskflow.mission.loader import load_mission_text
 
     mission = load_mission_text(MARKED, "marked.yaml")
     out = tmp_path / "run"

@@ -1,5 +1,5 @@
 """Who may drive the robot (the run's token), and the endpoint's lifecycle (a stale control.json, --gui
-without a display) — taskflow.control_http through the real HTTP server, `taskflow ctl` and `taskflow run`.
+without a display) — taskflow.operate.control_http through the real HTTP server, `taskflow ctl` and `taskflow run`.
 
 Every request goes to 127.0.0.1: a server bound to 0.0.0.0 is reached through the loopback address.
 """
@@ -22,10 +22,10 @@ from pathlib import Path
 from typing import Any
 
 from taskflow.cli import main
-from taskflow.control_http import ControlServer
-from taskflow.loader import load_mission
-from taskflow.runtime import RunResult, run_mission
-from taskflow.view_http import serve_replay
+from taskflow.execution.runtime import RunResult, run_mission
+from taskflow.mission.loader import load_mission
+from taskflow.operate.control_http import ControlServer
+from taskflow.operate.view_http import serve_replay
 
 HERE = Path(__file__).resolve().parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
@@ -182,7 +182,7 @@ def test_a_replay_off_loopback_needs_its_token_and_on_loopback_none(tmp_path, ca
 
 
 def test_taskflow_view_prints_the_token_with_the_pages_address_off_loopback(tmp_path, monkeypatch, capsys):
-    import taskflow.view_http as view_http
+    import taskflow.operate.view_http as view_http
 
     out = tmp_path / "run"
     thread, box = start_toy(out)
@@ -198,7 +198,7 @@ def test_taskflow_view_prints_the_token_with_the_pages_address_off_loopback(tmp_
 
 
 def test_control_json_is_created_owner_only_whatever_the_umask(tmp_path):
-    from taskflow.control_http import write_private
+    from taskflow.operate.control_http import write_private
 
     old = os.umask(0)
     try:
@@ -245,7 +245,7 @@ def _stale(run_dir: Path, url: str, pid: int, start: str | None) -> None:
 
 
 def test_ctl_tells_a_reused_pid_and_a_refused_connection_from_a_running_run(tmp_path, capsys):
-    from taskflow.control_http import process_start
+    from taskflow.operate.control_http import process_start
 
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))

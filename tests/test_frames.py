@@ -1,4 +1,4 @@
-"""Camera frames in the run record (taskflow/frames.py): recorded at the declared rate on simulation time,
+"""Camera frames in the run record (taskflow/execution/frames.py): recorded at the declared rate on simulation time,
 byte for byte again with the same seed, kept when a run fails, served by the view and exported to MCAP."""
 
 from __future__ import annotations
@@ -16,12 +16,12 @@ from conftest import rendered_run
 
 from taskflow.api import Observation
 from taskflow.cli import main
-from taskflow.frames import DEFAULT_HZ, FrameRecorder, nearest, read_frames
-from taskflow.loader import load_mission
+from taskflow.execution.frames import DEFAULT_HZ, FrameRecorder, nearest, read_frames
 from taskflow.messages import Image
-from taskflow.telemetry import export_run
+from taskflow.mission.loader import load_mission
+from taskflow.operate.view_http import serve_replay
+from taskflow.readers.telemetry import export_run
 from taskflow.testing import Script, ScriptedWorld, drive
-from taskflow.view_http import serve_replay
 
 HERE = Path(__file__).resolve().parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
@@ -102,7 +102,7 @@ class _FailingCamera(ScriptedWorld):
 
 
 def test_a_failed_run_keeps_the_frames_written_before_it_failed(tmp_path: Path) -> None:
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
     from taskflow.testing import _IdleTask
 
     mission = load_mission(TOY)
@@ -150,7 +150,7 @@ def test_the_same_seed_writes_the_same_frames_byte_for_byte(rendered_run_dir: Pa
 def test_frames_off_records_none(tmp_path: Path) -> None:
     from conftest import RENDERED, RENDERED_LOW_RES
 
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
 
     run_mission(load_mission(RENDERED, RENDERED_LOW_RES), seed=5, max_time=0.5, out_dir=tmp_path / "run",
                 frames_hz=0)

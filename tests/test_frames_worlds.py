@@ -1,5 +1,5 @@
 """The rendered ViKi and screw worlds publish the image their detector got (``sensors.image``), so their
-rendered runs record camera frames (taskflow/frames.py) at the declared rate, with no extra rendering."""
+rendered runs record camera frames (taskflow/execution/frames.py) at the declared rate, with no extra rendering."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ from pathlib import Path
 
 import cv2
 
-from taskflow.frames import read_frames
-from taskflow.loader import load_mission
+from taskflow.execution.frames import read_frames
+from taskflow.execution.runtime import run_mission
 from taskflow.messages import Image
-from taskflow.runtime import run_mission
+from taskflow.mission.loader import load_mission
 
 MISSIONS = Path(__file__).resolve().parents[1] / "missions"
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from diagram_parsers import ParserMissing, dot_errors, mermaid_errors
 
-from taskflow.graph import WRAP, mermaid_text, start_id, to_dot, to_mermaid
-from taskflow.loader import load_mission
+from taskflow.catalogue.graph import WRAP, mermaid_text, start_id, to_dot, to_mermaid
+from taskflow.mission.loader import load_mission
 
 ROOT = Path(__file__).resolve().parents[1]
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
@@ -62,7 +62,7 @@ that look like syntax."""
 
 
 def test_state_names_that_are_mermaid_keywords_draw_in_both_formats() -> None:
-    from taskflow.loader import load_mission_text
+    from taskflow.mission.loader import load_mission_text
 
     states = "\n".join(f"    {n}:\n      transitions: [{{to: {nxt}, after: 1 s}}]"
                        for n, nxt in zip(TRICKY_NAMES, TRICKY_NAMES[1:] + ["fin"]))
@@ -80,7 +80,7 @@ def test_state_names_that_are_mermaid_keywords_draw_in_both_formats() -> None:
 
 
 def test_states_whose_ids_would_clash_stay_apart() -> None:
-    from taskflow.loader import load_mission_text
+    from taskflow.mission.loader import load_mission_text
 
     # `a-b` beside `a_b`, the composite `p`'s child `q` beside a top-level `p__q`, and `note` beside `note_`
     text = """mission: clash

@@ -19,10 +19,10 @@ import pytest
 from hostile_records import BATCH_CASES, RUN_CASES, SECRET, base_batch, base_run, make_case
 
 from taskflow.cli import main
-from taskflow.recorded import RunDirError, load_run
-from taskflow.report import format_report
-from taskflow.view import ViewError, open_run
-from taskflow.view_http import serve_replay
+from taskflow.operate.view import ViewError, open_run
+from taskflow.operate.view_http import serve_replay
+from taskflow.readers.recorded import RunDirError, load_run
+from taskflow.readers.report import format_report
 
 ROUTES = ["/state", "/view/machine", "/view/trace?since=0", "/view/transitions?since=0", "/view/summary",
           "/view/frames?since=0", "/view/frame?sensor=image", "/view/frame?sensor=image&t=0"]
@@ -123,7 +123,7 @@ def test_compare_and_resume_refuse_a_hostile_batch(case: str, batch: Path, tmp_p
     import taskflow
 
     if hasattr(taskflow, "record_io") or Path(taskflow.__file__).with_name("record_io.py").is_file():
-        from taskflow import record_io
+        from taskflow.readers import record_io
 
         monkeypatch.setattr(record_io, "MAX_JSON_BYTES", 1 << 20)  # "huge" without writing 256 MiB
     damage, names, readers = BATCH_CASES[case]
@@ -155,7 +155,7 @@ def test_a_batch_whose_trials_are_hostile_is_refused_by_compare_when_rebuilt(bat
 
 @pytest.mark.parametrize("name", ["../outside.txt", "ABS", "trial/../../outside.txt"])
 def test_a_remote_trial_cannot_write_outside_its_run_directory(name: str, tmp_path: Path) -> None:
-    from taskflow.backends import BackendError, _write_files
+    from taskflow.campaigns.backends import BackendError, _write_files
 
     root = tmp_path / "campaign" / "trial-00000"
     name = str(tmp_path / "campaign" / "outside.txt") if name == "ABS" else name
@@ -172,7 +172,7 @@ def test_a_record_whose_mission_names_a_folder_outside_is_read_without_opening_i
     never opens it (the outside ``keyframes.json`` is not JSON: opening it would fail the load)."""
     import yaml
 
-    from taskflow.loader import load_mission
+    from taskflow.mission.loader import load_mission
 
     outside = tmp_path / "elsewhere"
     outside.mkdir()

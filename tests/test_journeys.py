@@ -27,8 +27,8 @@ from diagram_parsers import dot_errors, mermaid_errors
 from mcap.reader import make_reader
 
 from taskflow.cli import main
-from taskflow.loader import CompiledMission, load_mission
-from taskflow.view_http import serve_replay
+from taskflow.mission.loader import CompiledMission, load_mission
+from taskflow.operate.view_http import serve_replay
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = ROOT / "missions"

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission, load_mission_text
-from taskflow.runtime import run_mission
-from taskflow.yamlsrc import load_yaml_text
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission, load_mission_text
+from taskflow.mission.yamlsrc import load_yaml_text
 
 TOY = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"
 

@@ -22,10 +22,10 @@ import pytest
 import yaml
 
 from taskflow.cli import main
-from taskflow.control import ControlError, OperatorChannel
-from taskflow.loader import load_mission_text
-from taskflow.records import read_trace
-from taskflow.runtime import run_mission
+from taskflow.execution.records import read_trace
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission_text
+from taskflow.operate.control import ControlError, OperatorChannel
 from taskflow.testing import Script, assert_outcome, drive
 
 HERE = Path(__file__).resolve().parent
@@ -282,8 +282,8 @@ def test_a_scripted_preempt_into_an_unwritten_read_is_refused_and_the_run_goes_o
     assert "'back' reads mission data 'toy.mark'" in op["refused"] and "written by 'mark'" in op["refused"]
     assert r.summary["sim_time_s"] == base.summary["sim_time_s"]
     # every reader takes the refused action: the recorded run and its printed summary name the refusal
-    from taskflow.recorded import load_run
-    from taskflow.report import format_report
+    from taskflow.readers.recorded import load_run
+    from taskflow.readers.report import format_report
 
     (rec,) = load_run(out).operator
     assert rec.action == "preempt" and rec.refused == op["refused"]

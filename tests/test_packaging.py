@@ -79,7 +79,7 @@ def _source_files() -> set[str]:
 def test_the_wheel_holds_every_file_of_the_source_folders(wheel: Path) -> None:
     names = set(zipfile.ZipFile(wheel).namelist())
     files = _source_files()
-    assert "taskflow/compile/__init__.py" in files and "taskflow_missions/lib/screw_operation.yaml" in files
+    assert "taskflow/mission/compile/__init__.py" in files and "taskflow_missions/lib/screw_operation.yaml" in files
     assert {n for n in files if n.endswith(".py")} - names == set()  # every module, of every subpackage
     assert files - names == set()  # and every data file: web page, missions, lib/ sub-missions
 
@@ -156,7 +156,7 @@ def test_the_installed_wheel_runs_beside_a_users_own_tasks_and_sim(venv: Path, t
         "import taskflow, tasks, sim\n"
         "assert tasks.MINE == 'tasks' and sim.MINE == 'sim'\n"
         "import taskflow_missions\n"
-        "from taskflow.loader import load_mission\n"  # a shipped mission that uses a sub-mission of missions/lib
+        "from taskflow.mission.loader import load_mission\n"  # a shipped mission that uses a sub-mission of missions/lib
         "load_mission(pathlib.Path(taskflow_missions.__file__).parent / 'screw_fastening.yaml')\n"
         "from taskflow.cli import main\n"
         "sys.exit(main(['run', '--max-time', '0.5', '--out', 'run', '--quiet']))\n"

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from taskflow.loader import load_mission
-from taskflow.plots import command_figure, metrics_figure, path_figure, plot_recorded
-from taskflow.recorded import load_run
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
+from taskflow.readers.plots import command_figure, metrics_figure, path_figure, plot_recorded
+from taskflow.readers.recorded import load_run
+from taskflow.readers.scene import mission_scene
 from taskflow.registry import ROBOTS
-from taskflow.runtime import run_mission
-from taskflow.scene import mission_scene
 from taskflow.units import UNITS
 
 ROOT = Path(__file__).resolve().parents[1]

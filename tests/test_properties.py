@@ -41,9 +41,10 @@ from hypothesis import strategies as st
 
 from taskflow.api import Observation, StepResult, Task, TaskContext
 from taskflow.errors import MissionError
-from taskflow.executor import CAUSES
-from taskflow.loader import load_mission_text
-from taskflow.model import (
+from taskflow.execution.executor import CAUSES
+from taskflow.execution.runtime import OUTCOMES, run_mission
+from taskflow.mission.loader import load_mission_text
+from taskflow.mission.model import (
     CompiledMission,
     DoneTransition,
     EventTransition,
@@ -51,9 +52,8 @@ from taskflow.model import (
     StateNode,
     TimeoutTransition,
 )
-from taskflow.runtime import OUTCOMES, run_mission
+from taskflow.mission.yamlsrc import MissionLoader
 from taskflow.testing import Script, ScriptedWorld, drive
-from taskflow.yamlsrc import MissionLoader
 
 TOY = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"
 RATE_HZ = 20
@@ -247,7 +247,7 @@ def _script_events_at(script: Script, tick: int) -> set[str]:
 
 def _domain_of(tr: Any) -> Any:
     """UML external-transition domain: the common ancestor of source and target, or its parent when
-    one contains the other (written here independently of `Transition.domain` in taskflow/model.py)."""
+    one contains the other (written here independently of `Transition.domain` in taskflow/mission/model.py)."""
     src, dst = tr.source.ancestors(), tr.target.ancestors()
     common = [a for a, b in zip(src, dst) if a is b][-1]
     if common is tr.source or common is tr.target:
@@ -1034,7 +1034,7 @@ def test_control_characters_give_mission_errors(ch: str, pos: int) -> None:
 # The same random machines and scripts, now with a random operator script (pause, hold, resume, preempt to
 # any state or abort, inject, at random ticks).  `_OperatedOracle` runs the machine itself from the
 # machine's declarations, the script and the operator actions — written from docs/missions.md, not from
-# taskflow/executor.py — and must agree with the engine on every tick's active leaf and its entry time, on
+# taskflow/execution/executor.py — and must agree with the engine on every tick's active leaf and its entry time, on
 # every transition (tick, source, target, cause, resumed), the entry clocks and operating clocks at the end
 # (time under hold does not count toward `after` and `for`), the history of every composite, the outcome
 # (a pre-emption that leaves a loop before its rule held cannot end the run `succeeded`) and the summary's

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from taskflow.backends import LocalRayCluster
-from taskflow.batch import run_batch
+from taskflow.campaigns.backends import LocalRayCluster
+from taskflow.campaigns.batch import run_batch
 
 ROOT = Path(__file__).resolve().parent.parent
 FAST = str(ROOT / "missions" / "viki_forward.yaml")

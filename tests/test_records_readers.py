@@ -20,9 +20,9 @@ from typing import Any
 import pytest
 
 from taskflow.cli import main
-from taskflow.plots import metrics_figure
-from taskflow.recorded import load_run
-from taskflow.view_http import serve_replay
+from taskflow.operate.view_http import serve_replay
+from taskflow.readers.plots import metrics_figure
+from taskflow.readers.recorded import load_run
 
 MISSIONS = Path(__file__).resolve().parent / "machine" / "missions"
 FULL_SCRIPT = """\

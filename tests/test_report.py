@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 
 from taskflow.cli import main
-from taskflow.loader import load_mission
-from taskflow.recorded import RecordedRun, load_run
-from taskflow.report import format_report
-from taskflow.runtime import run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
+from taskflow.readers.recorded import RecordedRun, load_run
+from taskflow.readers.report import format_report
 from taskflow.units import suffix_unit
 
 FULL = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"

@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission, load_mission_text
-from taskflow.submission import MAX_EXPANDED_STATES, MAX_STATE_DEPTH, MAX_USE_DEPTH, MAX_USE_FILES
-from taskflow.yamlsrc import MAX_BYTES, Graft, SourceMap
+from taskflow.mission.loader import load_mission, load_mission_text
+from taskflow.mission.submission import MAX_EXPANDED_STATES, MAX_STATE_DEPTH, MAX_USE_DEPTH, MAX_USE_FILES
+from taskflow.mission.yamlsrc import MAX_BYTES, Graft, SourceMap
 
 MISSION = """\
 mission: m

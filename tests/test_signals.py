@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from taskflow.records import read_trace
+from taskflow.execution.records import read_trace
 
 ROOT = Path(__file__).resolve().parent.parent
 LONG = str(ROOT / "missions" / "car_waypoints_unreachable.yaml")  # 60 s simulated: still running when signalled

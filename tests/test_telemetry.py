@@ -12,7 +12,7 @@ import pytest
 from mcap.reader import make_reader
 
 from taskflow.cli import main
-from taskflow.records import read_trace
+from taskflow.execution.records import read_trace
 
 ROOT = Path(__file__).resolve().parents[1]
 VIKI = ROOT / "missions" / "viki_hyco.yaml"

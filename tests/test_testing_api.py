@@ -7,8 +7,8 @@ import dataclasses
 import re
 from pathlib import Path
 
-from taskflow.loader import load_mission_text
-from taskflow.runtime import RunResult
+from taskflow.execution.runtime import RunResult
+from taskflow.mission.loader import load_mission_text
 from taskflow.testing import Script, assert_outcome, drive
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,4 +1,4 @@
-"""The web view's server side without a browser (taskflow.view, taskflow.view_http): what the page is fed.
+"""The web view's server side without a browser (taskflow.operate.view, taskflow.operate.view_http): what the page is fed.
 
 The page itself is driven in a real browser by tests/test_view_browser.py.
 """
@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 
 from taskflow.cli import main
-from taskflow.loader import load_mission
-from taskflow.recorded import load_run
-from taskflow.runtime import run_mission
-from taskflow.scene import Scene, mission_scene
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
+from taskflow.operate.view import RecordReader, RunView, ViewError, machine_json, open_run
+from taskflow.operate.view_http import serve_replay
+from taskflow.readers.recorded import load_run
+from taskflow.readers.scene import Scene, mission_scene
 from taskflow.testing import Script, drive
-from taskflow.view import RecordReader, RunView, ViewError, machine_json, open_run
-from taskflow.view_http import serve_replay
 
 HERE = Path(__file__).resolve().parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
@@ -81,7 +81,7 @@ def test_the_car_view_has_its_three_waypoints_and_draws_the_control_point_as_the
     trace = view.reader.trace(0)
     assert trace["done"]
     drawn = np.array([_drawn_point(machine, trace["columns"], r) for r in trace["rows"]])
-    run = load_run(car_run)  # what the figure (taskflow.plots.path_figure) draws
+    run = load_run(car_run)  # what the figure (taskflow.readers.plots.path_figure) draws
     cx, cy = run.control_track()
     np.testing.assert_allclose(drawn[:, 0], cx)
     np.testing.assert_allclose(drawn[:, 1], cy)

@@ -1,4 +1,4 @@
-"""The web view (taskflow/web/, served by taskflow.view_http) in a real headless browser.
+"""The web view (taskflow/operate/web/, served by taskflow.operate.view_http) in a real headless browser.
 
 Chromium and chromedriver come from the distribution's packages (Debian: ``chromium``,
 ``chromium-driver``; ``.ci/run`` installs them when missing); selenium drives them.  Without them the
@@ -24,12 +24,12 @@ from typing import Any
 
 import pytest
 
-from taskflow.control_http import ControlClient, ControlServer
-from taskflow.loader import load_mission
-from taskflow.records import read_trace
-from taskflow.runtime import RunResult
+from taskflow.execution.records import read_trace
+from taskflow.execution.runtime import RunResult
+from taskflow.mission.loader import load_mission
+from taskflow.operate.control_http import ControlClient, ControlServer
+from taskflow.operate.view_http import serve_replay
 from taskflow.testing import Script, browser_paths, drive, headless_chromium
-from taskflow.view_http import serve_replay
 
 HERE = Path(__file__).resolve().parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
@@ -209,7 +209,7 @@ REGIONS = HERE / "machine" / "missions" / "toy_regions.yaml"  # two regions: dri
 
 
 def test_parallel_regions_are_drawn_side_by_side_with_a_lit_leaf_each(browser, tmp_path):
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
 
     out = tmp_path / "par"
     run_mission(load_mission(REGIONS), out_dir=out, max_time=3.0)
@@ -235,12 +235,12 @@ def test_parallel_regions_are_drawn_side_by_side_with_a_lit_leaf_each(browser, t
 
 def test_the_car_top_view_draws_the_control_point_where_the_figure_does(browser, tmp_path):
     """The page's top view of car_waypoints: the point drawn at every row is the figure's
-    (:meth:`taskflow.recorded.RecordedRun.control_track`: d = 0.325 m ahead of the rear axle while a
+    (:meth:`taskflow.readers.recorded.RecordedRun.control_track`: d = 0.325 m ahead of the rear axle while a
     ``car_goto`` state runs), and the page says which point it draws."""
     import numpy as np
 
-    from taskflow.recorded import load_run
-    from taskflow.runtime import run_mission
+    from taskflow.execution.runtime import run_mission
+    from taskflow.readers.recorded import load_run
 
     out = tmp_path / "car"
     assert run_mission(load_mission(HERE.parent / "missions" / "car_waypoints.yaml"), out_dir=out).succeeded
@@ -265,7 +265,7 @@ def test_a_rendered_run_shows_the_camera_frame_nearest_the_cursor(browser, rende
     """The page of a rendered run (quad_room, perception rendered): its frame element holds a decoded image,
     the one of ``frames.jsonl`` captured nearest the cursor's time, with that capture time as its caption;
     scrubbing to another time shows the frame recorded nearest it."""
-    from taskflow.frames import nearest, read_frames
+    from taskflow.execution.frames import nearest, read_frames
 
     frames = read_frames(rendered_run_dir)
     server = serve_replay(rendered_run_dir, "127.0.0.1:0")

@@ -1,4 +1,4 @@
-"""The libyaml fast path of :mod:`taskflow.yamlsrc` reads every file exactly as the Python loader does:
+"""The libyaml fast path of :mod:`taskflow.mission.yamlsrc` reads every file exactly as the Python loader does:
 the same data and the same line and column for every value (so every position in a message stays true),
 and text the Python reader refuses still gets the Python loader's message."""
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from taskflow.errors import MissionError
-from taskflow.yamlsrc import MissionLoader, SourceMap, _walk, load_yaml_text
+from taskflow.mission.yamlsrc import MissionLoader, SourceMap, _walk, load_yaml_text
 
 ROOT = Path(__file__).resolve().parent.parent
 FILES = sorted(p for p in [*ROOT.glob("missions/**/*.yaml"), *ROOT.glob("tests/**/*.yaml")]

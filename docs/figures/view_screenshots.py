@@ -67,7 +67,7 @@ def live_shot(driver: Any, mission: str, sets: list[str], t: float, png: Path, t
 def replay_shot(driver: Any, mission: str, sets: list[str], t: float, png: Path, tmp: Path) -> None:
     out = tmp / Path(mission).stem
     subprocess.run(run_cmd(mission, sets, out, ["--no-control"]), cwd=ROOT, check=False, stdout=subprocess.DEVNULL)
-    from taskflow.view_http import serve_replay
+    from taskflow.operate.view_http import serve_replay
 
     server = serve_replay(out, "127.0.0.1:0")
     try:

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from taskflow.api import Observation, StepResult, Task, TaskContext
-from taskflow.loader import load_mission_text
-from taskflow.runtime import run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission_text
 from taskflow.shaping import activation
 from taskflow.testing import Script, ScriptedWorld, drive
 
@@ -136,7 +136,7 @@ def test_a_history_self_transition_on_the_first_entry_resumes_the_active_leaf():
 
 
 def test_an_operator_preempt_into_the_active_history_state_resumes_where_it_is():
-    from taskflow.control import OperatorAction
+    from taskflow.operate.control import OperatorAction
 
     r = drive(mission(HISTORY), Script(events=[(1.5, "target_found")]), max_time=4.0,
               operator=[OperatorAction(t=2.5, action="preempt", args={"to": "h"})])

@@ -13,11 +13,11 @@ import pytest
 from toys import MARK, ToyReturn
 
 from taskflow.api import Observation, StepResult, Task
-from taskflow.data import DataAccess, DataAccessError
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission_text
+from taskflow.execution.data import DataAccess, DataAccessError
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission_text
 from taskflow.registry import TASKS
-from taskflow.runtime import run_mission
 from taskflow.testing import assert_outcome, assert_path
 
 HEAD = """\

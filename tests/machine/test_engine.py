@@ -1,4 +1,4 @@
-"""The engine (`taskflow/engine.py`): `transitions`' HierarchicalMachine holds the active state and runs every
+"""The engine (`taskflow/execution/engine.py`): `transitions`' HierarchicalMachine holds the active state and runs every
 exit and entry, for the configurations missions need — transitions into a composite's own descendants,
 history into nested states, the next item of a foreach — and the library alone would get them wrong."""
 
@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from transitions.extensions.nesting import HierarchicalMachine
 
-from taskflow.engine import MissionMachine
-from taskflow.loader import load_mission_text
+from taskflow.execution.engine import MissionMachine
+from taskflow.mission.loader import load_mission_text
 from taskflow.testing import Script, assert_outcome, drive
 
 HEAD = """

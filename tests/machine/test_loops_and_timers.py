@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission_text
+from taskflow.mission.loader import load_mission_text
 from taskflow.testing import Script, assert_outcome, assert_path, drive
 
 HEAD = """

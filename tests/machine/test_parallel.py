@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission_text
-from taskflow.runtime import run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission_text
 from taskflow.testing import Script, assert_outcome, drive
 
 HEAD = """
@@ -228,7 +228,7 @@ machine:
 
 
 def test_graphs_draw_regions_as_concurrent_blocks():
-    from taskflow.graph import to_dot, to_mermaid
+    from taskflow.catalogue.graph import to_dot, to_mermaid
 
     m = timed("1 s", "1 s")
     mer = to_mermaid(m)
@@ -240,7 +240,7 @@ def test_graphs_draw_regions_as_concurrent_blocks():
 
 
 def test_an_operator_preempts_into_a_parallel_state_but_not_into_one_region():
-    from taskflow.control import ControlError, OperatorAction
+    from taskflow.operate.control import ControlError, OperatorAction
 
     text = TIMED.replace("A_AFTER", "5 s").replace("B_AFTER", "5 s").replace("A_OUTCOME", "succeeded") \
         .replace("B_OUTCOME", "succeeded").replace("OUTCOME_MAP", "") + "    again:\n      transitions: [{to: both, after: 1 s}]\n"

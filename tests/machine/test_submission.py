@@ -1,4 +1,4 @@
-"""Sub-missions (``use:`` + ``with:``, :mod:`taskflow.submission`) on the toy robot, world and task: the used
+"""Sub-missions (``use:`` + ``with:``, :mod:`taskflow.mission.submission`) on the toy robot, world and task: the used
 machine runs with the remapped parameters, its problems are reported in its own file with where it was used
 from, cycles are refused, and graphs draw it as a cluster."""
 
@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
+from taskflow.catalogue.graph import to_dot, to_mermaid
 from taskflow.errors import MissionError
-from taskflow.graph import to_dot, to_mermaid
-from taskflow.loader import load_mission
-from taskflow.runtime import run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import Script, assert_outcome, assert_path, drive
 
 HEAD = """\

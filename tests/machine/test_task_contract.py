@@ -13,11 +13,11 @@ from taskflow_tasks.unicycle_goto import UnicycleGoto
 from toys import ToyGoto, ToyLine
 
 from taskflow.api import Robot, StepResult, StrictModel
-from taskflow.contracts import build_robot_params, robot_params_problem
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission_text
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.contracts import build_robot_params, robot_params_problem
+from taskflow.mission.loader import load_mission_text
 from taskflow.registry import ROBOTS, TASKS, WORLDS
-from taskflow.runtime import run_mission
 from taskflow.testing import assert_outcome, run_on_world
 
 MISSION = """

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from taskflow.cli import main
-from taskflow.loader import load_mission
-from taskflow.records import read_trace
-from taskflow.runtime import run_mission
+from taskflow.execution.records import read_trace
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import assert_outcome
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from taskflow.loader import load_mission
-from taskflow.runtime import run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
 
 MISSIONS = Path(__file__).resolve().parents[2] / "missions"
 RECORDS = ("trace.csv", "transitions.jsonl", "summary.json", "mission.yaml")

@@ -6,9 +6,9 @@ import json
 import math
 from pathlib import Path
 
-from taskflow.loader import load_mission
-from taskflow.records import read_trace
-from taskflow.runtime import run_mission
+from taskflow.execution.records import read_trace
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import assert_outcome
 
 MISSION = Path(__file__).resolve().parents[2] / "missions" / "husky_waypoints.yaml"

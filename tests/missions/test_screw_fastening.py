@@ -11,8 +11,8 @@ import taskflow_tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
 from taskflow_sim.screw_world import ScrewConveyor
 
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission
-from taskflow.runtime import run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import assert_outcome, run_on_world
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,7 +12,7 @@ import taskflow_sim.screw_world  # noqa: F401 - registers screw_conveyor
 import taskflow_tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
 
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import Script, assert_outcome, assert_path, drive, time_in
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,8 +10,8 @@ import taskflow_tasks.viki_hyco
 import taskflow_tasks.viki_rotation  # noqa: F401  registers the task viki_rotate
 
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission
-from taskflow.runtime import run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import assert_outcome, assert_path
 
 ROOT = Path(__file__).resolve().parents[2] / "missions"

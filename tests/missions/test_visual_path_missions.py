@@ -12,8 +12,8 @@ import taskflow_sim.room_world  # noqa: F401
 import taskflow_tasks.visual_path  # noqa: F401
 
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission
-from taskflow.runtime import run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import Script, assert_outcome, assert_path, drive
 
 ROOT = Path(__file__).resolve().parents[2]

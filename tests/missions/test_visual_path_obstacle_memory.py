@@ -9,8 +9,8 @@ import taskflow_robots.quadcopter  # noqa: F401 - registration
 import taskflow_sim.room_world  # noqa: F401
 import taskflow_tasks.visual_path  # noqa: F401
 
-from taskflow.loader import load_mission
-from taskflow.runtime import run_mission
+from taskflow.execution.runtime import run_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import assert_outcome
 
 POSE_REG = Path(__file__).resolve().parents[2] / "missions" / "visual_path_pose_regulation.yaml"

@@ -17,8 +17,8 @@ from taskflow_sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir
 
 from taskflow.cli import main as cli_main
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission
 from taskflow.messages import FeatureView, Image, Silhouette
+from taskflow.mission.loader import load_mission
 
 ROOT = Path(__file__).resolve().parents[2]
 POSE_REG = ROOT / "missions" / "visual_path_pose_regulation.yaml"

@@ -18,7 +18,7 @@ from taskflow_sim import screw_scene as sc
 from taskflow_sim.screw_world import ScrewConveyor
 
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import assert_outcome, run_on_world
 
 CONVEYOR = Path(__file__).resolve().parents[2] / "missions" / "screw_fastening.yaml"

@@ -14,7 +14,7 @@ from taskflow_sim.bodies import BodyOptions, make_body
 from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
 from taskflow_sim.viki_objects import SHAPES, PlacedObject
 
-from taskflow.loader import load_mission
+from taskflow.mission.loader import load_mission
 from taskflow.testing import run_on_world
 
 FORWARD = Path(__file__).resolve().parents[2] / "missions" / "viki_forward.yaml"

@@ -65,8 +65,8 @@ def test_every_world_level_names_real_parameters_with_sources(name: str) -> None
 
 
 def test_the_catalogue_lists_each_level_with_its_sources() -> None:
-    from taskflow.catalogue import Entry, fidelity_levels
-    from taskflow.catalogue_render import describe_text
+    from taskflow.catalogue.catalogue import Entry, fidelity_levels
+    from taskflow.catalogue.catalogue_render import describe_text
 
     text = describe_text(Entry(kind="world", name="toy", summary="", fidelity=fidelity_levels(Toy)))
     assert "fidelity paper (`world.params.fidelity: paper`" in text

@@ -9,7 +9,7 @@ import pytest
 
 from taskflow import messages as m
 from taskflow.api import message
-from taskflow.conformance import equal
+from taskflow.catalogue.conformance import equal
 
 EYE = np.eye(4)
 
@@ -81,7 +81,7 @@ def test_a_sequence_of_messages_checks_every_element():
 
 def test_the_compiler_refuses_a_task_reading_another_message_class_than_the_world_sends():
     from taskflow.api import Task
-    from taskflow.contracts import task_problem
+    from taskflow.mission.contracts import task_problem
     from taskflow.registry import ROBOTS, TASKS, WORLDS
 
     world, robot = WORLDS.get("screw_conveyor"), ROBOTS.get("mobile_iiwa")

@@ -11,12 +11,12 @@ import pytest
 from toys import ToyMark
 
 from taskflow.api import DISTANCE, FLAG, WRAPPED_ANGLE, MemoryKey, Metric, flag, scalar
-from taskflow.catalogue import build
-from taskflow.catalogue_render import describe_text
-from taskflow.data import DataCatalogue
+from taskflow.catalogue.catalogue import build
+from taskflow.catalogue.catalogue_render import describe_text
 from taskflow.errors import MissionError
-from taskflow.guards import bind_units, never_holds, parse_guard
-from taskflow.loader import load_mission_text
+from taskflow.execution.data import DataCatalogue
+from taskflow.mission.guards import bind_units, never_holds, parse_guard
+from taskflow.mission.loader import load_mission_text
 
 
 def _never(text: str, unit: str) -> list[bool]:

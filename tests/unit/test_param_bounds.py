@@ -14,11 +14,11 @@ import pytest
 import taskflow_missions
 from pydantic import BaseModel
 
-from taskflow.catalogue import build
-from taskflow.catalogue_render import describe_text
-from taskflow.diagnostics import _inner_model
+from taskflow.catalogue.catalogue import build
+from taskflow.catalogue.catalogue_render import describe_text
 from taskflow.errors import MissionError
-from taskflow.loader import load_mission
+from taskflow.mission.diagnostics import _inner_model
+from taskflow.mission.loader import load_mission
 from taskflow.registry import ROBOTS, WORLDS
 
 MISSIONS = Path(taskflow_missions.__file__).resolve().parent

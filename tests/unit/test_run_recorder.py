@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from taskflow.records import RunRecorder, read_trace
+from taskflow.execution.records import RunRecorder, read_trace
 
 
 def test_values_reused_and_changed_in_place_are_recorded_per_tick(tmp_path: Path) -> None:

@@ -1,4 +1,4 @@
-"""taskflow.stats against hand-computed values and closed forms."""
+"""taskflow.campaigns.stats against hand-computed values and closed forms."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from taskflow.stats import fisher_exact, mann_whitney, mean_interval, two_proportion_z, wilson_interval
+from taskflow.campaigns.stats import fisher_exact, mann_whitney, mean_interval, two_proportion_z, wilson_interval
 
 Z95 = 1.959963984540054
 

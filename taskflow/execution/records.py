@@ -1,0 +1,420 @@
+"""What a run leaves on disk, written as the run goes.
+
+``RUN_DIR/``
+  ``mission.yaml``        the mission as resolved (overrides applied, world parameters drawn)
+  ``seed``                the seed, alone on a line
+  ``transitions.jsonl``   one JSON object per change of the active leaf: ``t``, ``from``, ``to``, ``cause``
+                          (start, guard, timeout, event, done, next_item), ``state`` and ``label`` (the
+                          declaring state and the transition as written), and as they apply ``index``,
+                          ``metrics`` (the guard's metric values when it fired), ``event``, ``outcome``,
+                          ``item``, ``resumed``, ``who`` — :class:`TransitionRecord`; and one object per
+                          operator action (``taskflow ctl``, an operator script): ``cause: operator``,
+                          ``action``, ``who``, ``args``, ``t``, ``tick``, ``state`` (and ``refused``, why, when the
+                          run could not take it) — :class:`OperatorRecord`
+  ``trace.csv``           one row per control tick: ``t``, ``state``, ``events``, metric columns
+                          ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
+                          (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it; ``nan``
+                          where a metric has no value that tick)
+  ``summary.json``        outcome, final state, states visited, times, foreach items, final metrics, and
+                          the versions of the packages that shape the result; after operator actions,
+                          ``preempted`` (``t``, ``who``, ``to``, ``from`` each) and ``held_s``
+  ``timing.json``         wall-clock figures only: real-time factor, per-tick loop time and the parts tasks
+                          and worlds time (perception, control …) as n / mean / p50 / p95 / max in ms
+  ``frames/``, ``frames.jsonl``  in rendered modes, the camera images the world observed, as PNG at a declared
+                          rate on simulation time, and their index (:mod:`taskflow.execution.frames`)
+
+Everything but ``timing.json`` depends only on the mission and the seed: two runs with one seed write
+the same bytes.
+
+Read back, every reader parses a ``transitions.jsonl`` line with :func:`record_from_dict` (the one parse:
+an :class:`OperatorRecord` or a :class:`TransitionRecord`), a trace row with :func:`parse_trace_row`
+(:func:`read_trace`), through :mod:`taskflow.readers.record_io` (a record is untrusted input).
+
+Rows are buffered and flushed every ``flush_every`` ticks; ``summary.json`` exists from the start
+(outcome ``aborted``, reason ``run did not finish``) and is replaced when the run ends, so a crash or
+Ctrl-C still leaves a readable record.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM = "start", "guard", "timeout", "event", "done", "next_item"
+OPERATOR = "operator"
+CAUSES = (START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM, OPERATOR)
+
+
+@dataclass
+class TransitionRecord:
+    """One change of the active leaf, with what caused it as fields (``transitions.jsonl`` holds them).
+
+    ``cause`` is one of :data:`CAUSES`: ``start``; ``guard`` (a ``when`` held: ``metrics`` has the values
+    of its metrics that tick), ``timeout`` (an ``after`` ran out), ``event`` (``event``; with a condition,
+    ``metrics`` too), ``done`` (the sub-machine of ``state`` finished with ``outcome``) or ``next_item``
+    (the loop ``state`` moved to item ``item`` after an item that ended ``outcome``) or ``operator`` (``who``
+    pre-empted the run to ``target``: ``taskflow ctl preempt --to``, :mod:`taskflow.operate.control`).  ``state`` and
+    ``label`` name the declaring state and the transition as written; ``index`` is the transition's index
+    in the mission; ``resumed`` says a history state was resumed where it was left."""
+
+    t: float
+    source: str  # the leaf left ("__start__" for the first record)
+    target: str  # the leaf entered
+    cause: str
+    state: str = ""
+    label: str = ""
+    index: int | None = None
+    metrics: dict[str, float] | None = None
+    event: str | None = None
+    outcome: str | None = None
+    item: int | None = None
+    resumed: bool = False
+    who: str | None = None  # the operator who pre-empted (cause ``operator``)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON object of ``transitions.jsonl``: the fields that apply to this cause."""
+        out: dict[str, Any] = {"t": round(self.t, 9), "from": self.source, "to": self.target, "cause": self.cause,
+                               "state": self.state, "label": self.label}
+        for key in ("index", "metrics", "event", "outcome", "item", "who"):
+            value = getattr(self, key)
+            if value is not None:
+                out[key] = value
+        if self.resumed:
+            out["resumed"] = True
+        return out
+
+
+@dataclass
+class OperatorRecord:
+    """One operator action as it took effect (``transitions.jsonl``, ``cause: operator``, no ``from``/``to``):
+    ``action`` (pause, hold, resume, preempt, inject) with its ``args`` (``to`` of a pre-emption, ``event``
+    of an injection), ``who`` asked for it, and the sim time ``t`` and index ``tick`` of the control tick at
+    whose start it was applied, with the ``state`` active then; ``refused``, when the run could not take it
+    (a pre-emption whose target reads mission data not written yet), says why — the action then changed
+    nothing.  A list of these is an operator script (:func:`taskflow.operate.control.script_from_records`):
+    replayed, it gives the same run."""
+
+    t: float
+    tick: int
+    action: str
+    who: str
+    state: str
+    args: dict[str, str]
+    refused: str | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        out = {"t": round(self.t, 9), "tick": self.tick, "cause": OPERATOR, "action": self.action, "who": self.who,
+               "state": self.state, "args": dict(self.args)}
+        if self.refused is not None:
+            out["refused"] = self.refused
+        return out
+
+
+@dataclass
+class ItemCount:
+    """A foreach loop's items over a whole run: attempted, succeeded, and its success rule."""
+
+    required: int  # per run of the loop
+    rule: str  # as written: "all", "3", "75 %"
+    attempted: int = 0
+    succeeded: int = 0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"attempted": self.attempted, "succeeded": self.succeeded, "failed": self.attempted - self.succeeded,
+                "success_rate": self.succeeded / self.attempted if self.attempted else None,
+                "required": self.required, "rule": self.rule}
+
+
+@dataclass
+class IterationRecord:
+    state: str
+    index: int
+    item: Any
+    outcome: str
+    t_start: float
+    t_end: float
+    ground_truth: dict[str, float]
+
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, float) and math.isnan(o):
+        return None
+    return str(o)
+
+
+def write_json(path: Path, data: Any) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=_json_default, allow_nan=False) + "\n")
+    os.replace(tmp, path)
+
+
+def clean_floats(data: Any) -> Any:
+    """NaN/inf → None, numpy → Python, recursively (summary.json must be strict JSON)."""
+    if isinstance(data, dict):
+        return {str(k): clean_floats(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [clean_floats(v) for v in data]
+    if isinstance(data, np.ndarray):
+        return clean_floats(data.tolist())
+    if isinstance(data, np.generic):
+        data = data.item()
+    if isinstance(data, float) and not math.isfinite(data):
+        return None
+    return data
+
+
+class RunRecorder:
+    """Writes one run directory."""
+
+    def __init__(self, out_dir: Path, metric_names: Iterable[str], command_layout: dict[str, int],
+                 gt_names: Iterable[str], flush_every: int = 50) -> None:
+        self.dir = Path(out_dir)
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.metric_names = list(metric_names)
+        self.command_layout = dict(command_layout)
+        self.gt_names = list(gt_names)
+        self.flush_every = flush_every
+        self._rows: list[tuple[float, str, str, list[float]]] = []  # t, state, events, the values in column order
+        cmd_cols = [f"cmd.{k}" if n == 1 else f"cmd.{k}.{i}" for k, n in self.command_layout.items() for i in range(n)]
+        self.columns = ["t", "state", "events", *[f"m.{m}" for m in self.metric_names], *cmd_cols,
+                        *[f"gt.{g}" for g in self.gt_names]]
+        self._trace = open(self.dir / "trace.csv", "w", buffering=1 << 16)  # noqa: SIM115 - open for the run
+        self._trace.write(",".join(self.columns) + "\n")
+        self._transitions = open(self.dir / "transitions.jsonl", "w")  # noqa: SIM115 - open for the run
+        self.ticks = 0
+
+    # -- start ---------------------------------------------------------------------------------
+    def write_mission(self, resolved: dict[str, Any], seed: int) -> None:
+        (self.dir / "mission.yaml").write_text(yaml.safe_dump(clean_floats(resolved), sort_keys=False))
+        (self.dir / "seed").write_text(f"{seed}\n")
+
+    # -- as the run goes ---------------------------------------------------------------------
+    def transition(self, record: dict[str, Any]) -> None:
+        self._transitions.write(json.dumps(clean_floats(record)) + "\n")
+
+    def tick(self, t: float, state: str, events: Iterable[str], metrics: dict[str, float],
+             command: dict[str, Any], gt: dict[str, float]) -> None:
+        # the values are read now: a task or world may reuse (and later change) the dicts and arrays it returned
+        nan = math.nan
+        vals = [metrics.get(m, nan) for m in self.metric_names]
+        for k, n in self.command_layout.items():
+            v = command.get(k)
+            vals += [nan] * n if v is None else np.ravel(v)[:n].tolist()
+        vals += [gt.get(g, nan) for g in self.gt_names]
+        self._rows.append((t, state, "|".join(sorted(events)) if events else "", vals))
+        self.ticks += 1
+        if len(self._rows) >= self.flush_every:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self._rows:
+            self._transitions.flush()
+            return
+        out = [f"{t!r},{state},{events}," + ",".join(map(repr, map(float, vals))) for t, state, events, vals in self._rows]
+        self._trace.write("\n".join(out) + "\n")
+        self._trace.flush()
+        self._transitions.flush()
+        self._rows.clear()
+
+    # -- end -------------------------------------------------------------------------------------
+    def summary(self, data: dict[str, Any]) -> None:
+        self.flush()
+        write_json(self.dir / "summary.json", clean_floats(data))
+
+    def timing(self, data: dict[str, Any]) -> None:
+        write_json(self.dir / "timing.json", clean_floats(data))
+
+    def close(self) -> None:
+        self.flush()
+        self._trace.close()
+        self._transitions.close()
+
+
+def _stats_ms(seconds: list[float]) -> dict[str, float]:
+    a = 1e3 * np.asarray(seconds, dtype=float)
+    return {"n": int(a.size), "mean": float(a.mean()), "p50": float(np.percentile(a, 50)),
+            "p95": float(np.percentile(a, 95)), "max": float(a.max())}
+
+
+class TimingRecord:
+    """Wall-clock time of one run: the control loop per tick, and the named parts tasks and worlds report
+    (``StepResult.timings`` / ``Observation.timings``, in seconds).  Kept apart from the trace and the
+    summary, which must not depend on the machine's speed."""
+
+    def __init__(self) -> None:
+        self.parts: dict[str, list[float]] = {}
+        self.ticks: list[float] = []
+        self._last: float | None = None
+
+    def add(self, source: str, timings: dict[str, float]) -> None:
+        for name, seconds in timings.items():
+            self.parts.setdefault(f"{source}.{name}", []).append(seconds)
+
+    def tick(self, now: float) -> None:
+        """Mark the end of a tick at wall time ``now`` (``time.perf_counter()``)."""
+        if self._last is not None:
+            self.ticks.append(now - self._last)
+        self._last = now
+
+    def summary(self, sim_time: float, wall: float, ticks: int) -> dict[str, Any]:
+        return {
+            "sim_time_s": sim_time, "wall_time_s": wall, "ticks": ticks,
+            "real_time_factor": sim_time / wall if wall > 0 else None,
+            "tick_ms": _stats_ms(self.ticks) if self.ticks else None,
+            "parts_ms": {k: _stats_ms(v) for k, v in sorted(self.parts.items()) if v},
+        }
+
+
+TRACE_FIXED = ("t", "state", "events")
+"""The first three columns of every ``trace.csv``."""
+
+
+def check_trace_header(cells: list[str], where: str) -> list[str]:
+    """``trace.csv``'s header ``cells``, or a :class:`~taskflow.readers.record_io.RunDirError` (at ``where``) when it
+    does not start with :data:`TRACE_FIXED` or names a column twice."""
+    from taskflow.readers.record_io import RunDirError
+
+    if cells[:3] != list(TRACE_FIXED) or len(set(cells)) != len(cells):
+        raise RunDirError(f"{where}: header {','.join(cells)[:80]!r} — a trace starts t,state,events and names "
+                          "each column once")
+    return cells
+
+
+def parse_trace_row(header: list[str], cells: list[str], where: str) -> list[Any]:
+    """One row of ``trace.csv``: ``[t, state, events, numbers…]`` (NaN where a cell is empty); a row of
+    more cells than columns, or a cell that is no number where one belongs, is a
+    :class:`~taskflow.readers.record_io.RunDirError` at ``where`` (``FILE:LINE``)."""
+    from taskflow.readers.record_io import RunDirError
+
+    if len(cells) > len(header):
+        raise RunDirError(f"{where}: {len(cells)} cells for {len(header)} columns")
+    out: list[Any] = []
+    for j, name in enumerate(header):
+        x = cells[j] if j < len(cells) else ""
+        if j in (1, 2):
+            out.append(x)
+            continue
+        try:
+            out.append(float(x) if x else math.nan)
+        except ValueError:
+            raise RunDirError(f"{where}: column {name}: {x[:40]!r} is not a number") from None
+    return out
+
+
+def read_trace(run_dir: str | Path) -> dict[str, np.ndarray]:
+    """The trace as columns of numpy arrays (numeric columns as float, NaN where empty).
+
+    Read as untrusted input (:mod:`taskflow.readers.record_io`): inside the run directory, bounded, and a cell
+    that is no number where one belongs is a :class:`~taskflow.readers.record_io.RunDirError` naming its line;
+    a last row cut short by a crash (no newline) is left out."""
+    import csv
+
+    from taskflow.readers.record_io import RunDirError, lines
+
+    where = Path(run_dir) / "trace.csv"
+    header: list[str] = []
+    rows: list[list[Any]] = []
+    for n, text, _ in lines(Path(run_dir), "trace.csv", complete_only=True):
+        if not text:
+            continue
+        cells = next(csv.reader([text]))
+        if not header:
+            header = check_trace_header(cells, f"{where}:{n}")
+        else:
+            rows.append(parse_trace_row(header, cells, f"{where}:{n}"))
+    if not header:
+        raise RunDirError(f"{where}: empty — a trace has a header line t,state,events,…")
+    out: dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        col = [r[j] for r in rows]
+        out[name] = np.array(col, dtype=object) if name in ("state", "events") else np.array(col, dtype=float)
+    return out
+
+
+def _typed(d: dict[str, Any], key: str, types: tuple[type, ...], what: str, default: Any = ...) -> Any:
+    """``d[key]`` when it is one of ``types`` (a bool is no number), ``default`` when absent (required
+    when no default); else :class:`ValueError` saying what it should be."""
+    if key not in d or (d[key] is None and default is None):
+        if default is ...:
+            raise ValueError(f"no {key!r} — a {what} is required")
+        return default
+    v = d[key]
+    if isinstance(v, bool) and bool not in types or not isinstance(v, types):
+        raise ValueError(f"{key!r} is {type(v).__name__} {str(v)[:40]!r} — {what} was expected")
+    return v
+
+
+_NUMBER = (int, float)
+OPERATOR_ACTIONS = ("pause", "hold", "resume", "preempt", "inject")
+
+
+def record_from_dict(d: Any) -> TransitionRecord | OperatorRecord:
+    """One line of ``transitions.jsonl`` (parsed JSON) as the record that wrote it: an
+    :class:`OperatorRecord` (``cause: operator`` with an ``action``) or a :class:`TransitionRecord`
+    (every other line, the operator's pre-emption included).  The one parse of that file every reader
+    uses; a line of other shape or types is a :class:`ValueError` saying what is wrong."""
+    if not isinstance(d, dict):
+        raise ValueError(f"a JSON object was expected, got {type(d).__name__}")
+    cause = _typed(d, "cause", (str,), "one of " + ", ".join(CAUSES))
+    if cause not in CAUSES:
+        raise ValueError(f"cause {cause[:40]!r} — valid: {', '.join(CAUSES)}")
+    t = float(_typed(d, "t", _NUMBER, "a sim time in s"))
+    if not math.isfinite(t):
+        raise ValueError(f"'t' is {t} — a finite sim time in s was expected")
+    if cause == OPERATOR and "action" in d:
+        action = _typed(d, "action", (str,), "an operator action")
+        if action not in OPERATOR_ACTIONS:
+            raise ValueError(f"action {action[:40]!r} — valid: {', '.join(OPERATOR_ACTIONS)}")
+        args = _typed(d, "args", (dict,), "an object of strings", {})
+        if not all(isinstance(v, str) for v in args.values()):
+            raise ValueError("'args' holds a value that is no string — an object of strings was expected")
+        return OperatorRecord(t, _typed(d, "tick", (int,), "a tick index"), action,
+                              _typed(d, "who", (str,), "a name"), _typed(d, "state", (str,), "a state path", ""),
+                              dict(args), _typed(d, "refused", (str,), "why the run could not take it", None))
+    metrics = _typed(d, "metrics", (dict,), "an object of metric values", None)
+    if metrics is not None and not all(v is None or isinstance(v, _NUMBER) and not isinstance(v, bool)
+                                       for v in metrics.values()):
+        raise ValueError("'metrics' holds a value that is no number — metric name → number was expected")
+    return TransitionRecord(t=t, source=_typed(d, "from", (str,), "a state path"),
+                            target=_typed(d, "to", (str,), "a state path"), cause=cause,
+                            state=_typed(d, "state", (str,), "a state path", ""),
+                            label=_typed(d, "label", (str,), "a transition's label", ""),
+                            index=_typed(d, "index", (int,), "a transition index", None), metrics=metrics,
+                            event=_typed(d, "event", (str,), "an event name", None),
+                            outcome=_typed(d, "outcome", (str,), "an outcome", None),
+                            item=_typed(d, "item", (int,), "an item index", None),
+                            resumed=_typed(d, "resumed", (bool,), "true or false", False),
+                            who=_typed(d, "who", (str,), "a name", None))
+
+
+def read_transitions(run_dir: str | Path, *, offset: int = 0, first_line: int = 1,
+                     complete_only: bool = False) -> Iterator[tuple[TransitionRecord | OperatorRecord, int, int]]:
+    """The records of ``transitions.jsonl`` (:func:`record_from_dict`) from byte ``offset``, each with
+    its line number and the offset after its line; a malformed line is a
+    :class:`~taskflow.readers.record_io.RunDirError` naming it."""
+    from taskflow.readers.record_io import RunDirError, json_line, lines
+
+    where = Path(run_dir) / "transitions.jsonl"
+    for n, text, end in lines(Path(run_dir), "transitions.jsonl", offset=offset, first_line=first_line,
+                              complete_only=complete_only):
+        if not text.strip():
+            continue
+        try:
+            yield record_from_dict(json_line(f"{where}:{n}", text)), n, end
+        except ValueError as exc:
+            if isinstance(exc, RunDirError):
+                raise
+            raise RunDirError(f"{where}:{n}: {exc}") from None
