@@ -4,6 +4,8 @@ where it is declared, converted to base units and compiled, its event known, its
 
 from __future__ import annotations
 
+from typing import TypedDict
+
 from taskflow.api import Metric
 from taskflow.mission.compile.context import Compilation
 from taskflow.mission.compile.dataflow import data_hint
@@ -64,9 +66,19 @@ def compile_transitions(c: Compilation, root: StateNode, events: set[str]) -> No
                 c.transitions.append(compiled)
 
 
+class _Common(TypedDict):
+    """The fields every transition record has (:class:`taskflow.mission.model.Transition`)."""
+
+    index: int
+    source: StateNode
+    target: StateNode
+    resume: bool
+    blend: float
+
+
 def _compile_one(c: Compilation, n: StateNode, target: StateNode, tr: TransitionSpec, where: YPath, events: set[str],
                  quantities: dict[str, tuple[float, str]], not_quantities: dict[str, str]) -> Transition | None:
-    common = {"index": len(c.transitions), "source": n, "target": target, "resume": tr.resume, "blend": tr.blend or 0.0}
+    common = _Common(index=len(c.transitions), source=n, target=target, resume=tr.resume, blend=float(tr.blend or 0.0))
     guard: tuple[Guard, Predicate] | None = None
     if tr.when is not None:
         guard = _compile_guard(c, n, tr.when, where + ("when",), quantities, not_quantities)
@@ -82,7 +94,7 @@ def _compile_one(c: Compilation, n: StateNode, target: StateNode, tr: Transition
                                predicate=guard[1] if guard else None)
     if guard is not None:
         dwell = float(tr.for_ or 0.0)
-        label = tr.when + (f" for {dwell:g} s" if dwell else "")  # type: ignore[operator]
+        label = str(tr.when) + (f" for {dwell:g} s" if dwell else "")
         return GuardTransition(**common, label=label, guard=guard[0], predicate=guard[1], dwell=dwell)
     if tr.after is not None:
         after = float(tr.after)
