@@ -22,15 +22,9 @@ from typing import Any, ClassVar
 
 from taskflow.execution.engine import MissionState
 from taskflow.execution.records import EVENT, GUARD, TIMEOUT
+from taskflow.mission import model
 from taskflow.mission.guards import Guard, Predicate
-from taskflow.mission.model import (
-    DoneTransition,
-    EventTransition,
-    GuardTransition,
-    StateNode,
-    TimeoutTransition,
-    Transition,
-)
+from taskflow.mission.model import StateNode, Transition
 
 __all__ = ["ConditionalEventTrigger", "DwellTrigger", "EventTrigger", "GuardTrigger", "TimeoutTrigger", "Trigger",
            "arm"]
@@ -79,7 +73,7 @@ class GuardTrigger(Trigger):
     __slots__ = ("guard", "memory", "predicate")
     cause = GUARD
 
-    def __init__(self, transition: GuardTransition, memory: dict[str, Any]) -> None:
+    def __init__(self, transition: model.GuardTransition, memory: dict[str, Any]) -> None:
         super().__init__(transition)
         self.guard: Guard = transition.guard
         self.predicate: Predicate = transition.predicate
@@ -98,7 +92,7 @@ class DwellTrigger(GuardTrigger):
 
     __slots__ = ("dwell", "since")
 
-    def __init__(self, transition: GuardTransition, memory: dict[str, Any]) -> None:
+    def __init__(self, transition: model.GuardTransition, memory: dict[str, Any]) -> None:
         super().__init__(transition, memory)
         self.dwell = transition.dwell
         self.since: float | None = None  # operating-clock time its guard began to hold (None: it does not)
@@ -127,7 +121,7 @@ class EventTrigger(Trigger):
     __slots__ = ("event",)
     cause = EVENT
 
-    def __init__(self, transition: EventTransition) -> None:
+    def __init__(self, transition: model.EventTransition) -> None:
         super().__init__(transition)
         self.event = transition.event
 
@@ -143,7 +137,7 @@ class ConditionalEventTrigger(EventTrigger):
 
     __slots__ = ("guard", "memory", "predicate")
 
-    def __init__(self, transition: EventTransition, guard: Guard, predicate: Predicate,
+    def __init__(self, transition: model.EventTransition, guard: Guard, predicate: Predicate,
                  memory: dict[str, Any]) -> None:
         super().__init__(transition)
         self.guard, self.predicate, self.memory = guard, predicate, memory
@@ -163,7 +157,7 @@ class TimeoutTrigger(Trigger):
     __slots__ = ("after", "clock", "first")
     cause = TIMEOUT
 
-    def __init__(self, transition: TimeoutTransition, clock: MissionState) -> None:
+    def __init__(self, transition: model.TimeoutTransition, clock: MissionState) -> None:
         super().__init__(transition)
         self.after, self.clock, self.first = transition.after, clock, transition.since_first
 
@@ -175,14 +169,14 @@ def arm(tr: Transition, memory: dict[str, Any], clock: Callable[[StateNode], Mis
     """``tr`` armed for a run whose mission data is ``memory``; ``clock`` gives the engine state of a node
     (whose entry times a timeout reads)."""
     match tr:
-        case GuardTransition():
+        case model.GuardTransition():
             return DwellTrigger(tr, memory) if tr.dwell > 0.0 else GuardTrigger(tr, memory)
-        case EventTransition(guard=Guard() as guard, predicate=pred) if pred is not None:
+        case model.EventTransition(guard=Guard() as guard, predicate=pred) if pred is not None:
             return ConditionalEventTrigger(tr, guard, pred, memory)
-        case EventTransition():
+        case model.EventTransition():
             return EventTrigger(tr)
-        case TimeoutTransition():
+        case model.TimeoutTransition():
             return TimeoutTrigger(tr, clock(tr.since))
-        case DoneTransition():
+        case model.DoneTransition():
             raise TypeError(f"{tr.label!r}: a `done` transition has no trigger, its sub-machine's end fires it")
     raise TypeError(f"no trigger for a {type(tr).__name__}")
