@@ -48,17 +48,23 @@ def params(fn: Any) -> list[str]:
     return list(inspect.signature(fn).parameters)
 
 
-def machine() -> HierarchicalMachine:
+class Logged(HierarchicalMachine):
+    """A machine that logs every entry and exit (``+path`` / ``-path``)."""
+
+    log: list[str]
+
+
+def machine() -> Logged:
     """``a`` (initial ``b`` → ``c``) with a sibling ``d`` (initial ``e``); every entry and exit logged."""
-    hm = HierarchicalMachine(states=[
+    hm = Logged(states=[
         {"name": "a", "initial": "b", "children": [
             {"name": "b", "initial": "c", "children": ["c"]}, {"name": "d", "initial": "e", "children": ["e"]}]}],
         initial="a", auto_transitions=False)
-    hm.log = []  # type: ignore[attr-defined]  # the test's own attribute on the machine
+    hm.log = []
     for path in ("a", "a_b", "a_b_c", "a_d", "a_d_e"):
         st = hm.get_state(path)
-        st.on_enter.append(lambda p=path: hm.log.append(f"+{p}"))  # type: ignore[attr-defined]
-        st.on_exit.append(lambda p=path: hm.log.append(f"-{p}"))  # type: ignore[attr-defined]
+        st.on_enter.append(lambda p=path: hm.log.append(f"+{p}"))
+        st.on_exit.append(lambda p=path: hm.log.append(f"-{p}"))
     return hm
 
 
@@ -96,7 +102,7 @@ def test_change_state_resolves_then_exits_updates_the_model_enters_and_checks_fi
     hm = machine()
     Spy("a_b_c", "a_d_e").execute(event_data(hm, "a_b_c"))
     assert calls == ["resolve", "exit", "enter", "final:a_d_e"]  # the model is updated before the entries
-    assert hm.state == "a_d_e"  # type: ignore[attr-defined]  # the library's model attribute
+    assert getattr(hm, hm.model_attribute) == "a_d_e"
 
 
 def test_resolve_transition_returns_the_tree_the_exits_and_the_entries() -> None:
@@ -108,7 +114,7 @@ def test_resolve_transition_returns_the_tree_the_exits_and_the_entries() -> None
         f()
     for f in enters:
         f()
-    assert hm.log == ["-a_b_c", "-a_b", "+a_d", "+a_d_e"]  # type: ignore[attr-defined]
+    assert hm.log == ["-a_b_c", "-a_b", "+a_d", "+a_d_e"]
 
 
 def test_enter_nested_enters_the_destination_chain_and_its_initial_states() -> None:
@@ -122,7 +128,7 @@ def test_enter_nested_enters_the_destination_chain_and_its_initial_states() -> N
     assert new_states == OrderedDict([("d", OrderedDict([("e", OrderedDict())]))])
     for f in enters:
         f()
-    assert hm.log == ["+a_d", "+a_d_e"]  # type: ignore[attr-defined]
+    assert hm.log == ["+a_d", "+a_d_e"]
 
 
 def test_final_check_takes_the_tree_and_the_entries_and_returns_callbacks_and_finality() -> None:
@@ -166,8 +172,8 @@ def test_event_data_carries_the_source_the_engine_sets() -> None:
 
 
 def test_dict_states_pass_their_own_keys_to_the_state_class() -> None:
-    """The engine's ``state_cls`` receives the mission node through the state dict (``node``), and a
-    ``parallel`` dict enters every region with its state."""
+    """The engine's ``state_cls`` receives the mission node through the state dict (``node``) and the
+    library's ``final`` flag, and a ``parallel`` dict enters every region with its state."""
 
     class Carrying(NestedState):
         def __init__(self, name: str, node: Any = None, **kwargs: Any) -> None:
@@ -177,13 +183,15 @@ def test_dict_states_pass_their_own_keys_to_the_state_class() -> None:
     class M(HierarchicalMachine):
         state_cls = Carrying
 
-    m = M(states=["s", {"name": "p", "node": 7, "parallel": [{"name": "r1", "initial": "x", "children": ["x"]},
+    m = M(states=["s", {"name": "f", "final": True}, {"name": "p", "node": 7, "parallel": [{"name": "r1", "initial": "x", "children": ["x"]},
                                                               {"name": "r2", "initial": "y", "children": ["y"]}]}],
           initial="s", auto_transitions=False)
-    assert m.get_state("p").node == 7  # type: ignore[attr-defined]  # Carrying's own attribute
+    p = m.get_state("p")
+    assert isinstance(p, Carrying) and p.node == 7
+    assert m.get_state("f").final and not p.final  # the library's `final` flag (0.9.1 on), which the engine sets
     m.add_transition("go", "s", "p")
-    m.go()  # type: ignore[attr-defined]  # the trigger the library adds to the model
-    assert m.state == ["p_r1_x", "p_r2_y"]  # type: ignore[attr-defined]  # the library's model attribute
+    m.trigger_event(m, "go")
+    assert getattr(m, m.model_attribute) == ["p_r1_x", "p_r2_y"]
 
 
 def test_the_engine_exits_and_reenters_below_its_domain_through_these_members() -> None:
