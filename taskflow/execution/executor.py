@@ -164,11 +164,15 @@ class Executor(Preemptible):
     def _check_table(self, t: float, table: Table, metrics: dict[str, float], events: Collection[str],
                      seen: set[int] | None) -> Transition | None:
         held_s = self.held_s
+        if seen is None:  # one active leaf: every transition of its table
+            for i, trigger in enumerate(table):
+                if trigger.ready(t, held_s, metrics, events):
+                    return self._fire_from(table, i, metrics)
+            return None
         for i, trigger in enumerate(table):
-            if seen is not None:
-                if trigger.index in seen:
-                    continue
-                seen.add(trigger.index)
+            if trigger.index in seen:
+                continue
+            seen.add(trigger.index)
             if trigger.ready(t, held_s, metrics, events):
                 return self._fire_from(table, i, metrics)
         return None
