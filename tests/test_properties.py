@@ -1035,7 +1035,7 @@ def test_control_characters_give_mission_errors(ch: str, pos: int) -> None:
 # The same random machines and scripts, now with a random operator script (pause, hold, resume, preempt to
 # any state or abort, inject, at random ticks).  `_OperatedOracle` runs the machine itself from the
 # machine's declarations, the script and the operator actions — written from docs/missions.md, not from
-# taskflow/execution/executor.py — and must agree with the engine on every tick's active leaf and its entry time, on
+# taskflow/execution/ — and must agree with the engine on every tick's active leaf and its entry time, on
 # every transition (tick, source, target, cause, resumed), the entry clocks and operating clocks at the end
 # (time under hold does not count toward `after` and `for`), the history of every composite, the outcome
 # (a pre-emption that leaves a loop before its rule held cannot end the run `succeeded`) and the summary's

@@ -18,8 +18,15 @@ its ``state_cls`` and ``transition_cls`` hooks — rather than keeping a paralle
   ``to_state`` helper does, instead of dispatching a trigger through the state tree: guards are
   evaluated by the executor's per-leaf tables, so the library is asked only to change state.
 
-The library's private members this relies on (checked by ``tests/machine/test_engine.py``):
-``NestedTransition._resolve_transition``, ``_enter_nested`` and ``_final_check`` (overridden to do nothing).
+This is the one module that imports `transitions` (the adapter: the rest of taskflow sees only
+:class:`MissionMachine`'s ``go``, ``active``, ``active_leaves`` and ``by_path``).  Beyond the library's
+documented hooks it relies on these members, each named, signed and exercised by
+``tests/machine/test_transitions_contract.py`` (``.ci/run-latest`` runs it on the newest release; the
+bound in ``pyproject.toml`` is where it passes): ``NestedTransition._change_state`` calling, in order,
+``_resolve_transition`` (overridden), the exits, the model update, the entries and ``_final_check``
+(overridden to do nothing); ``NestedTransition._enter_nested``, ``NestedState.scoped_exit``,
+``HierarchicalMachine.build_state_tree`` and ``nesting.resolve_order`` (called); ``NestedEventData``'s
+``source_name`` / ``source_path`` and ``Event(name, machine)`` (built by :meth:`MissionMachine.go`).
 
 What was tried and left unused: the library's ``final`` states and ``on_final`` callbacks (0.9.3) fire
 on the parent of a final leaf, but a ``foreach`` parent must decide between its next item and its
@@ -38,11 +45,12 @@ region, so the other regions stay as they are.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Callable
-from functools import partial, reduce
+from functools import partial
 from typing import Any
 
-from transitions.core import Event, listify
+from transitions.core import Event
 from transitions.extensions.nesting import (
     HierarchicalMachine,
     NestedEventData,
@@ -52,6 +60,9 @@ from transitions.extensions.nesting import (
 )
 
 from taskflow.mission.model import CompiledMission, StateNode
+
+StateTree = OrderedDict[str, Any]
+"""The library's model state as a tree: state name → the tree of its active sub-states."""
 
 START = "__start__"
 """The pseudo-state the model is in before the run starts."""
@@ -93,22 +104,28 @@ class ExternalTransition(NestedTransition):
     def __init__(self, source: str, dest: str, keep: int) -> None:
         super().__init__(source, dest)
         self.keep = keep
+        path = dest.split(MissionState.separator)
+        self.kept, self.entered = path[:keep], path[keep:]
 
-    def _resolve_transition(self, event_data: Any) -> tuple[dict, list, list]:
+    def _resolve_transition(self, event_data: NestedEventData) -> tuple[StateTree, list[Callable[[], None]],
+                                                                         list[Callable[[], Any]]]:
         machine = event_data.machine
-        separator = machine.state_cls.separator
-        tree = machine.build_state_tree(listify(getattr(event_data.model, machine.model_attribute)), separator)
-        dest = self.dest.split(separator)
-        kept, entered = dest[:self.keep], dest[self.keep:]
-        below = reduce(dict.get, kept, tree)  # the active states below the domain (one region)
-        exits = [partial(machine.get_state(kept + path).scoped_exit, event_data, kept + path[:-1])
-                 for path in resolve_order(below)]
-        new_states, enters = self._enter_nested(list(kept), entered, list(kept), event_data)
+        state = getattr(event_data.model, machine.model_attribute)  # a leaf's path, or a list with regions
+        tree = machine.build_state_tree(state if isinstance(state, list) else [state], MissionState.separator)
+        kept = self.kept
+        below = tree  # the active states below the domain (one region)
+        for name in kept:
+            below = below[name]
+        exits: list[Callable[[], None]] = [
+            partial(machine.get_state(kept + path).scoped_exit, event_data, kept + path[:-1])
+            for path in resolve_order(below)]
+        new_states, enters = self._enter_nested(list(kept), list(self.entered), list(kept), event_data)
         below.clear()
         below.update(new_states)
         return tree, exits, enters
 
-    def _final_check(self, event_data: Any, state_tree: dict, enter_partials: list) -> tuple[list, bool]:
+    def _final_check(self, event_data: NestedEventData, state_tree: StateTree,
+                     enter_partials: list[Callable[[], Any]]) -> tuple[list[Callable[[], Any]], bool]:
         """The library's search for states that have just become final, skipped: taskflow finishes parents itself
         (module docstring) and has no ``on_final`` callbacks.  The library's own (0.9.3) raises
         ``AttributeError: 'scoped_enter'`` after a transition in one parallel region while the last region sits
@@ -153,8 +170,13 @@ class MissionMachine(HierarchicalMachine):
 
         super().__init__(model=self.mission_model, states=[START, *dicts(mission.root)], initial=START,
                          auto_transitions=False, send_event=False)
-        self.by_path: dict[str, MissionState] = {n.path: self.get_state(n.path) for n in mission.states.values()
-                                                 if n.parent is not None}
+        self.by_path: dict[str, MissionState] = {n.path: self._mission_state(n.path)
+                                                 for n in mission.states.values() if n.parent is not None}
+
+    def _mission_state(self, path: str) -> MissionState:
+        st = self.get_state(path)
+        assert isinstance(st, MissionState)  # the machine's state_cls
+        return st
 
     @property
     def active(self) -> str:

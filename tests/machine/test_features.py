@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from taskflow.execution.executor import blend_weight
+from taskflow.execution.blends import blend_weight
 from taskflow.execution.runtime import run_mission
 from taskflow.mission.loader import load_mission, load_mission_text
 from taskflow.testing import Script, assert_outcome, assert_path, drive, time_in

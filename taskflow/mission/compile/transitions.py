@@ -4,7 +4,10 @@ where it is declared, converted to base units and compiled, its event known, its
 
 from __future__ import annotations
 
+from typing import TypedDict
+
 from taskflow.api import Metric
+from taskflow.mission import model
 from taskflow.mission.compile.context import Compilation
 from taskflow.mission.compile.dataflow import data_hint
 from taskflow.mission.compile.tree import metrics_under, sibling_metrics
@@ -18,15 +21,7 @@ from taskflow.mission.guards import (
     never_holds,
     parse_guard,
 )
-from taskflow.mission.model import (
-    DoneTransition,
-    EventTransition,
-    GuardTransition,
-    StateNode,
-    TimeoutTransition,
-    Transition,
-    YPath,
-)
+from taskflow.mission.model import StateNode, Transition, YPath
 from taskflow.mission.schema import SINCE_ENTRY, SINCE_FIRST_ENTRY, State
 from taskflow.mission.schema import Transition as TransitionSpec
 from taskflow.registry import describe_choices
@@ -64,9 +59,19 @@ def compile_transitions(c: Compilation, root: StateNode, events: set[str]) -> No
                 c.transitions.append(compiled)
 
 
+class _Common(TypedDict):
+    """The fields every transition record has (:class:`taskflow.mission.model.Transition`)."""
+
+    index: int
+    source: StateNode
+    target: StateNode
+    resume: bool
+    blend: float
+
+
 def _compile_one(c: Compilation, n: StateNode, target: StateNode, tr: TransitionSpec, where: YPath, events: set[str],
                  quantities: dict[str, tuple[float, str]], not_quantities: dict[str, str]) -> Transition | None:
-    common = {"index": len(c.transitions), "source": n, "target": target, "resume": tr.resume, "blend": tr.blend or 0.0}
+    common = _Common(index=len(c.transitions), source=n, target=target, resume=tr.resume, blend=float(tr.blend or 0.0))
     guard: tuple[Guard, Predicate] | None = None
     if tr.when is not None:
         guard = _compile_guard(c, n, tr.when, where + ("when",), quantities, not_quantities)
@@ -78,12 +83,12 @@ def _compile_one(c: Compilation, n: StateNode, target: StateNode, tr: Transition
                   f"{describe_choices(tr.on, sorted(events))}; `taskflow describe NAME` lists a world's or task's events")
             return None
         label = f"on {tr.on}" + (f" when {tr.when}" if tr.when else "")
-        return EventTransition(**common, label=label, event=tr.on, guard=guard[0] if guard else None,
+        return model.EventTransition(**common, label=label, event=tr.on, guard=guard[0] if guard else None,
                                predicate=guard[1] if guard else None)
     if guard is not None:
         dwell = float(tr.for_ or 0.0)
-        label = tr.when + (f" for {dwell:g} s" if dwell else "")  # type: ignore[operator]
-        return GuardTransition(**common, label=label, guard=guard[0], predicate=guard[1], dwell=dwell)
+        label = str(tr.when) + (f" for {dwell:g} s" if dwell else "")
+        return model.GuardTransition(**common, label=label, guard=guard[0], predicate=guard[1], dwell=dwell)
     if tr.after is not None:
         after = float(tr.after)
         label = f"after {after:g} s"
@@ -99,13 +104,13 @@ def _compile_one(c: Compilation, n: StateNode, target: StateNode, tr: Transition
                           f"enclosing {n.path!r}", describe_choices(tr.since, valid))
                     return None
                 since = found
-        return TimeoutTransition(**common, label=label, after=after, since=since, since_first=first)
+        return model.TimeoutTransition(**common, label=label, after=after, since=since, since_first=first)
     if n.is_leaf:
         c.err(where + ("done",), "`done` waits for a sub-machine to finish, but this state has no sub-states",
               "use `when`, `after` or `on`")
         return None
     outcome = None if tr.done is True else str(tr.done)
-    return DoneTransition(**common, label="done" if outcome is None else f"done {outcome}", outcome=outcome)
+    return model.DoneTransition(**common, label="done" if outcome is None else f"done {outcome}", outcome=outcome)
 
 
 def _unknown_metric_hint(c: Compilation, n: StateNode, m: str, available: dict[str, str]) -> str:

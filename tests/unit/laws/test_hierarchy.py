@@ -21,7 +21,7 @@ from taskflow_tasks.hierarchy import (
     visibility_jacobian,
 )
 
-from taskflow.execution.executor import blend_weight
+from taskflow.execution.blends import blend_weight
 
 
 def project(X, v, w, dt):
