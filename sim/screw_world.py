@@ -89,8 +89,8 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
 from taskflow_sim import screw_scene as sc
-from taskflow_sim.car_scene import connect
 from taskflow_sim.faults import FaultIntervals, IntervalFault
+from taskflow_sim.ground.ground_plane import connect
 from taskflow_sim.screw_motion import PartMotion
 from taskflow_sim.screw_perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody
