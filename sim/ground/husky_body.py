@@ -133,7 +133,8 @@ class HuskyBody(GroundBody):
     # --- ground truth --------------------------------------------------------------------------
     def _base_frame(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
         com_pos, com_q = p.getBasePositionAndOrientation(self.uid, physicsClientId=self.client)
-        return p.multiplyTransforms(com_pos, com_q, *self._inertial_inv)
+        frame: tuple[tuple[float, ...], tuple[float, ...]] = p.multiplyTransforms(com_pos, com_q, *self._inertial_inv)
+        return frame
 
     def pose(self) -> NDArray[np.float64]:
         pos, q = self._base_frame()

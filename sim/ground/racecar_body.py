@@ -212,7 +212,8 @@ class RacecarBody:
 
     def _base_frame(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
         com_pos, com_q = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-        return p.multiplyTransforms(com_pos, com_q, *self._inertial_inv)
+        frame: tuple[tuple[float, ...], tuple[float, ...]] = p.multiplyTransforms(com_pos, com_q, *self._inertial_inv)
+        return frame
 
     def speed(self) -> float:
         """Ground-truth signed forward speed (m/s) of the base frame along its heading."""
