@@ -93,6 +93,11 @@ class PidGains:
     u_max: NDArray[np.float64]
     i_limit: NDArray[np.float64]
     d_tau: float = 0.0
+    # derived once (the tick reads them): which terms act, and the negated limits
+    has_i: bool = field(init=False, repr=False, compare=False)
+    has_d: bool = field(init=False, repr=False, compare=False)
+    neg_i_limit: NDArray[np.float64] = field(init=False, repr=False, compare=False)
+    neg_u_max: NDArray[np.float64] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "has_i", bool(np.any(self.ki)))
@@ -141,20 +146,20 @@ def pid_step(error: NDArray[np.float64], state: PidState, gains: PidGains, dt: f
     if not (dt >= 0.0 and math.isfinite(dt)):
         raise ValueError(f"pid_step needs a finite dt >= 0, got {dt}")
     deriv = state.derivative
-    if dt > 0.0 and state.last_error is not None and gains.has_d:  # type: ignore[attr-defined]
+    if dt > 0.0 and state.last_error is not None and gains.has_d:
         a = dt / (gains.d_tau + dt)
         deriv = deriv + a * ((e - state.last_error) / dt - deriv)
     integral = state.integral
     p_d = gains.kp * e
-    if gains.has_d:  # type: ignore[attr-defined]
+    if gains.has_d:
         p_d = p_d + gains.kd * deriv
-    if dt > 0.0 and gains.has_i:  # type: ignore[attr-defined]
-        cand = np.minimum(np.maximum(integral + e * dt, gains.neg_i_limit), gains.i_limit)  # type: ignore[attr-defined]
+    if dt > 0.0 and gains.has_i:
+        cand = np.minimum(np.maximum(integral + e * dt, gains.neg_i_limit), gains.i_limit)
         u_try = p_d + gains.ki * cand
         # conditional integration: an axis saturated in the direction its error pushes keeps its integral
         winding = (np.abs(u_try) > gains.u_max) & (u_try * e > 0.0)
         if winding.any():
             cand = np.where(winding, integral, cand)
         integral = cand
-    u = np.minimum(np.maximum(p_d + gains.ki * integral, gains.neg_u_max), gains.u_max)  # type: ignore[attr-defined]
+    u = np.minimum(np.maximum(p_d + gains.ki * integral, gains.neg_u_max), gains.u_max)
     return u, PidState(integral, e.copy(), deriv)
