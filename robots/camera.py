@@ -2,7 +2,7 @@
 
 TinyRenderer renders with a vertical field of view ``fovy``: ``fx = fy = H / (2 tan(fovy / 2))``, and puts
 the principal point at ``(W / 2, H / 2 − 1)`` (measured, SIMULATOR_NOTES.md).  The robots' camera
-parameter classes (``mounts.CameraMount``, ``quadcopter.QuadCamera``, ``mobile_iiwa.CameraParams``) keep
+parameter classes (``racecar.CameraMount``, ``quadcopter.QuadCamera``, ``mobile_iiwa.CameraParams``) keep
 their own fields (their YAML names and defaults differ) and take their intrinsics from here.
 """
 

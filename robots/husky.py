@@ -18,7 +18,7 @@ import math
 from typing import ClassVar
 
 from pydantic import Field
-from taskflow_robots.mounts import CameraMount, LidarMount
+from taskflow_robots.racecar import CameraMount, LidarMount
 
 from taskflow.api import ObsSpec, Robot, StrictModel, array, scalar
 from taskflow.registry import register_robot

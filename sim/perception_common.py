@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from taskflow_robots.camera import tinyrenderer_intrinsics
-from taskflow_robots.mounts import CameraMount
+from taskflow_robots.racecar import CameraMount
 
 from taskflow.spatial import rotation_angle
 

@@ -33,7 +33,7 @@ from collections.abc import Callable
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-from taskflow_robots.mounts import LidarMount
+from taskflow_robots.racecar import LidarMount
 from taskflow_sim.car_depth import (
     blind_spot_mask,
     fuse_depth,

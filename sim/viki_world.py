@@ -51,7 +51,7 @@ from typing import Any, ClassVar, Literal, cast
 import numpy as np
 import pybullet as p
 from pydantic import BaseModel, Field, model_validator
-from taskflow_robots.mounts import CameraMount
+from taskflow_robots.racecar import CameraMount
 from taskflow_sim.core.bodies import BodyOptions, make_body
 from taskflow_sim.core.odometry_slip import SlipOdometry
 from taskflow_sim.core.stepped import SensorSchedule

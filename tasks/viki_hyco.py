@@ -74,7 +74,7 @@ from typing import Any, ClassVar, Literal, cast
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
-from taskflow_robots.mounts import CameraMount
+from taskflow_robots.racecar import CameraMount
 from taskflow_tasks.car_visual_servo import car_jacobian_r
 from taskflow_tasks.core.keep_out import keep_out_speed
 from taskflow_tasks.ground.car_goto import CarGains, CarGeometry

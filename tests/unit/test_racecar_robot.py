@@ -7,8 +7,7 @@ import math
 import numpy as np
 import pytest
 from pydantic import ValidationError
-from taskflow_robots.mounts import CameraMount
-from taskflow_robots.racecar import Racecar
+from taskflow_robots.racecar import CameraMount, Racecar
 
 from taskflow.registry import ROBOTS
 
