@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.husky import Husky
-from taskflow_tasks.unicycle_goto import UnicycleGains, UnicycleGoto, saturate, unicycle_point_law
+from taskflow_tasks.ground.unicycle_goto import UnicycleGains, UnicycleGoto, saturate, unicycle_point_law
 
 from taskflow.api import Observation
 from taskflow.testing import task_context
@@ -62,3 +62,17 @@ def test_task_commands_the_unicycle_interface_within_the_robot_limits():
     assert set(res.command) == set(Husky.command_keys)
     assert float(res.command["v"][0]) == pytest.approx(0.5) and float(res.command["w"][0]) == pytest.approx(0.0)
     assert res.metrics["pos_error"] == pytest.approx(10.0)
+
+
+def test_the_task_reads_what_it_declares_and_an_absent_entry_is_an_error_not_a_default():
+    """``requires`` and the reads are the same keys (tasks/core/keys.py): the load-time check sees what
+    ``step`` reads, and a required entry that is absent raises instead of reading as a silent 0."""
+    from taskflow_tasks.core.keys import POSE, SPEED
+
+    from taskflow.api import MissingObservation
+
+    assert UnicycleGoto.requires == {POSE.name: POSE.spec, SPEED.name: SPEED.spec}
+    robot = Husky(Husky.Params())
+    ctx = task_context(UnicycleGoto, UnicycleGoto.Params(target=[1.0, 0.0]), robot, {"gains": UnicycleGains()})
+    with pytest.raises(MissingObservation, match="state.v"):
+        UnicycleGoto(ctx).step(Observation(t=0.0, state={"pose": np.zeros(3)}))

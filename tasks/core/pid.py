@@ -28,33 +28,13 @@ from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import field_validator
+from pydantic import ValidationInfo, field_validator
+from taskflow_tasks.core.gains import axis_gains
 
 from taskflow.api import StrictModel
 
 AXES = ("wx", "wy", "wz", "vx", "vy", "vz")
 N_AXES = 6
-
-
-def _six(name: str, value: object, *, positive: bool = False, allow_inf: bool = False) -> tuple[float, ...]:
-    """A per-axis gain vector: exactly six finite numbers ≥ 0 (> 0 with ``positive``)."""
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        raise ValueError(f"{name} needs 6 values, one per axis ({' '.join(AXES)}), got the single number {value}")
-    if not isinstance(value, (list, tuple)):
-        raise ValueError(f"{name} needs a list of 6 numbers ({' '.join(AXES)}), got {type(value).__name__}")
-    if len(value) != N_AXES:
-        raise ValueError(f"{name} needs 6 values, one per axis ({' '.join(AXES)}), got {len(value)}")
-    out = []
-    for v in value:
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ValueError(f"{name} values must be numbers, got {v!r}")
-        f = float(v)
-        if math.isnan(f) or (math.isinf(f) and not allow_inf):
-            raise ValueError(f"{name} values must be finite, got {v!r}")
-        if f < 0.0 or (positive and f == 0.0):
-            raise ValueError(f"{name} values must be {'> 0' if positive else '>= 0'}, got {v!r}")
-        out.append(f)
-    return tuple(out)
 
 
 class PidProfile(StrictModel):
@@ -77,18 +57,18 @@ class PidProfile(StrictModel):
 
     @field_validator("kp", "ki", "kd", mode="before")
     @classmethod
-    def _gains(cls, v: object, info) -> tuple[float, ...]:  # type: ignore[no-untyped-def]
-        return _six(info.field_name, v)
+    def _gains(cls, v: object, info: ValidationInfo) -> tuple[float, ...]:
+        return axis_gains(str(info.field_name), v, AXES)
 
     @field_validator("u_max", mode="before")
     @classmethod
     def _umax(cls, v: object) -> tuple[float, ...]:
-        return _six("u_max", v, positive=True, allow_inf=True)
+        return axis_gains("u_max", v, AXES, positive=True, allow_inf=True)
 
     @field_validator("i_limit", mode="before")
     @classmethod
     def _ilim(cls, v: object) -> tuple[float, ...]:
-        return _six("i_limit", v, allow_inf=True)
+        return axis_gains("i_limit", v, AXES, allow_inf=True)
 
     @field_validator("d_tau")
     @classmethod
@@ -113,6 +93,11 @@ class PidGains:
     u_max: NDArray[np.float64]
     i_limit: NDArray[np.float64]
     d_tau: float = 0.0
+    # derived once (the tick reads them): which terms act, and the negated limits
+    has_i: bool = field(init=False, repr=False, compare=False)
+    has_d: bool = field(init=False, repr=False, compare=False)
+    neg_i_limit: NDArray[np.float64] = field(init=False, repr=False, compare=False)
+    neg_u_max: NDArray[np.float64] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "has_i", bool(np.any(self.ki)))
@@ -125,7 +110,9 @@ class PidGains:
            u_max: float | list[float] = math.inf, i_limit: float | list[float] = math.inf,
            d_tau: float = 0.0) -> PidGains:
         """Convenience for tests and scripts: scalars broadcast to all six axes."""
-        f = lambda v: np.broadcast_to(np.asarray(v, dtype=np.float64), (N_AXES,)).copy()
+        def f(v: float | list[float]) -> NDArray[np.float64]:
+            return np.broadcast_to(np.asarray(v, dtype=np.float64), (N_AXES,)).copy()
+
         return PidGains(f(kp), f(ki), f(kd), f(u_max), f(i_limit), float(d_tau))
 
 
@@ -159,20 +146,20 @@ def pid_step(error: NDArray[np.float64], state: PidState, gains: PidGains, dt: f
     if not (dt >= 0.0 and math.isfinite(dt)):
         raise ValueError(f"pid_step needs a finite dt >= 0, got {dt}")
     deriv = state.derivative
-    if dt > 0.0 and state.last_error is not None and gains.has_d:  # type: ignore[attr-defined]
+    if dt > 0.0 and state.last_error is not None and gains.has_d:
         a = dt / (gains.d_tau + dt)
         deriv = deriv + a * ((e - state.last_error) / dt - deriv)
     integral = state.integral
     p_d = gains.kp * e
-    if gains.has_d:  # type: ignore[attr-defined]
+    if gains.has_d:
         p_d = p_d + gains.kd * deriv
-    if dt > 0.0 and gains.has_i:  # type: ignore[attr-defined]
-        cand = np.minimum(np.maximum(integral + e * dt, gains.neg_i_limit), gains.i_limit)  # type: ignore[attr-defined]
+    if dt > 0.0 and gains.has_i:
+        cand = np.minimum(np.maximum(integral + e * dt, gains.neg_i_limit), gains.i_limit)
         u_try = p_d + gains.ki * cand
         # conditional integration: an axis saturated in the direction its error pushes keeps its integral
         winding = (np.abs(u_try) > gains.u_max) & (u_try * e > 0.0)
         if winding.any():
             cand = np.where(winding, integral, cand)
         integral = cand
-    u = np.minimum(np.maximum(p_d + gains.ki * integral, gains.neg_u_max), gains.u_max)  # type: ignore[attr-defined]
+    u = np.minimum(np.maximum(p_d + gains.ki * integral, gains.neg_u_max), gains.u_max)
     return u, PidState(integral, e.copy(), deriv)

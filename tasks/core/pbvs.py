@@ -3,7 +3,8 @@
 
 Frames (paper section 4): ``b`` platform base, ``a`` arm base, ``c`` camera (OpenCV optical frame),
 ``e`` end effector (screwdriver tip), ``o`` object (the ArUco marker), ``t`` operation pose on the
-object.  ``H_xy`` is the 4x4 pose of frame ``y`` in frame ``x``.  A twist or error vector is
+object.  ``T_xy`` (the paper's ``H_xy``, :mod:`taskflow.spatial`'s ``T_a_b``) is the 4x4 pose of frame ``y``
+in frame ``x``; the camera mount ``T_bc`` is the robot's ``T_body_camera``.  A twist or error vector is
 ``[ω; v]`` (angular first, section 4), expressed in the platform base frame unless said otherwise.
 
 Functions take and return numpy arrays; nothing here keeps state or imports a simulator.
@@ -11,15 +12,15 @@ Functions take and return numpy arrays; nothing here keeps state or imports a si
 Equations and how they are read where the paper is ambiguous or misprinted (REFERENCE.md §2):
 
 * (9)–(14) transition tests: translation norm ``< ε_t`` and angle ``arccos((tr R − 1)/2) ≤ ε_r``
-  (:func:`pose_error_norms`).  Eq. (10) ``H_cc* = H*_co H_co⁻¹`` and eq. (13) ``H_be* = H*_be H_be⁻¹``:
+  (:func:`pose_error_norms`).  Eq. (10) ``T_cc* = T*_co T_co⁻¹`` and eq. (13) ``T_be* = T*_be T_be⁻¹``:
   the norms of a transform and of its inverse agree, so the tests do not depend on the order.
-* (10) as used by the control law: the camera must move to where it sees the object at ``H*_co``;
-  the desired camera pose in the current camera frame is ``H_cc* = H_co H*_co⁻¹`` (the printed
+* (10) as used by the control law: the camera must move to where it sees the object at ``T*_co``;
+  the desired camera pose in the current camera frame is ``T_cc* = T_co T*_co⁻¹`` (the printed
   product is its inverse, which would drive the platform away).
 * (13) as used by the control law: the error of the tool point is ``p*_be − p_be`` and its rotation
   ``log(R*_be R_beᵀ)``, both in the base frame — the printed product's translation would also
   contain the rotation error times the tool's lever arm.
-* (25) ``H_bEo = diag(R_bc, 1) · E_co`` as printed multiplies the error's rotation by ``R_bc``, which
+* (25) ``T_bEo = diag(R_bc, 1) · E_co`` as printed multiplies the error's rotation by ``R_bc``, which
   changes its angle; as meant the error is *expressed* in the base frame: the rotation vector and
   the translation are each rotated by ``R_bc`` (= conjugating the rotation, ``R_bc R_E R_bcᵀ``).
 * (27)–(31) angle-axis; implemented robustly near 0 and π (the printed formulas divide by sin θ).
@@ -70,21 +71,21 @@ def within(E: Array, eps_t: float, eps_r: float) -> bool:
 # -- camera error and platform twist, eqs. (10), (25)–(33) ---------------------------------------------------
 
 
-def camera_error(H_co: Array, H_co_star: Array) -> Array:
-    """Eq. (10) as meant: ``E_co = H_cc* = H_co · H*_co⁻¹`` — the desired camera pose in the current
+def camera_error(T_co: Array, T_co_star: Array) -> Array:
+    """Eq. (10) as meant: ``E_co = T_cc* = T_co · T*_co⁻¹`` — the desired camera pose in the current
     camera frame (its translation is where the camera must go, its rotation how it must turn)."""
-    return H_co @ inverse(H_co_star)
+    return T_co @ inverse(T_co_star)
 
 
-def camera_error_vector(E_co: Array, R_bc: Array) -> Array:
+def camera_error_vector(E_co: Array, R_body_camera: Array) -> Array:
     """Eqs. (25)–(32): ``L_Eo = [ω; v]`` of the camera error expressed in the base frame.
 
-    ``ω = R_bc · θa(R_E)`` (eqs. 27–31) and ``v = R_bc p_E`` (eq. 32): eq. (25) read as a change of
-    frame (see the module docstring).
+    ``ω = R_bc · θa(R_E)`` (eqs. 27–31) and ``v = R_bc p_E`` (eq. 32), ``R_bc`` the rotation of the
+    camera mount: eq. (25) read as a change of frame (see the module docstring).
     """
     out = np.empty(6)
-    out[:3] = R_bc @ rotvec_from_rotation(E_co[:3, :3])
-    out[3:] = R_bc @ E_co[:3, 3]
+    out[:3] = R_body_camera @ rotvec_from_rotation(E_co[:3, :3])
+    out[3:] = R_body_camera @ E_co[:3, 3]
     return out
 
 
@@ -107,17 +108,17 @@ def planar_twist(cmd: Array) -> Array:
 # -- end-effector error, compensation and arm twist, eqs. (13), (21)–(23), (34)–(37), (40) ----------------------
 
 
-def ee_setpoint(H_bc: Array, H_co: Array, H_ot: Array, H_tp: Array | None = None) -> Array:
-    """Eqs. (21)–(23): ``H*_be = H_bc · H_co · H*_ot_i [· H_tp]``."""
-    H = H_bc @ H_co @ H_ot
-    return H @ H_tp if H_tp is not None else H
+def ee_setpoint(T_body_camera: Array, T_co: Array, T_ot: Array, T_tp: Array | None = None) -> Array:
+    """Eqs. (21)–(23): ``T*_be = T_bc · T_co · T*_ot_i [· T_tp]`` (``T_bc`` = ``T_body_camera``)."""
+    T = T_body_camera @ T_co @ T_ot
+    return T @ T_tp if T_tp is not None else T
 
 
-def ee_error_vector(H_be: Array, H_be_star: Array) -> Array:
+def ee_error_vector(T_be: Array, T_be_star: Array) -> Array:
     """Eq. (13) as meant: ``L_Ee = [log(R* Rᵀ); p* − p]`` in the base frame (the tool point's error)."""
     out = np.empty(6)
-    out[:3] = rotvec_from_rotation(H_be_star[:3, :3] @ H_be[:3, :3].T)
-    out[3:] = H_be_star[:3, 3] - H_be[:3, 3]
+    out[:3] = rotvec_from_rotation(T_be_star[:3, :3] @ T_be[:3, :3].T)
+    out[3:] = T_be_star[:3, 3] - T_be[:3, 3]
     return out
 
 
@@ -152,9 +153,11 @@ def dls_solve(J: Array, V: Array, damping: float) -> Array:
     A = J @ J.T
     if damping > 0.0:
         A = A + (damping * damping) * _EYE6
+    x: Array
     _, x, info = _dposv(A, V)  # Cholesky solve: J Jᵀ + λ² I is symmetric positive definite
     if info != 0:  # singular without damping: fall back to least squares
-        return J.T @ np.linalg.lstsq(A, V, rcond=None)[0]
+        y = np.linalg.lstsq(A, V, rcond=None)[0]
+        return J.T @ y.astype(np.float64, copy=False)  # already float64: no copy
     return J.T @ x
 
 
