@@ -41,12 +41,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import taskflow_sim.viki_world  # noqa: F401  registers viki_ground (forked batch workers inherit it)
-import taskflow_tasks.viki_hyco
-import taskflow_tasks.viki_rotation  # noqa: F401  registers viki_rotate
+import taskflow_sim.viki.world  # noqa: F401  registers viki_ground (forked batch workers inherit it)
+import taskflow_tasks.viki.hyco
+import taskflow_tasks.viki.rotation  # noqa: F401  registers viki_rotate
 from taskflow_robots.racecar import Racecar
-from taskflow_tasks.viki_hyco import ViKiGains, ViKiHyCo
-from taskflow_tasks.viki_laws import ServoInputs, viki_velocity
+from taskflow_tasks.viki.hyco import ViKiGains, ViKiHyCo
+from taskflow_tasks.viki.laws import ServoInputs, viki_velocity
 
 from taskflow.api import Observation
 from taskflow.batch import run_batch
@@ -131,7 +131,7 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
 def render_costs(sizes: tuple[tuple[int, int], ...] = ((320, 180), (640, 360)), frames: int = 5) -> dict[str, float]:
     """ms per rendered frame (median): front camera with LiDAR fusion (the LiDAR scanned every frame
     here, i.e. worst case; in a run it scans at 10 Hz) and rear camera."""
-    from taskflow_sim.viki_world import VikiGround
+    from taskflow_sim.viki.world import VikiGround
 
     robot = Racecar(Racecar.Params())
     out = {}

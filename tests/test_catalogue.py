@@ -90,7 +90,7 @@ def test_list_json(capsys: pytest.CaptureFixture[str]) -> None:
 def test_describe_task_shows_parameters_units_slots_metrics_events(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = _run(capsys, "describe", "viki_hyco")
     assert code == 0 and err == ""
-    assert out.startswith("task viki_hyco  (taskflow_tasks.viki_hyco:ViKiHyCo)")
+    assert out.startswith("task viki_hyco  (taskflow_tasks.viki.hyco:ViKiHyCo)")
     for line in ('camera: "front" | "rear", required',
                  "desired: [float, float], required, unit m — object position in the robot frame at the goal (m)",
                  "desired_centre: [float, float] | null, default null, unit px",

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
-from taskflow_sim.viki_world import VikiGround
+from taskflow_sim.viki.world import VikiGround
 
 ROBOT = Racecar(Racecar.Params())
 STILL = {"v": np.zeros(1), "steer": np.zeros(1)}

@@ -1,17 +1,17 @@
-"""Tests for taskflow_tasks.car_visual_servo (ViKi-HyCo eq. 10, 20-24) and the ideal feature-space loop."""
+"""Tests for taskflow_tasks.viki.car_visual_servo (ViKi-HyCo eq. 10, 20-24) and the ideal feature-space loop."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from taskflow_tasks.bbox_target import desired_bbox
-from taskflow_tasks.car_visual_servo import (
+from taskflow_tasks.viki.bbox_target import desired_bbox
+from taskflow_tasks.viki.car_visual_servo import (
     camera_vs_velocity,
     car_feature_jacobian,
     car_gains,
     car_jacobian_r,
     car_vs_velocity,
 )
-from taskflow_tasks.image_features import (
+from taskflow_tasks.viki.image_features import (
     CameraIntrinsics,
     bbox_features,
     feature_error,

@@ -1,4 +1,4 @@
-"""The evidence rules of ViKi-HyCo (taskflow_tasks.viki_evidence), against hand-computed values."""
+"""The evidence rules of ViKi-HyCo (taskflow_tasks.viki.evidence), against hand-computed values."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shift, view_shifts
+from taskflow_tasks.viki.evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shift, view_shifts
 
 
 @pytest.mark.parametrize("bbox, cut", [

@@ -10,9 +10,9 @@ from pydantic import ValidationError
 from taskflow_robots.racecar import Racecar
 from taskflow_tasks.car_goto import CarGains
 from taskflow_tasks.car_kinematics import kinematic_control
-from taskflow_tasks.viki_hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
-from taskflow_tasks.viki_laws import desired_centre, object_base, reverse_control, saturate_twist
-from taskflow_tasks.viki_rotation import ViKiRotate, k_turn_legs
+from taskflow_tasks.viki.hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
+from taskflow_tasks.viki.laws import desired_centre, object_base, reverse_control, saturate_twist
+from taskflow_tasks.viki.rotation import ViKiRotate, k_turn_legs
 
 from taskflow.api import Observation
 from taskflow.messages import Detection

@@ -12,7 +12,7 @@ Conventions
   expressed in robot axes, linear part = velocity of the robot origin. A *camera twist* ``V_c``
   is the camera's own body velocity in camera axes, linear part = velocity of the camera origin:
   the ``V_c`` of eq. 6-10 (camera moving through a static scene).
-* Features ``f`` are the four bounding-box corners (``taskflow_tasks.image_features.bbox_features``) in
+* Features ``f`` are the four bounding-box corners (``taskflow_tasks.viki.image_features.bbox_features``) in
   absolute pixels; ``f_d`` the desired corners of eq. 19.
 
 As-meant readings (see also /work/shared/REFERENCE.md section 1)
@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from taskflow_tasks.image_features import (
+from taskflow_tasks.viki.image_features import (
     CameraIntrinsics,
     as_intrinsics,
     point_interaction_matrix,

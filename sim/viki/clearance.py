@@ -6,7 +6,7 @@ origin of a scratch PyBullet client, the union of its links' bounding boxes on t
 for the car's body: the PyBullet racecar has no collision shape on its chassis, so the distance between
 the collision shapes themselves (``getClosestPoints``) would let an object pass under the chassis
 between the wheels untouched.  The object's footprint is its base outline: a circle for a cylinder, its
-turned rectangle for a box (:mod:`taskflow_sim.viki_objects`).
+turned rectangle for a box (:mod:`taskflow_sim.viki.objects`).
 
 :func:`footprint_clearance` is a few lines of float arithmetic (microseconds): the world evaluates it once per control
 tick, not per physics step.
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 from taskflow_sim.bodies import GroundBody
-from taskflow_sim.viki_objects import PlacedObject
+from taskflow_sim.viki.objects import PlacedObject
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 Boxes are ``(u0, v0, u2, v2) = (left, top, right, bottom)`` in pixels; the desired centre
 ``(O_du, O_dv)`` is in absolute pixels. Turn a box into the servo features with
-``taskflow_tasks.image_features.bbox_features``.
+``taskflow_tasks.viki.image_features.bbox_features``.
 
 Eq. 19 (section II-E)::
 
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from taskflow_tasks.image_features import CameraIntrinsics, as_intrinsics
+from taskflow_tasks.viki.image_features import CameraIntrinsics, as_intrinsics
 
 __all__ = ["desired_bbox", "static_desired_bbox"]
 

@@ -40,8 +40,8 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 from taskflow_tasks.car_goto import CarGains, CarGeometry, car_control_point
 from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
-from taskflow_tasks.viki_hyco import MEM_OBJECT
-from taskflow_tasks.viki_laws import reverse_control
+from taskflow_tasks.viki.hyco import MEM_OBJECT
+from taskflow_tasks.viki.laws import reverse_control
 
 from taskflow.api import (
     COUNT,

@@ -18,7 +18,7 @@ result (``StepResult.sensors = ("front_camera",)``), so the world processes only
 
 Desired features: ``desired: [x, y]`` is the object's desired position in the robot frame (e.g. the
 manipulation zone); the desired box centre follows from it and the measured object (see
-:mod:`taskflow_tasks.viki_laws`), or is given directly in pixels with ``desired_centre`` (the paper's way).  ``Z_d``
+:mod:`taskflow_tasks.viki.laws`), or is given directly in pixels with ``desired_centre`` (the paper's way).  ``Z_d``
 is read every frame in the depth image at the desired centre (eq. 19).  ``zd: pixel`` reads the single pixel
 (as printed; the world's ``depth_at``); ``zd: window`` (default) applies eq. 17's rule — mean depth of the
 40 %-shrunk box — to the current box moved to the desired centre (``depth_in``).  Away from the goal both
@@ -31,16 +31,16 @@ Kinematic target (eq. 25's fallback, eq. 4's ``h_d``): the object's position in 
 (eq. 18 + base-centre estimate) is stored in the mission data (key ``viki.object``) so later states —
 the rotation, the backward positioning — use it.  With ``target_update: latest`` (the default) every
 *whole* detection re-anchors it — one whose box is not within ``border_px`` of the image border
-(:func:`taskflow_tasks.viki_evidence.box_cut_by_border`: a cut box's centre and width are the visible
+(:func:`taskflow_tasks.viki.evidence.box_cut_by_border`: a cut box's centre and width are the visible
 part's, and trusting it drove the car onto the object at large bearings); a cut box still drives the
 visual servo, and fixes the object only when nothing else has.  A target frozen at the first detection
 (``target_update: first``, the paper's rule) lies 5–9 cm from where the visual servo converges, so
 each burst of missed detections dragged the car off by 20–30 cm.  A state turns the object into its
 control-point target on entry (if the memory has it) and after every re-anchoring: the pose with the
-object at ``desired`` and the heading of :func:`taskflow_tasks.viki_laws.goal_heading` (stored as
+object at ``desired`` and the heading of :func:`taskflow_tasks.viki.laws.goal_heading` (stored as
 ``viki.target``).  For a goal behind the robot
 (``desired[0] < 0``, the rear camera) the fallback is the paper's *backward* kinematic controller: eq. 4 on
-the car seen backwards, servoing the point ``d`` behind the rear axle (:func:`taskflow_tasks.viki_laws.reverse_control`;
+the car seen backwards, servoing the point ``d`` behind the rear axle (:func:`taskflow_tasks.viki.laws.reverse_control`;
 plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`` forces either.
 
 No detection yet and no object in memory: the robot holds still and, after ``search_timeout``, the task
@@ -51,7 +51,7 @@ command moving the body toward the object (memory) once within ``keep_out_margin
 
 Evidence for the settle rule (a completion a car can meet, docs/missions.md): ``goal_error`` (m) is the
 distance from ``desired`` to the mean object position of the last ``evidence_frames`` whole detections
-taken within ``evidence_window`` of view shift of the current pose (:func:`taskflow_tasks.viki_evidence.view_shifts`),
+taken within ``evidence_window`` of view shift of the current pose (:func:`taskflow_tasks.viki.evidence.view_shifts`),
 seen from the current odometry pose; ``view_shift`` (m) is how far the goal point has moved in odometry
 since the last whole detection (a still camera gives the same image: that detection still holds).
 
@@ -76,10 +76,10 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.racecar import CameraMount
 from taskflow_tasks.car_goto import CarGains, CarGeometry
-from taskflow_tasks.car_visual_servo import car_jacobian_r
+from taskflow_tasks.viki.car_visual_servo import car_jacobian_r
 from taskflow_tasks.keep_out import keep_out_speed
-from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shifts
-from taskflow_tasks.viki_laws import (
+from taskflow_tasks.viki.evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shifts
+from taskflow_tasks.viki.laws import (
     ServoInputs,
     desired_centre,
     goal_heading,
@@ -126,7 +126,7 @@ class ViKiGains(CarGains):
 
     ``lam``: the paper's five numbers (section III-A: front ``[0.85, 0.3, 1, 1, 1]``, rear
     ``[0.85, 1.05, 1, 1, 1]``); ``diag(lam[0], lam[1])`` acts on ``[v, w]`` in eq. 24 and the other three
-    have no counterpart in the 2-DoF law (:func:`taskflow_tasks.car_visual_servo.car_gains`).  ``k1``: eq. 4's
+    have no counterpart in the 2-DoF law (:func:`taskflow_tasks.viki.car_visual_servo.car_gains`).  ``k1``: eq. 4's
     ``[k_x, k_y]`` (forward ``[2, 1]``, backward ``[1, 2]``).  ``d``: control-point distance of eq. 1
     (``None``: the wheelbase, as in the paper).
     """

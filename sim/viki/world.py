@@ -1,13 +1,13 @@
 """``viki_ground``: the racecar, a floor and one waste-like object — the world of the ViKi-HyCo missions.
 
 Scene: :class:`taskflow_sim.flat_ground.FlatGround` (racecar on a thin box floor, odometry with optional noise)
-plus one static object (:mod:`taskflow_sim.viki_objects`: ``can``, ``bottle`` or ``carton``) placed relative to the
+plus one static object (:mod:`taskflow_sim.viki.objects`: ``can``, ``bottle`` or ``carton``) placed relative to the
 start pose (``object_distance`` / ``object_bearing`` from the rear-axle midpoint, heading-relative) or at
 world ``object_xy``.  Missions draw these from distributions (``{uniform: [...]}``, ``{choice: [...]}``),
 so a batch is a Monte Carlo campaign.
 
-Perception (``perception: geometric | rendered``, :mod:`taskflow_sim.perception_geometric`,
-:mod:`taskflow_sim.perception_rendered`) fills ``obs.sensors["detection"]`` with a
+Perception (``perception: geometric | rendered``, :mod:`taskflow_sim.viki.perception_geometric`,
+:mod:`taskflow_sim.viki.perception_rendered`) fills ``obs.sensors["detection"]`` with a
 :class:`taskflow.messages.Detection` of the **active camera** at the camera's rate (15 Hz by default; the
 control runs at the mission's rate and sees the latest frame with ``fresh = False`` in between).  In
 ``rendered`` mode ``obs.sensors["image"]`` is that frame's colour image, the one the detector was given (a
@@ -34,7 +34,7 @@ object's base centre in the robot frame), ``err_x, err_y`` (that minus the manip
 frame at the end minus ``goal``), detection counts (``frames``, ``detections``, ``detections_missed`` —
 frames the dropout model dropped while the object was in view, ``dropout_fraction``), motion statistics
 (``v_sign_changes``, ``v_sign_changes_last_5s``, ``path_length_m``), the object's kind and placement,
-and from the ground truth at every control tick (:mod:`taskflow_sim.viki_clearance`) ``min_clearance_m``
+and from the ground truth at every control tick (:mod:`taskflow_sim.viki.clearance`) ``min_clearance_m``
 — the smallest distance over the run between the car's body footprint and the object's footprint, 0
 when they touched — and ``contact`` (they ever touched: footprints overlapping or a PyBullet contact).
 The wall-clock cost of each frame's perception is reported as the observation's ``timings["perception"]``
@@ -55,12 +55,12 @@ from taskflow_robots.racecar import CameraMount
 from taskflow_sim.bodies import BodyOptions, make_body
 from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
 from taskflow_sim.odometry_slip import SlipOdometry
-from taskflow_sim.perception_common import CameraModel, DropoutModel
-from taskflow_sim.perception_geometric import GeometricPerception
-from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
+from taskflow_sim.viki.camera import CameraModel, DropoutModel
+from taskflow_sim.viki.perception_geometric import GeometricPerception
+from taskflow_sim.viki.perception_rendered import LidarScanner, RenderedPerception
 from taskflow_sim.stepped import SensorSchedule
-from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
-from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
+from taskflow_sim.viki.clearance import Footprint, footprint_clearance, measure_footprint
+from taskflow_sim.viki.objects import SHAPES, PlacedObject, create_body
 
 from taskflow.api import Marker, Observation, ObsSpec, Robot, RobotNeeds, message, text
 from taskflow.fidelity import Fidelity, Level, Sourced

@@ -1,6 +1,6 @@
 """What a ViKi-HyCo detection is worth as evidence: border-cut boxes, how far the view has moved since it.
 
-Pure functions (numbers in, numbers out) used by :mod:`taskflow_tasks.viki_hyco`:
+Pure functions (numbers in, numbers out) used by :mod:`taskflow_tasks.viki.hyco`:
 
 * :func:`box_cut_by_border` — a box that touches the image border (or comes within ``margin_px`` of it)
   is the visible part of an object the image cuts: its centre, width and eq. 18's position estimate are
