@@ -142,13 +142,13 @@ def render_costs(sizes: tuple[tuple[int, int], ...] = ((320, 180), (640, 360)), 
             w.reset()
             try:
                 w.observe()
-                per = w._perceptor(cam)
+                per = w.sensors.perceptor(cam)
                 T_world_robot = w.T_world_robot()
-                T_world_camera = w.cameras[cam].pose(T_world_robot)
+                T_world_camera = w.sensors.cameras[cam].pose(T_world_robot)
                 ts = []
                 for _ in range(frames):
-                    if w._lidar is not None:
-                        w._lidar.next_scan = 0.0
+                    if w.sensors.lidar is not None:
+                        w.sensors.lidar.next_scan = 0.0
                     t0 = time.perf_counter()
                     per.detect(T_world_camera, 0.0, T_world_robot)
                     ts.append(time.perf_counter() - t0)

@@ -23,8 +23,8 @@ from collections.abc import Callable
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-from taskflow_sim.viki.depth import shrunk_box
 from taskflow_sim.viki.camera import CameraModel, pixel_box, quantise_box
+from taskflow_sim.viki.depth import shrunk_box
 from taskflow_sim.viki.objects import PlacedObject, ray_ground
 
 MAX_DEPTH_RAYS = 400

@@ -34,6 +34,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 from taskflow_robots.racecar import LidarMount
+from taskflow_sim.viki.camera import CameraModel, pixel_box
 from taskflow_sim.viki.depth import (
     blind_spot_mask,
     fuse_depth,
@@ -42,7 +43,6 @@ from taskflow_sim.viki.depth import (
     object_depth,
     project_lidar_points,
 )
-from taskflow_sim.viki.camera import CameraModel, pixel_box
 
 VIRTUAL_LAYERS = 112
 

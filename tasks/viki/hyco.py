@@ -76,8 +76,8 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.racecar import CameraMount
 from taskflow_tasks.car_goto import CarGains, CarGeometry
-from taskflow_tasks.viki.car_visual_servo import car_jacobian_r
 from taskflow_tasks.keep_out import keep_out_speed
+from taskflow_tasks.viki.car_visual_servo import car_jacobian_r
 from taskflow_tasks.viki.evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shifts
 from taskflow_tasks.viki.laws import (
     ServoInputs,

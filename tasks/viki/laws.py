@@ -34,10 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from taskflow_tasks.viki.bbox_target import desired_bbox, static_desired_bbox
 from taskflow_tasks.car_kinematics import car_command, kinematic_control
-from taskflow_tasks.viki.car_visual_servo import car_vs_velocity
 from taskflow_tasks.hybrid import hybrid_velocity, smooth_velocity
+from taskflow_tasks.viki.bbox_target import desired_bbox, static_desired_bbox
+from taskflow_tasks.viki.car_visual_servo import car_vs_velocity
 from taskflow_tasks.viki.image_features import bbox_features, feature_error
 
 FloatArray = NDArray[np.float64]

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
-from taskflow_tasks.viki.bbox_target import desired_bbox, static_desired_bbox
 from taskflow_tasks.car_kinematics import car_command, kinematic_control
-from taskflow_tasks.viki.car_visual_servo import car_vs_velocity
 from taskflow_tasks.hybrid import smooth_velocity
+from taskflow_tasks.viki.bbox_target import desired_bbox, static_desired_bbox
+from taskflow_tasks.viki.car_visual_servo import car_vs_velocity
 from taskflow_tasks.viki.image_features import bbox_features
 from taskflow_tasks.viki.laws import (
     ServoInputs,
