@@ -172,7 +172,7 @@ def create_body(client: int, obj: PlacedObject) -> int:
         half = [0.5 * v for v in s.size]
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=client)
         vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=list(s.rgba), physicsClientId=client)
-    return p.createMultiBody(
+    body: int = p.createMultiBody(
         baseMass=0.0,
         baseCollisionShapeIndex=col,
         baseVisualShapeIndex=vis,
@@ -180,3 +180,4 @@ def create_body(client: int, obj: PlacedObject) -> int:
         baseOrientation=p.getQuaternionFromEuler([0.0, 0.0, obj.yaw]),
         physicsClientId=client,
     )
+    return body

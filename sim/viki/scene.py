@@ -11,15 +11,12 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-from numpy.typing import NDArray
 from taskflow_robots.racecar import CameraMount
 from taskflow_sim.viki.camera import CameraModel
 from taskflow_sim.viki.objects import SHAPES, PlacedObject, create_body
 from taskflow_sim.viki.params import VikiGroundParams
 
 from taskflow.api import Marker
-from taskflow.spatial import rotation_from_unit_quaternion, transform
 
 #: the cameras of ``viki_ground``, in the order their models are built
 CAMERAS = ("front", "rear")
@@ -59,11 +56,6 @@ def camera_models(wp: VikiGroundParams, mounts: dict[str, CameraMount]) -> dict[
             m = m.model_copy(update={"rate_hz": float(wp.camera_rate_hz)})
         cameras[name] = CameraModel(name, m, m.width, m.height, wp.depth_max)
     return cameras
-
-
-def T_world_base(position: tuple[float, float, float], quaternion: tuple[float, float, float, float]) -> NDArray[np.float64]:
-    """World ← body 4x4 from a PyBullet base position and unit quaternion ``(x, y, z, w)``."""
-    return transform(rotation_from_unit_quaternion(quaternion), position)
 
 
 def object_in_robot_frame(obj: PlacedObject, pose: tuple[float, float, float]) -> tuple[float, float]:

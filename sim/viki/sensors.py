@@ -136,7 +136,7 @@ class VikiCameras:
             bbox, depth, depth_at, depth_in = per.detect(T_world_camera, t, T_world_robot)
         perception_s = time.perf_counter() - t0
         image = None
-        if isinstance(per, RenderedPerception):  # the image the detector got (a view: nothing copied)
+        if isinstance(per, RenderedPerception) and per.last_rgb is not None:  # the detector's image (a view)
             image = Image(stamp=t, frame=f"{name}_camera", pixels=per.last_rgb)
             if wp.latency <= 0.0:
                 self.image = image

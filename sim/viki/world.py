@@ -43,33 +43,51 @@ The wall-clock cost of each frame's perception is reported as the observation's 
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, cast
+from typing import Any, ClassVar, Protocol, cast
 
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 from pydantic import BaseModel
-from taskflow_robots.racecar import CameraMount
+from taskflow_robots.racecar import CameraMount, LidarMount
 from taskflow_sim.bodies import BodyOptions, make_body
 from taskflow_sim.flat_ground import FlatGround
 from taskflow_sim.odometry_slip import SlipOdometry
 from taskflow_sim.viki.clearance import measure_footprint
 from taskflow_sim.viki.objects import PlacedObject
 from taskflow_sim.viki.params import VikiGroundParams
-from taskflow_sim.viki.scene import T_world_base, camera_models, object_in_robot_frame, object_marker, place_object
+from taskflow_sim.viki.scene import camera_models, object_in_robot_frame, object_marker, place_object
 from taskflow_sim.viki.scoring import CAMERA_CODE, ViKiScore, summary
 from taskflow_sim.viki.sensors import VikiCameras
 
 from taskflow.api import Marker, Observation, ObsSpec, Robot, RobotNeeds, message, text
 from taskflow.messages import Detection, Image
 from taskflow.registry import register_world
+from taskflow.spatial import rotation_from_unit_quaternion, transform
+
+
+class CameraRig(Protocol):
+    """What ``viki_ground`` needs of a robot's parameters (the racecar's and the husky's have it)."""
+
+    @property
+    def front_camera(self) -> CameraMount: ...
+    @property
+    def rear_camera(self) -> CameraMount: ...
+    @property
+    def lidar(self) -> LidarMount: ...
+
+
+class BaseFramed(Protocol):
+    """A ground body that gives its robot frame's PyBullet pose (the racecar's and the husky's bodies)."""
+
+    def _base_frame(self) -> tuple[tuple[float, ...], tuple[float, ...]]: ...
 
 
 @register_world("viki_ground")
 class VikiGround(FlatGround):
     """Racecar + one object + front/rear RGB-D cameras (+ LiDAR) with a detector."""
 
-    Params: ClassVar[type[VikiGroundParams]] = VikiGroundParams  # type: ignore[assignment]  # a narrower Params than FlatGround's
+    Params: ClassVar[type[VikiGroundParams]] = VikiGroundParams
 
     @classmethod
     def rate_problem(cls, params: BaseModel, robot_params: BaseModel | None, rate_hz: float) -> tuple[str, str] | None:
@@ -112,7 +130,7 @@ class VikiGround(FlatGround):
 
     # --- scene ---------------------------------------------------------------------------------
     @classmethod
-    def scene(cls, params: BaseModel) -> list[Marker]:
+    def scene(cls, params: BaseModel) -> list[Marker]:  # type: ignore[override]  # World.scene (markers) vs SteppedWorld.scene (the simulator): one name, sim/stepped.py
         """The start pose and the object (with its footprint radius) as placed."""
         wp = cast(VikiGroundParams, params)
         return [*super().scene(wp), object_marker(wp)]
@@ -122,9 +140,10 @@ class VikiGround(FlatGround):
         scene = self._require_scene()
         self.object, self.object_body = place_object(scene.client, wp)
         footprint = measure_footprint(make_body(self.robot, BodyOptions()))
-        mounts: dict[str, CameraMount] = {"front": rp.front_camera, "rear": rp.rear_camera}
+        rig = cast(CameraRig, rp)
+        mounts: dict[str, CameraMount] = {"front": rig.front_camera, "rear": rig.rear_camera}
         self._sensors = VikiCameras(wp, camera_models(wp, mounts), scene.client, self.object, self.object_body,
-                                    scene.car.body, rp.lidar, self.seed)
+                                    scene.car.body, rig.lidar, self.seed)
         self._score = ViKiScore(footprint, self.object)
         self._slip = None
         self._odometry = None
@@ -150,8 +169,8 @@ class VikiGround(FlatGround):
 
     def T_world_robot(self) -> NDArray[np.float64]:
         """World ← robot (rear-axle midpoint) 4x4 from the simulator (full 3-D, ground truth)."""
-        pos, q = self._require_scene().car._base_frame()
-        return T_world_base(pos, q)
+        pos, q = cast(BaseFramed, self._require_scene().car)._base_frame()
+        return transform(rotation_from_unit_quaternion(q), pos)
 
     # --- the loop --------------------------------------------------------------------------------
     def end_steps(self, n: int, h: float) -> None:

@@ -216,4 +216,5 @@ def camera_vs_velocity(
         raise ValueError(f"lam must be a scalar or a 6-vector, got shape {g.shape}")
     if np.any(g < 0.0):
         raise ValueError("gains must be non-negative")
-    return -g * np.linalg.lstsq(L, e, rcond=None)[0]
+    twist: NDArray[np.float64] = -g * np.linalg.lstsq(L, e, rcond=None)[0]
+    return twist

@@ -57,7 +57,8 @@ def view_shifts(poses_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) ->
         return np.stack([P[:, 0] + c * g[0] - s * g[1], P[:, 1] + s * g[0] + c * g[1]], axis=1)
 
     d = world(np.asarray(pose_now, dtype=float).reshape(1, 3)) - world(np.asarray(poses_then, dtype=float).reshape(-1, 3))
-    return np.hypot(d[:, 0], d[:, 1])
+    shifts: NDArray[np.float64] = np.hypot(d[:, 0], d[:, 1])
+    return shifts
 
 
 def view_shift(pose_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> float:
@@ -67,4 +68,5 @@ def view_shift(pose_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> f
 
 def goal_offset(pose: ArrayLike, object_xy: ArrayLike, desired: ArrayLike) -> NDArray[np.float64]:
     """Object (odometry ``object_xy``) in the robot frame of ``pose`` minus ``desired`` (robot frame), m."""
-    return in_robot_frame(pose, object_xy) - np.asarray(desired, dtype=float).reshape(2)
+    offset: NDArray[np.float64] = in_robot_frame(pose, object_xy) - np.asarray(desired, dtype=float).reshape(2)
+    return offset

@@ -274,7 +274,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         usable = det is not None and det.detected and obs.t - det.stamp <= self.p.max_age + 1e-9
         # a box cut by the image border still steers the visual servo (toward bringing the object into view)
         # but is no evidence of where the object is: it anchors the target only when nothing else has
-        whole = usable and det is not None and not box_cut_by_border(det.bbox, det.width, det.height, self.p.border_px)
+        whole = usable and det is not None and det.bbox is not None and not box_cut_by_border(det.bbox, det.width, det.height, self.p.border_px)
         events: tuple[str, ...] = ()
         bbox = Z_o = Z_d = centre = None
         if det is not None and usable:

@@ -73,7 +73,8 @@ def object_point(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_robot_cam
     ou, ov = 0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])
     Pc = np.array([(ou - cu) * Z_o / fx, (ov - cv) * Z_o / fy, Z_o])
     T = _T(T_robot_camera)
-    return T[:3, :3] @ Pc + T[:3, 3]
+    base: NDArray[np.float64] = T[:3, :3] @ Pc + T[:3, 3]
+    return base
 
 
 def object_base(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_robot_camera: ArrayLike) -> tuple[FloatArray, float, float]:
@@ -136,7 +137,8 @@ def kinematic_target(object_xy: ArrayLike, goal_xy: ArrayLike, theta_f: float, d
     g = np.asarray(goal_xy, dtype=float).reshape(2)
     c, s = math.cos(theta_f), math.sin(theta_f)
     p = O - np.array([c * g[0] - s * g[1], s * g[0] + c * g[1]])
-    return p + d * np.array([c, s])
+    point: NDArray[np.float64] = p + d * np.array([c, s])
+    return point
 
 
 def reverse_control(pose: ArrayLike, target: ArrayLike, k1: ArrayLike, d: float) -> tuple[float, float]:
