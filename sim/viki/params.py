@@ -1,6 +1,6 @@
 """``viki_ground``'s parameters: object placement, manipulation-zone goal, perception mode, detector model.
 
-:class:`VikiGroundParams` extends the flat-ground parameters (:class:`taskflow_sim.flat_ground.FlatGroundParams`:
+:class:`VikiGroundParams` extends the flat-ground parameters (:class:`taskflow_sim.ground.flat_ground.FlatGroundParams`:
 start pose, floor, odometry noise) with the object (``object_kind``, ``object_distance`` / ``object_bearing``
 or ``object_xy``, ``object_yaw``), the manipulation-zone ``goal``, the cameras (``perception``,
 ``initial_camera``, ``image_size``, ``camera_rate_hz``, ``depth_max``, ``latency``), the detector's noise
@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from typing import ClassVar, Literal
 
 from pydantic import Field, model_validator
-from taskflow_sim.flat_ground import FlatGroundParams
+from taskflow_sim.ground.flat_ground import FlatGroundParams
 
 from taskflow.fidelity import Fidelity, Level, Sourced
 

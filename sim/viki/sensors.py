@@ -3,7 +3,7 @@
 Perception (``perception: geometric | rendered``, :mod:`taskflow_sim.viki.perception_geometric`,
 :mod:`taskflow_sim.viki.perception_rendered`) gives a :class:`taskflow.messages.Detection` of the **active
 camera** at the camera's rate (frames on a fixed grid from the stream's start, taken at control ticks:
-:class:`taskflow_sim.stepped.SensorSchedule`; between two frames the latest is seen with ``fresh = False``).
+:class:`taskflow_sim.core.stepped.SensorSchedule`; between two frames the latest is seen with ``fresh = False``).
 In ``rendered`` mode the frame's colour image (a :class:`taskflow.messages.Image` stamped with its capture
 time) travels with its detection, under the same rule.
 
@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from taskflow_robots.racecar import LidarMount
-from taskflow_sim.stepped import SensorSchedule
+from taskflow_sim.core.stepped import SensorSchedule
 from taskflow_sim.viki.camera import CameraModel, DropoutModel
 from taskflow_sim.viki.objects import PlacedObject
 from taskflow_sim.viki.params import VikiGroundParams

@@ -1,6 +1,6 @@
 """``viki_ground``: the racecar, a floor and one waste-like object — the world of the ViKi-HyCo missions.
 
-Scene: :class:`taskflow_sim.flat_ground.FlatGround` (racecar on a thin box floor, odometry with optional noise)
+Scene: :class:`taskflow_sim.ground.flat_ground.FlatGround` (racecar on a thin box floor, odometry with optional noise)
 plus one static object (:mod:`taskflow_sim.viki.scene`, :mod:`taskflow_sim.viki.objects`: ``can``, ``bottle``
 or ``carton``) placed relative to the start pose or at world ``object_xy`` (parameters:
 :mod:`taskflow_sim.viki.params`).  Missions draw these from distributions (``{uniform: [...]}``,
@@ -50,9 +50,9 @@ import pybullet as p
 from numpy.typing import NDArray
 from pydantic import BaseModel
 from taskflow_robots.racecar import CameraMount, LidarMount
-from taskflow_sim.bodies import BodyOptions, make_body
-from taskflow_sim.flat_ground import FlatGround
-from taskflow_sim.odometry_slip import SlipOdometry
+from taskflow_sim.core.bodies import BodyOptions, make_body
+from taskflow_sim.core.odometry_slip import SlipOdometry
+from taskflow_sim.ground.flat_ground import FlatGround
 from taskflow_sim.viki.clearance import measure_footprint
 from taskflow_sim.viki.objects import PlacedObject
 from taskflow_sim.viki.params import VikiGroundParams

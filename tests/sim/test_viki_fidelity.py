@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
-from taskflow_sim.odometry_slip import SlipOdometry
+from taskflow_sim.core.odometry_slip import SlipOdometry
 from taskflow_sim.viki.params import VikiGroundParams
 from taskflow_sim.viki.sensors import biased_box
 from taskflow_sim.viki.world import VikiGround
