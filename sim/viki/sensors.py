@@ -1,30 +1,41 @@
 """``viki_ground``'s sensors: the front and rear RGB-D cameras (+ the LiDAR) with their detector, one camera at a time.
 
-Perception (``perception: geometric | rendered``, :mod:`taskflow_sim.viki.perception_geometric`,
-:mod:`taskflow_sim.viki.perception_rendered`) gives a :class:`taskflow.messages.Detection` of the **active
-camera** at the camera's rate (frames on a fixed grid from the stream's start, taken at control ticks:
-:class:`taskflow_sim.core.stepped.SensorSchedule`; between two frames the latest is seen with ``fresh = False``).
-In ``rendered`` mode the frame's colour image (a :class:`taskflow.messages.Image` stamped with its capture
-time) travels with its detection, under the same rule.
+Each camera is a declared :class:`taskflow_sim.core.sensors.SensorStream` (``front_camera``, ``rear_camera``),
+polled once per control tick (``poll="advance"``; frames on a fixed grid from the stream's start, at the
+camera's rate: 15 Hz camera, 20 Hz control, 3 frames in 4 ticks), enabled only while it is the **active
+camera**.  Per frame, in this order (also the order of the detector's random draws, all from one seeded
+generator):
 
-Per frame (:meth:`VikiCameras.poll`, run by the world's stepping hook, never by ``observe()``): capture and
-detect, add the systematic ``box_bias`` (:func:`biased_box`), drop the box when the dropout model
-(:class:`taskflow_sim.viki.camera.DropoutModel`) misses the frame, count it; with ``latency > 0`` the frame
-waits in a queue and the newest frame captured at least ``latency`` ago is delivered (older ones are
-superseded, as a detector's queue of one).  A delivered detection whose outcome differs from the previous
-one emits ``target_found`` / ``target_lost`` (a camera's first frame emits ``target_found`` if it sees the
-object).  :meth:`VikiCameras.readings` only reads: the observation's ``sensors`` entries.
+1. **read** (:meth:`VikiCameras.read`): capture and detect — ``perception: geometric | rendered``
+   (:mod:`taskflow_sim.viki.perception_geometric`, :mod:`taskflow_sim.viki.perception_rendered`); a
+   :class:`taskflow.messages.Detection` always (``bbox = None``: nothing seen) and, in ``rendered`` mode,
+   the frame's colour image (:class:`taskflow.messages.Image`, stamped with its capture time);
+2. **corrupt** (:meth:`VikiCameras.corrupt`): the detector's error model — the systematic ``box_bias``
+   (:func:`biased_box`) and the dropout (:class:`taskflow_sim.viki.camera.DropoutModel`: a Gilbert–Elliott
+   chain with bursts and the still-camera repeat, one draw per frame), counted (``frames``, ``detections``,
+   ``missed``, ``first_detection_t``);
+3. **latency** ``latency`` s, ``delivery="newest"``: the newest frame captured at least ``latency`` ago is
+   delivered, older ones are superseded (a detector's queue of one); between deliveries the task sees the
+   last one with ``fresh = False``;
+4. **events** ``target_found`` / ``target_lost`` (change mode): a delivered detection whose outcome differs
+   from the previous one's (a camera's first frame emits ``target_found`` if it sees the object).
+
+:meth:`VikiCameras.readings` only reads (the observation's ``sensors`` entries); switching the camera
+(:meth:`VikiCameras.select`) restarts the new camera's stream at the switch time and forgets the old one.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from taskflow_robots.racecar import LidarMount
-from taskflow_sim.core.stepped import SensorSchedule
+from taskflow_sim.core.sensors import SensorStream
 from taskflow_sim.viki.camera import CameraModel, DropoutModel
 from taskflow_sim.viki.objects import PlacedObject
 from taskflow_sim.viki.params import VikiGroundParams
@@ -36,14 +47,30 @@ from taskflow.messages import Detection, Image
 Box = tuple[float, float, float, float]
 
 
+@dataclass(frozen=True)
+class Frame:
+    """One camera frame as the detector gives it: the detection, the colour image (rendered mode) and the
+    camera pose it was taken from (the dropout model's still-camera rule reads it)."""
+
+    detection: Detection
+    image: Image | None
+    T_world_camera: NDArray[np.float64]
+
+
+def _seen(frame: Frame) -> bool:
+    return frame.detection.detected
+
+
 class VikiCameras:
-    """The cameras of one run: models, perceptors, the active camera's frame stream and its delivered detection."""
+    """The cameras of one run: models, perceptors and one sensor stream per camera (module doc)."""
 
     def __init__(self, wp: VikiGroundParams, cameras: dict[str, CameraModel], client: int, obj: PlacedObject,
-                 object_body: int, car_body: int, lidar_mount: LidarMount, seed: int) -> None:
+                 object_body: int, car_body: int, lidar_mount: LidarMount, seed: int,
+                 robot_pose: Callable[[], NDArray[np.float64]]) -> None:
         self.params, self.cameras = wp, cameras
         self.client, self.object, self.object_body, self.car_body = client, obj, object_body, car_body
         self.lidar_mount = lidar_mount
+        self._robot_pose = robot_pose  # T_world_robot (4x4) now, from the simulator
         # one generator for the detector, independent of the odometry noise stream
         self.rng = np.random.default_rng([seed, 0x7A1])
         self.dropout = DropoutModel(self.rng, wp.dropout, wp.dropout_burst, wp.static_motion_m,
@@ -51,59 +78,78 @@ class VikiCameras:
         self.perceptors: dict[str, GeometricPerception | RenderedPerception] = {}
         self.lidar: LidarScanner | None = None
         self.active: str | None = None if wp.initial_camera == "none" else wp.initial_camera
-        # frames of the active camera on a fixed grid from its stream's start, at its rate (restarted on every
-        # switch; 15 Hz camera, 20 Hz control: 3 frames in 4 ticks)
-        self.schedule = SensorSchedule(self.cameras[self.active or "front"].mount.rate_hz, 0.0)
+        self.streams: dict[str, SensorStream[Frame]] = {
+            name: SensorStream(self._reader(name), cam.mount.rate_hz, latency=wp.latency, delivery="newest",
+                               corrupt=self.corrupt, rng=self.rng, events=("target_found", "target_lost"),
+                               present=_seen, poll="advance", enabled=name == self.active)
+            for name, cam in cameras.items()}
         self.seq = 0
-        self.last: Detection | None = None
-        self.image: Image | None = None  # rendered mode: the colour image of the frame of ``last``
-        self._last_detected: bool | None = None
-        self._pending: list[tuple[Detection, Image | None]] = []  # latency > 0: frames not delivered yet
-        self.events: tuple[str, ...] = ()  # emitted by the latest poll
-        self.timings: dict[str, float] = {}  # the latest poll's perception wall-clock seconds (when it took a frame)
+        self.timings: dict[str, float] = {}  # perception wall-clock seconds of the frame taken this tick
         self.frames = 0
         self.detections = 0
         self.missed = 0
         self.first_detection_t: float | None = None
+        self._stale: tuple[Detection | None, Detection | None] = (None, None)  # (delivered, its stale view)
 
     # --- reading ---------------------------------------------------------------------------------
+    def stream(self) -> SensorStream[Frame] | None:
+        """The active camera's stream (``None``: perception off)."""
+        return self.streams[self.active] if self.active is not None else None
+
+    def detection(self) -> Detection | None:
+        """The detection the task sees: the active camera's last delivered one (``fresh`` only on the tick it
+        was delivered)."""
+        s = self.stream()
+        if s is None or s.latest is None or s.latest.value is None:
+            return None
+        det = s.latest.value.detection
+        if s.new:
+            return det
+        src, view = self._stale
+        return view if src is det else det.stale()
+
     def readings(self) -> dict[str, Any]:
-        """The observation's ``sensors`` entries: the active camera's delivered detection (and image), the camera."""
+        """The observation's ``sensors`` entries: the active camera's detection (and image), the camera."""
         out: dict[str, Any] = {}
-        if self.active is not None and self.last is not None and self.last.camera == self.active:
-            out["detection"] = self.last
-            if self.image is not None:
-                out["image"] = self.image
+        det = self.detection()
+        if det is not None:
+            out["detection"] = det
+            s = self.stream()
+            image = s.latest.value.image if s is not None and s.latest is not None and s.latest.value else None
+            if image is not None:
+                out["image"] = image
         out["camera"] = self.active
         return out
 
+    def events(self) -> tuple[str, ...]:
+        """The found/lost events of the latest poll."""
+        s = self.stream()
+        return tuple(s.events) if s is not None else ()
+
     # --- the stepping hook -----------------------------------------------------------------------
-    def poll(self, t: float, T_world_robot: NDArray[np.float64]) -> None:
-        """One control tick at time ``t``: a frame of the active camera when due, then delivery (latency)."""
-        self._events: list[str] = []
+    def begin_tick(self) -> None:
+        """Before the streams' poll of a control tick: no frame taken yet; the current detection's stale
+        view is made once (the one every observation until the next delivery sees)."""
         self.timings = {}
-        latency = self.params.latency
-        if self.active is not None and self.schedule.due(t):
-            self.timings = {"perception": self._new_frame(self.active, t, T_world_robot)}
-            if latency > 0.0:
-                self._deliver(t)
-        elif latency > 0.0:
-            self._deliver(t)
-        elif self.last is not None and self.last.fresh:
-            self.last = self.last.stale()
-        self.events = tuple(self._events)
+        s = self.stream()
+        det = s.latest.value.detection if s is not None and s.latest is not None and s.latest.value else None
+        if det is not None and self._stale[0] is not det:
+            self._stale = (det, det.stale())
 
     def select(self, active: str | None, t: float) -> None:
-        """Switch the active camera (``None``: none); its stream starts afresh at the next poll."""
+        """Switch the active camera (``None``: none); its stream starts afresh at ``t`` (first frame at the
+        next poll), the old one stops and forgets what it delivered."""
         if active == self.active:
             return
+        if self.active is not None:
+            old = self.streams[self.active]
+            old.restart(t)
+            old.enabled = False
         self.active = active
-        self.last = None
-        self.image = None
-        self._pending = []
-        self._last_detected = None
-        if active is not None:  # first frame of the new camera at the next poll
-            self.schedule.restart(t, self.cameras[active].mount.rate_hz)
+        if active is not None:
+            new = self.streams[active]
+            new.restart(t)
+            new.enabled = True
         self.dropout.reset()
 
     def perceptor(self, name: str) -> GeometricPerception | RenderedPerception:
@@ -124,9 +170,15 @@ class VikiCameras:
             self.perceptors[name] = per
         return per
 
-    def _new_frame(self, name: str, t: float, T_world_robot: NDArray[np.float64]) -> float:
-        """Capture and detect on camera ``name``; returns the wall-clock seconds perception took."""
-        cam, wp = self.cameras[name], self.params
+    def _reader(self, name: str) -> Callable[[float, Any], Frame]:
+        def read(stamp: float, _state: Any) -> Frame:
+            return self.read(name, stamp)
+        return read
+
+    def read(self, name: str, t: float) -> Frame:
+        """Capture and detect on camera ``name`` at ``t`` (the wall-clock cost goes to ``timings``)."""
+        cam = self.cameras[name]
+        T_world_robot = self._robot_pose()
         T_world_camera = cam.pose(T_world_robot)
         t0 = time.perf_counter()
         per = self.perceptor(name)
@@ -134,15 +186,24 @@ class VikiCameras:
             bbox, depth, depth_at, depth_in = per.detect(T_world_camera)
         else:
             bbox, depth, depth_at, depth_in = per.detect(T_world_camera, t, T_world_robot)
-        perception_s = time.perf_counter() - t0
+        self.timings = {"perception": time.perf_counter() - t0}
         image = None
         if isinstance(per, RenderedPerception) and per.last_rgb is not None:  # the detector's image (a view)
             image = Image(stamp=t, frame=f"{name}_camera", pixels=per.last_rgb)
-            if wp.latency <= 0.0:
-                self.image = image
+        self.seq += 1
+        det = Detection(stamp=t, frame=f"{name}_camera", camera=name, seq=self.seq, bbox=bbox, depth=depth,
+                        intrinsics=cam.intrinsics, width=cam.width, height=cam.height, depth_at=depth_at,
+                        depth_in=depth_in)
+        return Frame(det, image, T_world_camera)
+
+    def corrupt(self, frame: Frame, t: float, rng: np.random.Generator) -> Frame:
+        """The detector's error model: ``box_bias``, then the dropout (one draw per frame from ``rng``,
+        the dropout model's generator); counts the frame."""
+        det, wp = frame.detection, self.params
+        bbox, depth = det.bbox, det.depth
         if bbox is not None and any(wp.box_bias):
-            bbox = biased_box(bbox, wp.box_bias, cam.width, cam.height)
-        dropped = self.dropout.frame(T_world_camera)
+            bbox = biased_box(bbox, wp.box_bias, det.width, det.height)
+        dropped = self.dropout.frame(frame.T_world_camera)
         self.frames += 1
         if bbox is not None:
             if dropped:
@@ -152,38 +213,9 @@ class VikiCameras:
                 self.detections += 1
                 if self.first_detection_t is None:
                     self.first_detection_t = t
-        self.schedule.fire(t)
-        self.seq += 1
-        det = Detection(stamp=t, frame=f"{name}_camera", camera=name, seq=self.seq, bbox=bbox, depth=depth,
-                        intrinsics=cam.intrinsics, width=cam.width, height=cam.height, depth_at=depth_at,
-                        depth_in=depth_in)
-        if wp.latency > 0.0:
-            self._pending.append((det, image))
-        else:
-            self._publish(det)
-        return perception_s
-
-    def _publish(self, det: Detection) -> None:
-        """``det`` becomes the detection the task sees (events on a change of outcome)."""
-        self.last = det
-        detected = det.detected
-        if detected != self._last_detected and (self._last_detected is not None or detected):
-            self._events.append("target_found" if detected else "target_lost")
-        self._last_detected = detected
-
-    def _deliver(self, t: float) -> None:
-        """Latency: publish the newest pending frame captured at least ``latency`` ago (older ones are
-        superseded, as a detector's queue of one); otherwise the last delivered one goes stale."""
-        due = [i for i, (d, _) in enumerate(self._pending) if d.stamp + self.params.latency <= t + 1e-9]
-        if not due:
-            if self.last is not None and self.last.fresh:
-                self.last = self.last.stale()
-            return
-        det, image = self._pending[due[-1]]
-        del self._pending[:due[-1] + 1]
-        self._publish(det)
-        if image is not None:
-            self.image = image
+        if bbox is det.bbox and depth is det.depth:
+            return frame
+        return Frame(dataclasses.replace(det, bbox=bbox, depth=depth), frame.image, frame.T_world_camera)
 
 
 def biased_box(bbox: Box, bias: Box, width: int, height: int) -> Box:

@@ -143,7 +143,9 @@ class VikiGround(FlatGround):
         rig = cast(CameraRig, rp)
         mounts: dict[str, CameraMount] = {"front": rig.front_camera, "rear": rig.rear_camera}
         self._sensors = VikiCameras(wp, camera_models(wp, mounts), scene.client, self.object, self.object_body,
-                                    scene.car.body, rig.lidar, self.seed)
+                                    scene.car.body, rig.lidar, self.seed, self.T_world_robot)
+        for name, stream in self._sensors.streams.items():  # declared: polled by the stepping base
+            self.add_stream(f"{name}_camera", stream)
         self._score = ViKiScore(footprint, self.object)
         self._slip = None
         self._odometry = None
@@ -153,7 +155,8 @@ class VikiGround(FlatGround):
 
     def reset(self) -> None:
         super().reset()
-        self._poll()  # the readings at t = 0, seen by the first observation
+        self._poll()  # the ground truth and the readings at t = 0, seen by the first observation
+        self.start_streams()
 
     @property
     def sensors(self) -> VikiCameras:
@@ -175,10 +178,11 @@ class VikiGround(FlatGround):
     # --- the loop --------------------------------------------------------------------------------
     def end_steps(self, n: int, h: float) -> None:
         super().end_steps(n, h)
-        self._poll()
+        self._poll()  # then the stepping base polls the camera streams
 
     def _poll(self) -> None:
-        """Once per control tick: the odometry's drift, the ground-truth scoring, the cameras' frames."""
+        """Once per control tick, before the camera streams' poll: the odometry's drift, the ground-truth
+        scoring, the cameras' tick start."""
         scene = self._require_scene()
         car = scene.car
         true = np.asarray(car.pose(), dtype=float)
@@ -189,7 +193,7 @@ class VikiGround(FlatGround):
         touching = bool(p.getContactPoints(car.body, self.object_body, physicsClientId=scene.client))
         assert self._score is not None
         self._score.track(self.t, v, (float(x), float(y), float(yaw)), touching)
-        self.sensors.poll(self.t, self.T_world_robot())
+        self.sensors.begin_tick()
 
     def observe(self) -> Observation:
         obs = super().observe()
@@ -201,7 +205,7 @@ class VikiGround(FlatGround):
         if sensors.timings:
             obs.timings = dict(sensors.timings)
         obs.sensors.update(sensors.readings())
-        obs.events = sensors.events
+        obs.events = sensors.events()
         return obs
 
     def select_sensors(self, names: tuple[str, ...]) -> None:
@@ -224,7 +228,8 @@ class VikiGround(FlatGround):
         gt = super().ground_truth()
         ox, oy = self.object_in_robot_frame()
         gx, gy = self.params.goal
-        last = self.sensors.last
+        stream = self.sensors.stream()
+        last = stream.latest.value.detection if stream is not None and stream.latest and stream.latest.value else None
         gt.update({"obj_x": ox, "obj_y": oy, "err_x": ox - gx, "err_y": oy - gy,
                    "detected": 1.0 if (last is not None and last.detected) else 0.0,
                    "camera": CAMERA_CODE.get(self.sensors.active, 0.0)})
