@@ -126,7 +126,7 @@ def test_describe_robot_shows_command_interface_and_mounts(capsys: pytest.Captur
     code, out, _ = _run(capsys, "describe", "racecar", "--kind", "robot")
     assert code == 0
     for line in ("ackermann", "v: array[1]", "steer: array[1]", "front_camera: rgbd_camera", "world viki_ground",
-                 "task viki_hyco", "state.v: scalar (task car_goto, task unicycle_goto)"):
+                 "task viki_hyco", "state.v: scalar (task car_goto, task unicycle_goto, task viki_hyco, task viki_rotate)"):
         assert f"  {line}" in out.splitlines(), line
 
 

@@ -97,7 +97,7 @@ from taskflow.api import (
     MemoryKey,
     Metric,
     Observation,
-    ObsSpec,
+    ObsKey,
     StepResult,
     StrictModel,
     Task,
@@ -105,11 +105,17 @@ from taskflow.api import (
     TaskScene,
     array,
     mapping,
-    message,
+    scalar,
 )
 from taskflow.messages import Detection
 from taskflow.registry import register_task
 from taskflow.spatial import twist_adjoint_inverse
+from taskflow.specs import Requires
+
+# the observations the ViKi-HyCo tasks read (declared in their ``requires``, called to read: one thing)
+ODOM_POSE: ObsKey[NDArray[np.float64]] = ObsKey("state.pose", array(3))
+MEASURED_V: ObsKey[float] = ObsKey("state.v", scalar())
+DETECTION = ObsKey("sensors.detection", Detection, optional=True)
 
 # the mission data the ViKi-HyCo tasks keep across states (one definition each)
 MEM_OBJECT: MemoryKey[NDArray[np.float64]] = MemoryKey(
@@ -208,7 +214,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
     events: ClassVar[tuple[str, ...]] = ("no_target",)
     command_interface: ClassVar[str] = "ackermann"
     robot_params: ClassVar[type[BaseModel]] = CameraCar
-    requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "sensors.detection": message(Detection)}
+    requires: ClassVar[Requires] = (ODOM_POSE, DETECTION, MEASURED_V)
     writes: ClassVar[tuple[MemoryKey[Any], ...]] = (MEM_OBJECT, MEM_TARGET, MEM_FIRST)
 
     def __init__(self, ctx: TaskContext[ViKiHyCoParams, CameraCar]) -> None:
@@ -268,9 +274,10 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
 
     # -- one tick ------------------------------------------------------------------------------------
     def step(self, obs: Observation) -> StepResult:
-        pose = np.asarray(obs.state["pose"], dtype=float)
-        raw = obs.sensors.get("detection")
-        det = raw if isinstance(raw, Detection) and raw.camera == self.camera else None
+        pose = np.asarray(ODOM_POSE(obs), dtype=float)
+        det = DETECTION(obs)
+        if det is not None and det.camera != self.camera:
+            det = None
         usable = det is not None and det.detected and obs.t - det.stamp <= self.p.max_age + 1e-9
         # a box cut by the image border still steers the visual servo (toward bringing the object into view)
         # but is no evidence of where the object is: it anchors the target only when nothing else has
@@ -333,7 +340,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         if out.feature_error is not None:
             self.last_feature_error = out.feature_error
         metrics: dict[str, float] = {"detected": 1.0 if out.used_vs else 0.0, "v_cmd": out.v_cmd,
-                                     "speed": abs(float(obs.state.get("v", 0.0)))}
+                                     "speed": abs(float(MEASURED_V(obs)))}
         metrics.update(zip(_CAM_KEYS, (self._cam_twist @ out.V).tolist()))
         if self.last_feature_error is not None:
             metrics["feature_error"] = self.last_feature_error

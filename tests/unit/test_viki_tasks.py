@@ -298,3 +298,18 @@ def test_keep_out_turns_the_fallback_around_within_the_margin():
     assert r.command["steer"][0] == pytest.approx(r_free.command["steer"][0])
     far = make_task({MEM_OBJECT.name: np.array([2.0, 0.0])}, keep_out_body=body, keep_out_margin=1.5, **front)
     assert far.step(obs(0.0, None)).command["v"][0] == pytest.approx(r_free.command["v"][0])
+
+
+def test_the_tasks_read_what_they_declare_and_a_missing_required_entry_is_an_error():
+    """requires and the reads are one set of keys: no silent default for the measured speed or the pose."""
+    from taskflow_tasks.viki.hyco import DETECTION, MEASURED_V, ODOM_POSE
+
+    from taskflow.specs import MissingObservation, required_specs
+
+    assert set(required_specs(ViKiHyCo.requires)) == {ODOM_POSE.name, DETECTION.name, MEASURED_V.name}
+    assert set(required_specs(ViKiRotate.requires)) == {ODOM_POSE.name, MEASURED_V.name}
+    task = make_task()
+    assert task.step(obs(0.0)).metrics["detected"] == 0.0  # the detection is optional: absent is "none yet"
+    no_speed = Observation(t=0.0, state={"pose": np.zeros(3)}, sensors={"detection": det(0.0)})
+    with pytest.raises(MissingObservation, match="state.v"):
+        make_task().step(no_speed)
