@@ -89,9 +89,9 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
 from taskflow_sim import screw_scene as sc
-from taskflow_sim.car_scene import connect
 from taskflow_sim.core.faults import FaultIntervals, IntervalFault
 from taskflow_sim.core.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
+from taskflow_sim.ground.ground_plane import connect
 from taskflow_sim.screw_motion import PartMotion
 from taskflow_sim.screw_perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody

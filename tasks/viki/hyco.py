@@ -13,7 +13,7 @@ One task, three ``mode`` s:
 Eq. 26 (as meant, never amplifying) smooths the output in every mode; eq. 5 and the robot's limits turn
 it into ``(v, steer)``.
 
-Camera: ``camera: front | rear`` picks the mount ``(R_rc, t_rc)`` of eq. 22 and is named in every step
+Camera: ``camera: front | rear`` picks the mount ``(R_body_camera, t_body_camera)`` of eq. 22 and is named in every step
 result (``StepResult.sensors = ("front_camera",)``), so the world processes only that camera.  A camera name the robot does not have is a load-time error.
 
 Desired features: ``desired: [x, y]`` is the object's desired position in the robot frame (e.g. the
@@ -46,7 +46,7 @@ plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`
 No detection yet and no object in memory: the robot holds still and, after ``search_timeout``, the task
 raises ``no_target`` every tick (declare ``on: no_target`` to an error state).
 
-Keep-out (:mod:`taskflow_tasks.keep_out`): with ``keep_out_body`` (the car's footprint, robot frame) a
+Keep-out (:mod:`taskflow_tasks.core.keep_out`): with ``keep_out_body`` (the car's footprint, robot frame) a
 command moving the body toward the object (memory) once within ``keep_out_margin`` is turned around.
 
 Evidence for the settle rule (a completion a car can meet, docs/missions.md): ``goal_error`` (m) is the
@@ -75,8 +75,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.racecar import CameraMount
-from taskflow_tasks.car_goto import CarGains, CarGeometry
-from taskflow_tasks.keep_out import keep_out_speed
+from taskflow_tasks.core.keep_out import keep_out_speed
+from taskflow_tasks.ground.car_goto import CarGains, CarGeometry
 from taskflow_tasks.viki.car_visual_servo import car_jacobian_r
 from taskflow_tasks.viki.evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shifts
 from taskflow_tasks.viki.laws import (
@@ -179,7 +179,7 @@ class ViKiHyCoParams(StrictModel):
                                    "than this since (view_shift)")
     keep_out_body: tuple[float, float, float, float] | None = Field(
         default=None, description="m: the car's body (x_min, x_max, y_min, y_max) in the robot frame; with it the "
-        "car never drives toward the object once within keep_out_margin (taskflow_tasks.keep_out)")
+        "car never drives toward the object once within keep_out_margin (taskflow_tasks.core.keep_out)")
     keep_out_margin: float = Field(default=0.3, ge=0.0, description="m: body-object gap that triggers the keep-out")
     border_px: float = Field(default=2.0, ge=0.0, description="px: a box this close to the image border is cut by "
                              "it: it does not re-anchor the target nor count as evidence (goal_error)")
@@ -223,9 +223,9 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         self.p = params
         self.camera = params.camera
         mount = rp.front_camera if params.camera == "front" else rp.rear_camera
-        self.T_robot_camera = mount.T_robot_camera()
+        self.T_body_camera = mount.T_body_camera()
         # camera twist of a robot velocity [v, w] (eq. 20-22): V_c = T_r^c J_r V_r, for the figures
-        self._cam_twist = twist_adjoint_inverse(self.T_robot_camera) @ car_jacobian_r()
+        self._cam_twist = twist_adjoint_inverse(self.T_body_camera) @ car_jacobian_r()
         self.lam = np.asarray(gains.lam, dtype=float)
         self.k1 = np.asarray(gains.k1, dtype=float)
         self.d = float(gains.d) if gains.d is not None else rp.wheelbase
@@ -267,7 +267,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         """Object base centre in odometry, half-width and height (eq. 18 + base estimate)."""
         if det.bbox is None or det.depth is None:
             raise ValueError("object position needs a detection with a box and a depth")
-        B, r, z_c = object_base(det.bbox, det.depth, det.intrinsics, self.T_robot_camera)
+        B, r, z_c = object_base(det.bbox, det.depth, det.intrinsics, self.T_body_camera)
         x, y, th = pose
         c, s = math.cos(th), math.sin(th)
         return np.array([x + c * B[0] - s * B[1], y + s * B[0] + c * B[1]]), r, z_c
@@ -305,7 +305,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
                 centre = np.asarray(self.p.desired_centre, dtype=float)
             else:
                 try:
-                    centre = desired_centre(self.goal, r, z_c, det.intrinsics, self.T_robot_camera)
+                    centre = desired_centre(self.goal, r, z_c, det.intrinsics, self.T_body_camera)
                 except ValueError:
                     centre = None
             if centre is not None:
@@ -323,7 +323,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             ServoInputs(pose=pose, detected=bool(usable), bbox=bbox, Z_o=Z_o, Z_d=Z_d, centre=centre,
                         target=self.target, reverse=self.reverse, v_prev=self.v_prev),
             intrinsics=det.intrinsics if det is not None else (1.0, 1.0, 0.0, 0.0),
-            T_robot_camera=self.T_robot_camera, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
+            T_body_camera=self.T_body_camera, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
             psi_max=self.psi_max, mode=self.p.mode, object_size=self.p.object_size, smoothing=self.p.smoothing,
             direction=self.direction)
         # the object (memory) in the robot frame, once per tick: for the keep-out and the object_x/y metrics
@@ -366,8 +366,8 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
     def _goal_depth(self, r: float, z_c: float) -> float:
         """MGBM's desired depth: camera Z of the object's box-centre point at the goal."""
         G = self.goal
-        cam = self.T_robot_camera[:2, 3]
+        cam = self.T_body_camera[:2, 3]
         u = G - cam
         u = u / max(float(np.hypot(*u)), 1e-9)
         P = np.array([*(G - r * u), z_c])
-        return float((self.T_robot_camera[:3, :3].T @ (P - self.T_robot_camera[:3, 3]))[2])
+        return float((self.T_body_camera[:3, :3].T @ (P - self.T_body_camera[:3, 3]))[2])

@@ -32,12 +32,9 @@ from typing import ClassVar, cast
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
-from taskflow_tasks.targets import PlanarTarget
+from taskflow_tasks.core.targets import GOTO_METRICS, PlanarTarget
 
 from taskflow.api import (
-    DISTANCE,
-    SPEED,
-    WRAPPED_ANGLE,
     Observation,
     ObsSpec,
     StepResult,
@@ -95,7 +92,7 @@ class UnicycleGoto(Task[UnicycleGotoParams, UnicycleLimits]):
 
     Params: ClassVar[type[UnicycleGotoParams]] = UnicycleGotoParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": UnicycleGains}
-    metrics: ClassVar[dict[str, str]] = {"pos_error": DISTANCE, "heading_error": WRAPPED_ANGLE, "speed": SPEED}
+    metrics: ClassVar[dict[str, str]] = {**GOTO_METRICS}
     command_interface: ClassVar[str] = "unicycle"
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}
     robot_params: ClassVar[type[BaseModel]] = UnicycleLimits
@@ -105,8 +102,7 @@ class UnicycleGoto(Task[UnicycleGotoParams, UnicycleLimits]):
         params, gains, rp = ctx.params, ctx.profile("gains", UnicycleGains), ctx.robot_params
         self.v_max, self.w_max = float(rp.v_max), float(rp.w_max)
         self.k_rho, self.k_alpha = gains.k_rho, gains.k_alpha
-        self.target = np.asarray(params.target[:2], dtype=np.float64)
-        self.target_yaw = float(params.target[2]) if len(params.target) == 3 else None
+        self.target, self.target_yaw = params.target_xy(), params.target_yaw()
 
     @classmethod
     def scene(cls, params: BaseModel, profiles: Mapping[str, BaseModel], robot_params: BaseModel | None) -> TaskScene:

@@ -42,14 +42,14 @@ def marker_age(t: float, marker: MarkerPose | None, since: float) -> float:
 
 
 @register_task("contact_monitor")
-class ContactMonitor(Task[MonitorParams, None]):
+class ContactMonitor(Task[MonitorParams, BaseModel]):  # no robot parameters (ctx.robot_params is None)
     """Watches the wrist F/T sensor and the marker; commands nothing (``command_interface`` empty)."""
 
     Params: ClassVar[type[BaseModel]] = MonitorParams
     metrics: ClassVar[dict[str, str]] = {"tool_force": FORCE, "marker_age": AGE}
     requires: ClassVar[dict[str, ObsSpec]] = {"sensors.wrench": message(Wrench), "sensors.marker": message(MarkerPose)}
 
-    def __init__(self, ctx: TaskContext[MonitorParams, None]) -> None:
+    def __init__(self, ctx: TaskContext[MonitorParams, BaseModel]) -> None:
         super().__init__(ctx)
         self.started = ctx.t
 

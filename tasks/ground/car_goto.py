@@ -2,7 +2,7 @@
 
 Eq. (4) ``V = J_b^-1 (k1 tanh(h_d - h))`` servoes the **control point** ``h`` — the point ``d`` ahead of
 the rear-axle midpoint along the heading (eq. 1; with ``d = wheelbase`` it is the front-axle midpoint)
-— to the target; eq. (5) turns the twist into a steering angle (:func:`taskflow_tasks.car_kinematics.car_command`).
+— to the target; eq. (5) turns the twist into a steering angle (:func:`taskflow_tasks.ground.car_kinematics.car_command`).
 A car cannot servo its rear axle to an arbitrary point, but the point ``d`` ahead is controllable, so
 that is the point a mission's target refers to and the point ``pos_error`` is measured at.
 
@@ -23,13 +23,11 @@ from typing import ClassVar, cast
 
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
-from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
-from taskflow_tasks.targets import PlanarTarget
+from taskflow_tasks.core.gains import positive_gains
+from taskflow_tasks.core.targets import GOTO_METRICS, PlanarTarget
+from taskflow_tasks.ground.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 
 from taskflow.api import (
-    DISTANCE,
-    SPEED,
-    WRAPPED_ANGLE,
     ControlPoint,
     Observation,
     ObsSpec,
@@ -54,8 +52,7 @@ class CarGains(StrictModel):
     @field_validator("k1")
     @classmethod
     def _positive(cls, k1: tuple[float, float]) -> tuple[float, float]:
-        if not all(math.isfinite(k) and k > 0.0 for k in k1):
-            raise ValueError(f"k1 gains must be finite and > 0, got {k1}")
+        positive_gains("k1", k1)
         return k1
 
 
@@ -84,7 +81,7 @@ class CarGoto(Task[CarGotoParams, CarGeometry]):
 
     Params: ClassVar[type[CarGotoParams]] = CarGotoParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": CarGains}
-    metrics: ClassVar[dict[str, str]] = {"pos_error": DISTANCE, "heading_error": WRAPPED_ANGLE, "speed": SPEED}
+    metrics: ClassVar[dict[str, str]] = {**GOTO_METRICS}
     command_interface: ClassVar[str] = "ackermann"
     robot_params: ClassVar[type[BaseModel]] = CarGeometry
     requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}
@@ -98,8 +95,7 @@ class CarGoto(Task[CarGotoParams, CarGeometry]):
         self.psi_max = rp.psi_max
         self.k1 = np.asarray(gains.k1, dtype=np.float64)
         self.d = float(gains.d) if gains.d is not None else self.wheelbase
-        self.target_xy = np.asarray(params.target[:2], dtype=np.float64)
-        self.target_yaw = float(params.target[2]) if len(params.target) == 3 else None
+        self.target_xy, self.target_yaw = params.target_xy(), params.target_yaw()
         self.direction = 0.0  # sign of the last non-zero speed command (see car_command)
 
     @classmethod
