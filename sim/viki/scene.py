@@ -17,6 +17,7 @@ from taskflow_sim.viki.objects import SHAPES, PlacedObject, create_body
 from taskflow_sim.viki.params import VikiGroundParams
 
 from taskflow.api import Marker
+from taskflow.spatial import planar_apply_inverse
 
 #: the cameras of ``viki_ground``, in the order their models are built
 CAMERAS = ("front", "rear")
@@ -60,7 +61,5 @@ def camera_models(wp: VikiGroundParams, mounts: dict[str, CameraMount]) -> dict[
 
 def object_in_robot_frame(obj: PlacedObject, pose: tuple[float, float, float]) -> tuple[float, float]:
     """Ground truth: the object's base centre in the robot frame (m) for the robot's planar pose ``T_world_robot``."""
-    x, y, yaw = pose
-    dx, dy = obj.x - x, obj.y - y
-    c, s = math.cos(yaw), math.sin(yaw)
-    return float(c * dx + s * dy), float(-s * dx + c * dy)
+    ox, oy = planar_apply_inverse(pose, (obj.x, obj.y))
+    return float(ox), float(oy)

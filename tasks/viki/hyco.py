@@ -78,7 +78,7 @@ from taskflow_robots.racecar import CameraMount
 from taskflow_tasks.core.keep_out import keep_out_speed
 from taskflow_tasks.ground.car_goto import CarGains, CarGeometry
 from taskflow_tasks.viki.car_visual_servo import car_jacobian_r
-from taskflow_tasks.viki.evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shifts
+from taskflow_tasks.viki.evidence import box_cut_by_border, goal_offset, view_shifts
 from taskflow_tasks.viki.laws import (
     ServoInputs,
     desired_centre,
@@ -109,7 +109,7 @@ from taskflow.api import (
 )
 from taskflow.messages import Detection
 from taskflow.registry import register_task
-from taskflow.spatial import twist_adjoint_inverse
+from taskflow.spatial import planar_apply, planar_apply_inverse, twist_adjoint_inverse
 from taskflow.specs import Requires
 
 # the observations the ViKi-HyCo tasks read (declared in their ``requires``, called to read: one thing)
@@ -268,9 +268,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         if det.bbox is None or det.depth is None:
             raise ValueError("object position needs a detection with a box and a depth")
         B, r, z_c = object_base(det.bbox, det.depth, det.intrinsics, self.T_body_camera)
-        x, y, th = pose
-        c, s = math.cos(th), math.sin(th)
-        return np.array([x + c * B[0] - s * B[1], y + s * B[0] + c * B[1]]), r, z_c
+        return planar_apply(pose, B[:2]), r, z_c  # T_odom_body applied to the base centre
 
     # -- one tick ------------------------------------------------------------------------------------
     def step(self, obs: Observation) -> StepResult:
@@ -327,7 +325,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             psi_max=self.psi_max, mode=self.p.mode, object_size=self.p.object_size, smoothing=self.p.smoothing,
             direction=self.direction)
         # the object (memory) in the robot frame, once per tick: for the keep-out and the object_x/y metrics
-        object_robot = in_robot_frame(pose, MEM_OBJECT(self.memory)) if MEM_OBJECT.present(self.memory) else None
+        object_robot = planar_apply_inverse(pose, MEM_OBJECT(self.memory)) if MEM_OBJECT.present(self.memory) else None
         if self.p.keep_out_body is not None and object_robot is not None:
             v_safe = keep_out_speed(out.v_cmd, self.p.keep_out_body, object_robot, self.object_radius,
                                     self.p.keep_out_margin)
@@ -347,8 +345,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         if self.last_detection_t is not None:
             metrics["detection_age"] = obs.t - self.last_detection_t
         if self.target is not None:
-            c, s = math.cos(pose[2]), math.sin(pose[2])
-            h = pose[:2] + self.d_point * np.array([c, s])  # the controlled point, eq. 1
+            h = planar_apply(pose, (self.d_point, 0.0))  # the controlled point, eq. 1
             metrics["pos_error"] = float(np.hypot(*(self.target - h)))
         if self.evidence:
             shifts = view_shifts([P for P, _ in self.evidence], pose, self.goal)

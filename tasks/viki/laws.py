@@ -40,6 +40,8 @@ from taskflow_tasks.viki.bbox_target import desired_bbox, static_desired_bbox
 from taskflow_tasks.viki.car_visual_servo import car_vs_velocity
 from taskflow_tasks.viki.image_features import bbox_features, feature_error
 
+from taskflow.spatial import planar_apply
+
 FloatArray = NDArray[np.float64]
 
 __all__ = [
@@ -135,10 +137,8 @@ def kinematic_target(object_xy: ArrayLike, goal_xy: ArrayLike, theta_f: float, d
     """
     O = np.asarray(object_xy, dtype=float).reshape(2)
     g = np.asarray(goal_xy, dtype=float).reshape(2)
-    c, s = math.cos(theta_f), math.sin(theta_f)
-    p = O - np.array([c * g[0] - s * g[1], s * g[0] + c * g[1]])
-    point: NDArray[np.float64] = p + d * np.array([c, s])
-    return point
+    p = O - planar_apply((0.0, 0.0, theta_f), g)  # p = O - R(theta_f) g
+    return planar_apply((p[0], p[1], theta_f), (d, 0.0))  # its control point (eq. 1)
 
 
 def reverse_control(pose: ArrayLike, target: ArrayLike, k1: ArrayLike, d: float) -> tuple[float, float]:
