@@ -75,6 +75,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.racecar import CameraMount
+from taskflow_tasks.core.gains import positive_gains
 from taskflow_tasks.core.keep_out import keep_out_speed
 from taskflow_tasks.ground.car_goto import CarGains, CarGeometry
 from taskflow_tasks.viki.car_visual_servo import car_jacobian_r
@@ -148,9 +149,7 @@ class ViKiGains(CarGains):
             raise ValueError(
                 f"lam needs the paper's 5 gains [lambda_v, lambda_w, l3, l4, l5] (only the first two act in the "
                 f"2-DoF law), got {len(lam)}: {list(lam)}")
-        if not all(math.isfinite(v) and v > 0.0 for v in lam):
-            raise ValueError(f"lam gains must be finite and > 0, got {list(lam)}")
-        return lam
+        return positive_gains("lam", lam)
 
 
 class CameraCar(CarGeometry):
