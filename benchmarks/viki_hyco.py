@@ -41,12 +41,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import taskflow_sim.viki_world  # noqa: F401  registers viki_ground (forked batch workers inherit it)
-import taskflow_tasks.viki_hyco
-import taskflow_tasks.viki_rotation  # noqa: F401  registers viki_rotate
+import taskflow_sim.viki.world  # noqa: F401  registers viki_ground (forked batch workers inherit it)
+import taskflow_tasks.viki.hyco
+import taskflow_tasks.viki.rotation  # noqa: F401  registers viki_rotate
 from taskflow_robots.racecar import Racecar
-from taskflow_tasks.viki_hyco import ViKiGains, ViKiHyCo
-from taskflow_tasks.viki_laws import ServoInputs, viki_velocity
+from taskflow_tasks.viki.hyco import ViKiGains, ViKiHyCo
+from taskflow_tasks.viki.laws import ServoInputs, viki_velocity
 
 from taskflow.api import Observation
 from taskflow.campaigns.batch import run_batch
@@ -109,7 +109,7 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
     rp = robot.params
     T = rp.rear_camera.T_body_camera()
     K = (rp.rear_camera.focal_px(),) * 2 + (320.0, 179.0)
-    kw = dict(intrinsics=K, T_robot_camera=T, lam=np.array([0.85, 1.05, 1.0, 1.0, 1.0]), k1=np.array([1.0, 2.0]), d=rp.wheelbase,
+    kw = dict(intrinsics=K, T_body_camera=T, lam=np.array([0.85, 1.05, 1.0, 1.0, 1.0]), k1=np.array([1.0, 2.0]), d=rp.wheelbase,
               wheelbase=rp.wheelbase, v_max=rp.v_max, psi_max=rp.psi_max)
     out = {}
     for name, seen in (("law_visual_tick_us", True), ("law_kinematic_tick_us", False)):
@@ -131,7 +131,7 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
 def render_costs(sizes: tuple[tuple[int, int], ...] = ((320, 180), (640, 360)), frames: int = 5) -> dict[str, float]:
     """ms per rendered frame (median): front camera with LiDAR fusion (the LiDAR scanned every frame
     here, i.e. worst case; in a run it scans at 10 Hz) and rear camera."""
-    from taskflow_sim.viki_world import VikiGround
+    from taskflow_sim.viki.world import VikiGround
 
     robot = Racecar(Racecar.Params())
     out = {}
@@ -142,13 +142,13 @@ def render_costs(sizes: tuple[tuple[int, int], ...] = ((320, 180), (640, 360)), 
             w.reset()
             try:
                 w.observe()
-                per = w._perceptor(cam)
+                per = w.sensors.perceptor(cam)
                 T_world_robot = w.T_world_robot()
-                T_world_camera = w.cameras[cam].pose(T_world_robot)
+                T_world_camera = w.sensors.cameras[cam].pose(T_world_robot)
                 ts = []
                 for _ in range(frames):
-                    if w._lidar is not None:
-                        w._lidar.next_scan = 0.0
+                    if w.sensors.lidar is not None:
+                        w.sensors.lidar.next_scan = 0.0
                     t0 = time.perf_counter()
                     per.detect(T_world_camera, 0.0, T_world_robot)
                     ts.append(time.perf_counter() - t0)

@@ -34,9 +34,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import taskflow_sim.viki_world  # noqa: F401  registers viki_ground (forked batch workers inherit it)
-import taskflow_tasks.viki_hyco
-import taskflow_tasks.viki_rotation  # noqa: F401  registers viki_rotate
+import taskflow_sim.viki.world  # noqa: F401  registers viki_ground (forked batch workers inherit it)
+import taskflow_tasks.viki.hyco
+import taskflow_tasks.viki.rotation  # noqa: F401  registers viki_rotate
 
 from taskflow.campaigns.batch import run_batch
 from taskflow.campaigns.stats import wilson_interval

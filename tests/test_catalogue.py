@@ -91,7 +91,7 @@ def test_list_json(capsys: pytest.CaptureFixture[str]) -> None:
 def test_describe_task_shows_parameters_units_slots_metrics_events(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = _run(capsys, "describe", "viki_hyco")
     assert code == 0 and err == ""
-    assert out.startswith("task viki_hyco  (taskflow_tasks.viki_hyco:ViKiHyCo)")
+    assert out.startswith("task viki_hyco  (taskflow_tasks.viki.hyco:ViKiHyCo)")
     for line in ('camera: "front" | "rear", required',
                  "desired: [float, float], required, unit m — object position in the robot frame at the goal (m)",
                  "desired_centre: [float, float] | null, default null, unit px",
@@ -127,7 +127,7 @@ def test_describe_robot_shows_command_interface_and_mounts(capsys: pytest.Captur
     code, out, _ = _run(capsys, "describe", "racecar", "--kind", "robot")
     assert code == 0
     for line in ("ackermann", "v: array[1]", "steer: array[1]", "front_camera: rgbd_camera", "world viki_ground",
-                 "task viki_hyco", "state.v: scalar (task car_goto, task unicycle_goto)"):
+                 "task viki_hyco", "state.v: scalar (task car_goto, task unicycle_goto, task viki_hyco, task viki_rotate)"):
         assert f"  {line}" in out.splitlines(), line
 
 

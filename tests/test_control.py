@@ -333,9 +333,9 @@ def test_the_recorded_actions_of_a_live_session_replay_to_the_same_records(live,
 
 @pytest.fixture
 def viki():
-    import taskflow_sim.viki_world  # noqa: F401  registers the world viki_ground
-    import taskflow_tasks.viki_hyco
-    import taskflow_tasks.viki_rotation  # noqa: F401
+    import taskflow_sim.viki.world  # noqa: F401  registers the world viki_ground
+    import taskflow_tasks.viki.hyco
+    import taskflow_tasks.viki.rotation  # noqa: F401
 
     return load_mission(VIKI, ["world.params.perception=geometric"])
 

@@ -92,7 +92,7 @@ def test_the_car_view_has_its_three_waypoints_and_draws_the_control_point_as_the
 
 
 def test_the_viki_view_has_the_object_where_the_world_places_it(tmp_path):
-    from taskflow_sim.viki_world import object_position
+    from taskflow_sim.viki.scene import object_position
 
     mission = load_mission(MISSIONS / "viki_hyco.yaml")
     (tmp_path / "trace.csv").write_text("t,state,events,gt.x,gt.y,gt.yaw,gt.obj_x,gt.obj_y\n")

@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-import taskflow_sim.viki_world  # noqa: F401  registers the world viki_ground
-import taskflow_tasks.viki_hyco
-import taskflow_tasks.viki_rotation  # noqa: F401  registers the task viki_rotate
+import taskflow_sim.viki.world  # noqa: F401  registers the world viki_ground
+import taskflow_tasks.viki.hyco
+import taskflow_tasks.viki.rotation  # noqa: F401  registers the task viki_rotate
 
 from taskflow.errors import MissionError
 from taskflow.execution.runtime import run_mission

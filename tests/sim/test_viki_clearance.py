@@ -11,8 +11,8 @@ import pytest
 import taskflow_robots.racecar  # noqa: F401 - registers racecar
 from taskflow_robots.racecar import Racecar
 from taskflow_sim.core.bodies import BodyOptions, make_body
-from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
-from taskflow_sim.viki_objects import SHAPES, PlacedObject
+from taskflow_sim.viki.clearance import Footprint, footprint_clearance, measure_footprint
+from taskflow_sim.viki.objects import SHAPES, PlacedObject
 
 from taskflow.mission.loader import load_mission
 from taskflow.testing import run_on_world

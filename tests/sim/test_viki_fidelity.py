@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
 from taskflow_sim.core.odometry_slip import SlipOdometry
-from taskflow_sim.viki_world import VikiGround, VikiGroundParams, biased_box
+from taskflow_sim.viki.params import VikiGroundParams
+from taskflow_sim.viki.sensors import biased_box
+from taskflow_sim.viki.world import VikiGround
 
 ROBOT = Racecar(Racecar.Params())
 STILL = {"v": np.zeros(1), "steer": np.zeros(1)}

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
-from taskflow_sim.viki_world import VikiGround
+from taskflow_sim.viki.world import VikiGround
 
 ROBOT = Racecar(Racecar.Params())
 STILL = {"v": np.zeros(1), "steer": np.zeros(1)}
@@ -32,7 +32,7 @@ def test_geometric_and_rendered_boxes_and_depths_agree(kind, camera, bearing, ya
             c = 0.5 * (np.array(d.bbox[:2]) + np.array(d.bbox[2:]))
             out[mode] = (np.array(d.bbox), d.depth, d.depth_at(*c), d.intrinsics)
             if mode == "rendered" and camera == "front":
-                assert w._lidar is not None and w._lidar.scans == 1 and len(w._lidar.points_w) > 0
+                assert w.sensors.lidar is not None and w.sensors.lidar.scans == 1 and len(w.sensors.lidar.points_w) > 0
         finally:
             w.close()
     g, r = out["geometric"], out["rendered"]
@@ -114,12 +114,13 @@ def drive_trace(seed, **params):
     boxes = []
     try:
         for k in range(60):
+            if k:  # frames are taken as the world steps (reset takes the first): observe every one
+                w.advance(0.05)
             o = w.observe()
             d = o.sensors["detection"]
             if d.fresh:
                 boxes.append(d.bbox)
             w.apply({"v": np.array([0.3]), "steer": np.array([0.05 * math.sin(k / 7)])})
-            w.advance(0.05)
         return boxes, w.summary_metrics()
     finally:
         w.close()
@@ -133,3 +134,41 @@ def test_dropout_is_seeded_and_counted():
     assert sa["detections_missed"] == sum(x is None for x in a) > 0
     assert sa["detections"] + sa["detections_missed"] == sa["frames"] == len(a)
     assert 0.1 < sa["dropout_fraction"] < 0.5
+
+
+def _same(a, b):
+    assert a.t == b.t and a.events == b.events and a.sensors == b.sensors and a.state.keys() == b.state.keys()
+    for k in a.state:
+        np.testing.assert_array_equal(a.state[k], b.state[k])
+
+
+@pytest.mark.parametrize("params", [
+    {"dropout": 0.3, "odom_slip": 0.05, "odom_scale_error": 0.02},
+    {"latency": 0.12, "dropout": 0.2},
+])
+def test_observe_is_pure_two_calls_agree_and_the_run_does_not_change(params):
+    """observe() only reads: two calls in a row return equal observations, and a run that observes
+    twice per tick sees the same observations as one that observes once (frames and drift happen as it steps)."""
+    runs = []
+    for twice in (False, True):
+        w = make(seed=3, object_distance=2.4, **params)
+        seen = []
+        try:
+            for k in range(30):
+                if k:
+                    w.advance(0.05)
+                o = w.observe()
+                if twice:
+                    _same(o, w.observe())
+                seen.append(o)
+                w.apply({"v": np.array([0.3]), "steer": np.array([0.05 * math.sin(k / 7)])})
+            runs.append((seen, w.summary_metrics()))
+        finally:
+            w.close()
+    (a, sa), (b, sb) = runs
+    assert sa == sb and len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        assert x.t == y.t and x.events == y.events
+        np.testing.assert_array_equal(x.state["pose"], y.state["pose"])
+        dx, dy = x.sensors.get("detection"), y.sensors.get("detection")
+        assert (dx is None) == (dy is None) and (dx is None or (dx.bbox, dx.seq, dx.fresh) == (dy.bbox, dy.seq, dy.fresh))

@@ -1,11 +1,11 @@
-"""Tests for taskflow_tasks.bbox_target (ViKi-HyCo eq. 19 and the MGBM-YOLO static desired box)."""
+"""Tests for taskflow_tasks.viki.bbox_target (ViKi-HyCo eq. 19 and the MGBM-YOLO static desired box)."""
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from taskflow_tasks.bbox_target import desired_bbox, static_desired_bbox
-from taskflow_tasks.image_features import CameraIntrinsics
+from taskflow_tasks.viki.bbox_target import desired_bbox, static_desired_bbox
+from taskflow_tasks.viki.image_features import CameraIntrinsics
 
 K = CameraIntrinsics(520.0, 500.0, 320.0, 239.0)
 

@@ -1,17 +1,17 @@
-"""Tests for taskflow_tasks.car_visual_servo (ViKi-HyCo eq. 10, 20-24) and the ideal feature-space loop."""
+"""Tests for taskflow_tasks.viki.car_visual_servo (ViKi-HyCo eq. 10, 20-24) and the ideal feature-space loop."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from taskflow_tasks.bbox_target import desired_bbox
-from taskflow_tasks.car_visual_servo import (
+from taskflow_tasks.viki.bbox_target import desired_bbox
+from taskflow_tasks.viki.car_visual_servo import (
     camera_vs_velocity,
     car_feature_jacobian,
     car_gains,
     car_jacobian_r,
     car_vs_velocity,
 )
-from taskflow_tasks.image_features import (
+from taskflow_tasks.viki.image_features import (
     CameraIntrinsics,
     bbox_features,
     feature_error,
@@ -28,9 +28,9 @@ def camera_mount_rotation(yaw: float, pitch: float) -> np.ndarray:
     return R_body_optical(yaw=yaw, pitch=pitch)
 
 
-def robot_to_camera(R_rc, t_rc) -> np.ndarray:
-    """Eq. 22 as meant: the 6x6 map robot twist → camera twist for the mount ``T_robot_camera``."""
-    return twist_adjoint_inverse(transform(R_rc, t_rc))
+def robot_to_camera(R_body_camera, t_body_camera) -> np.ndarray:
+    """Eq. 22 as meant: the 6x6 map robot twist → camera twist for the mount ``T_body_camera``."""
+    return twist_adjoint_inverse(transform(R_body_camera, t_body_camera))
 FRONT = [0.85, 0.3, 1.0, 1.0, 1.0]
 REAR = [0.85, 1.05, 1.0, 1.0, 1.0]
 
@@ -72,9 +72,9 @@ def unicycle_step(q, V, dt):
     )
 
 
-def camera_pose(q, R_rc, t_rc):
+def camera_pose(q, R_body_camera, t_body_camera):
     R = rz(q[2])
-    return R @ R_rc, np.array([q[0], q[1], 0.0]) + R @ t_rc
+    return R @ R_body_camera, np.array([q[0], q[1], 0.0]) + R @ t_body_camera
 
 
 # ----------------------------------------------------------------------------- small pieces
@@ -99,89 +99,89 @@ def test_camera_mount_rotation():
     np.testing.assert_allclose(rear[:, 2], [-1, 0, 0], atol=1e-15)
 
 
-@pytest.mark.parametrize("R_rc, t_rc", MOUNTS)
-def test_robot_to_camera_twist_and_jr_match_the_camera_pose_derivative(R_rc, t_rc):
+@pytest.mark.parametrize("R_body_camera, t_body_camera", MOUNTS)
+def test_robot_to_camera_twist_and_jr_match_the_camera_pose_derivative(R_body_camera, t_body_camera):
     """Drive the car with [v, w] (unicycle), take the camera's displacement in its own frame."""
     dt = 1e-6
-    T = robot_to_camera(R_rc, t_rc)
+    T = robot_to_camera(R_body_camera, t_body_camera)
     J = car_jacobian_r()
     for V in ([0.4, 0.0], [0.0, 0.7], [-0.3, 0.5], [0.25, -1.2]):
         q1 = unicycle_step(np.zeros(3), V, dt)
-        R0, p0 = camera_pose(np.zeros(3), R_rc, t_rc)
-        R1, p1 = camera_pose(q1, R_rc, t_rc)
+        R0, p0 = camera_pose(np.zeros(3), R_body_camera, t_body_camera)
+        R1, p1 = camera_pose(q1, R_body_camera, t_body_camera)
         dR = R0.T @ R1
         dp = R0.T @ (p1 - p0)
         numeric = np.concatenate([dp, Rotation.from_matrix(dR).as_rotvec()]) / dt
         np.testing.assert_allclose(T @ J @ np.asarray(V), numeric, atol=1e-5)
         if np.any(np.asarray(V) != 0.0):  # the opposite map (eq. 22 as printed) is not it
-            assert not np.allclose(twist_adjoint(transform(R_rc, t_rc)) @ J @ np.asarray(V), numeric, atol=1e-3)
+            assert not np.allclose(twist_adjoint(transform(R_body_camera, t_body_camera)) @ J @ np.asarray(V), numeric, atol=1e-3)
 
 
-@pytest.mark.parametrize("R_rc, t_rc", MOUNTS)
-def test_printed_eq22_is_the_inverse_map(R_rc, t_rc):
+@pytest.mark.parametrize("R_body_camera, t_body_camera", MOUNTS)
+def test_printed_eq22_is_the_inverse_map(R_body_camera, t_body_camera):
     printed = np.zeros((6, 6))
-    printed[:3, :3] = R_rc
-    printed[:3, 3:] = skew(t_rc) @ R_rc
-    printed[3:, 3:] = R_rc
-    np.testing.assert_allclose(printed @ robot_to_camera(R_rc, t_rc), np.eye(6), atol=1e-12)
+    printed[:3, :3] = R_body_camera
+    printed[:3, 3:] = skew(t_body_camera) @ R_body_camera
+    printed[3:, 3:] = R_body_camera
+    np.testing.assert_allclose(printed @ robot_to_camera(R_body_camera, t_body_camera), np.eye(6), atol=1e-12)
     # ... and eq. 22's form evaluated with the inverse pose (^cR_r, ^ct_r) is ours.
-    Ri, ti = R_rc.T, -R_rc.T @ t_rc
+    Ri, ti = R_body_camera.T, -R_body_camera.T @ t_body_camera
     as_meant = np.zeros((6, 6))
     as_meant[:3, :3] = Ri
     as_meant[:3, 3:] = skew(ti) @ Ri
     as_meant[3:, 3:] = Ri
-    np.testing.assert_allclose(as_meant, robot_to_camera(R_rc, t_rc), atol=1e-12)
+    np.testing.assert_allclose(as_meant, robot_to_camera(R_body_camera, t_body_camera), atol=1e-12)
 
 
 def test_jr_reference_point_does_not_change_the_camera_twist():
-    R_rc, t_rc = MOUNTS[0]
+    R_body_camera, t_body_camera = MOUNTS[0]
     d = 0.325
-    a = robot_to_camera(R_rc, t_rc - np.array([d, 0.0, 0.0])) @ car_jacobian_r(d)
-    b = robot_to_camera(R_rc, t_rc) @ car_jacobian_r(0.0)
+    a = robot_to_camera(R_body_camera, t_body_camera - np.array([d, 0.0, 0.0])) @ car_jacobian_r(d)
+    b = robot_to_camera(R_body_camera, t_body_camera) @ car_jacobian_r(0.0)
     np.testing.assert_allclose(a, b, atol=1e-12)
     np.testing.assert_array_equal(car_jacobian_r(d)[:, 1], [0, d, 0, 0, 0, 1])
 
 
-@pytest.mark.parametrize("R_rc, t_rc", MOUNTS)
-def test_feature_jacobian_is_L_T_J(R_rc, t_rc):
+@pytest.mark.parametrize("R_body_camera, t_body_camera", MOUNTS)
+def test_feature_jacobian_is_L_T_J(R_body_camera, t_body_camera):
     f = bbox_features((300.0, 200.0, 360.0, 260.0))
     uv = f.reshape(4, 2) - (K.cu, K.cv)
     expected = (
         point_interaction_matrix(uv, 2.0, K.fx, K.fy)
-        @ robot_to_camera(R_rc, t_rc)
+        @ robot_to_camera(R_body_camera, t_body_camera)
         @ car_jacobian_r()
     )
-    np.testing.assert_allclose(car_feature_jacobian(f, 2.0, K, R_rc, t_rc), expected, atol=1e-9)
+    np.testing.assert_allclose(car_feature_jacobian(f, 2.0, K, R_body_camera, t_body_camera), expected, atol=1e-9)
 
 
 def test_car_law_equals_the_pseudo_inverse_form_of_eq24():
-    R_rc, t_rc = MOUNTS[0]
+    R_body_camera, t_body_camera = MOUNTS[0]
     f = bbox_features((300.0, 200.0, 360.0, 250.0))
     f_d = bbox_features((310.0, 220.0, 372.0, 270.0))
-    A = car_feature_jacobian(f, 2.5, K, R_rc, t_rc)
+    A = car_feature_jacobian(f, 2.5, K, R_body_camera, t_body_camera)
     expected = -np.array(FRONT[:2]) * (np.linalg.pinv(A) @ (f - f_d))
     np.testing.assert_allclose(
-        car_vs_velocity(f, f_d, 2.5, K, R_rc, t_rc, FRONT), expected, rtol=1e-9
+        car_vs_velocity(f, f_d, 2.5, K, R_body_camera, t_body_camera, FRONT), expected, rtol=1e-9
     )
-    assert np.allclose(car_vs_velocity(f, f, 2.5, K, R_rc, t_rc, FRONT), 0.0)
+    assert np.allclose(car_vs_velocity(f, f, 2.5, K, R_body_camera, t_body_camera, FRONT), 0.0)
 
 
 def test_car_law_falls_back_to_least_squares_when_rank_deficient():
     # One point at the focus of expansion of a level front camera: driving forward does not move
     # it, so the v-column of L_f T J_r is zero; the minimum-norm solution commands v = 0.
-    R_rc, t_rc = camera_mount_rotation(0.0, 0.0), np.array([0.3, 0.0, 0.5])
+    R_body_camera, t_body_camera = camera_mount_rotation(0.0, 0.0), np.array([0.3, 0.0, 0.5])
     f, f_d = [K.cu, K.cv], [K.cu + 10.0, K.cv]
-    A = car_feature_jacobian(f, 2.0, K, R_rc, t_rc)
+    A = car_feature_jacobian(f, 2.0, K, R_body_camera, t_body_camera)
     assert np.allclose(A[:, 0], 0.0)
-    V = car_vs_velocity(f, f_d, 2.0, K, R_rc, t_rc, 0.5)
+    V = car_vs_velocity(f, f_d, 2.0, K, R_body_camera, t_body_camera, 0.5)
     np.testing.assert_allclose(V, -0.5 * np.linalg.pinv(A) @ (np.array(f) - f_d), atol=1e-12)
     assert V[0] == 0.0 and V[1] > 0.0  # feature left of target -> turn left (camera pans left)
 
 
 def test_car_law_rejects_mismatched_features():
-    R_rc, t_rc = MOUNTS[0]
+    R_body_camera, t_body_camera = MOUNTS[0]
     with pytest.raises(ValueError):
-        car_vs_velocity(np.zeros(8), 0.0, 2.0, K, R_rc, t_rc, 1.0)
+        car_vs_velocity(np.zeros(8), 0.0, 2.0, K, R_body_camera, t_body_camera, 1.0)
 
 
 def test_car_gains_reading_of_the_papers_five_numbers():
@@ -229,7 +229,7 @@ def plane_depth(uv, Rwc, pwc, n, d0):
     return (d0 - n @ pwc) / (n @ ray)
 
 
-def servo(q0, verts, centre_d, plane, lam, R_rc, t_rc, T, dt, depth_at_centre):
+def servo(q0, verts, centre_d, plane, lam, R_body_camera, t_body_camera, T, dt, depth_at_centre):
     """Exact projections of the object, eq. 19 each tick, eq. 24, exact unicycle motion.
 
     Z_d is the depth of `plane` at the desired centre pixel (the paper reads it from the depth
@@ -239,7 +239,7 @@ def servo(q0, verts, centre_d, plane, lam, R_rc, t_rc, T, dt, depth_at_centre):
     q = np.array(q0, dtype=float)
     log = []
     for k in range(int(round(T / dt))):
-        Rwc, pwc = camera_pose(q, R_rc, t_rc)
+        Rwc, pwc = camera_pose(q, R_body_camera, t_body_camera)
         Pc = (verts - pwc) @ Rwc
         u = K.fx * Pc[:, 0] / Pc[:, 2] + K.cu
         v = K.fy * Pc[:, 1] / Pc[:, 2] + K.cv
@@ -251,9 +251,9 @@ def servo(q0, verts, centre_d, plane, lam, R_rc, t_rc, T, dt, depth_at_centre):
         Z_d = plane_depth(centre_d, Rwc, pwc, *plane)
         f = bbox_features(bb)
         f_d = bbox_features(desired_bbox(bb, Z_o, Z_d, centre_d))
-        A = car_feature_jacobian(f, Z_o, K, R_rc, t_rc)
+        A = car_feature_jacobian(f, Z_o, K, R_body_camera, t_body_camera)
         e = f - f_d
-        V = car_vs_velocity(f, f_d, Z_o, K, R_rc, t_rc, lam)
+        V = car_vs_velocity(f, f_d, Z_o, K, R_body_camera, t_body_camera, lam)
         log.append((k * dt, e, np.linalg.lstsq(A, e, rcond=None)[0]))
         q = unicycle_step(q, V, dt)
     t = np.array([r[0] for r in log])
@@ -269,10 +269,10 @@ def test_ideal_loop_small_error_decays_as_e0_exp_minus_lambda_t():
     depth), and an initial error produced by the car's own motion (so e0 lies, to first order,
     in the range of L_f T J_r): the closed loop is the linear system de/dt = -lambda e.
     """
-    R_rc, t_rc = camera_mount_rotation(0.0, 0.0), np.array([0.3, 0.0, 0.8])
+    R_body_camera, t_body_camera = camera_mount_rotation(0.0, 0.0), np.array([0.3, 0.0, 0.8])
     centre = np.array([3.0, 0.0, 0.5])
     verts = box_vertices(centre, (0.01, 0.4, 0.3))
-    Rwc, pwc = camera_pose(np.zeros(3), R_rc, t_rc)
+    Rwc, pwc = camera_pose(np.zeros(3), R_body_camera, t_body_camera)
     Pc = Rwc.T @ (centre - pwc)
     centre_d = np.array([K.fx * Pc[0] / Pc[2] + K.cu, K.fy * Pc[1] / Pc[2] + K.cv])
     q0 = np.zeros(3)
@@ -285,8 +285,8 @@ def test_ideal_loop_small_error_decays_as_e0_exp_minus_lambda_t():
         centre_d,
         (np.array([1.0, 0, 0]), 3.0),
         lam,
-        R_rc,
-        t_rc,
+        R_body_camera,
+        t_body_camera,
         5.0,
         0.01,
         centre,
@@ -302,8 +302,8 @@ def test_ideal_loop_small_error_decays_as_e0_exp_minus_lambda_t():
         centre_d,
         (np.array([1.0, 0, 0]), 3.0),
         FRONT,
-        R_rc,
-        t_rc,
+        R_body_camera,
+        t_body_camera,
         3.0,
         0.01,
         centre,
@@ -324,7 +324,7 @@ def test_ideal_loop_large_error_controlled_component_and_norm(obj_xy, lam):
     dy/dt = -diag(lambda_v, lambda_w) y (here it decays at least that fast, the remaining
     nonlinearity speeding it up), and |e| = |f - f_d| decreases monotonically to the 2 px band.
     """
-    R_rc, t_rc = camera_mount_rotation(0.0, np.deg2rad(20.0)), np.array([0.3, 0.0, 0.8])
+    R_body_camera, t_body_camera = camera_mount_rotation(0.0, np.deg2rad(20.0)), np.array([0.3, 0.0, 0.8])
     verts = box_vertices(np.array([*obj_xy, 0.0]), (0.3, 0.2, 0.0))
     centre_d = np.array([320.0, 330.0])
     g = car_gains(lam)
@@ -335,8 +335,8 @@ def test_ideal_loop_large_error_controlled_component_and_norm(obj_xy, lam):
         centre_d,
         (np.array([0, 0, 1.0]), 0.0),
         lam,
-        R_rc,
-        t_rc,
+        R_body_camera,
+        t_body_camera,
         T,
         0.02,
         None,

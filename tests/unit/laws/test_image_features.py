@@ -1,9 +1,9 @@
-"""Tests for taskflow_tasks.image_features (ViKi-HyCo eq. 7-9, feature choice of section II-E)."""
+"""Tests for taskflow_tasks.viki.image_features (ViKi-HyCo eq. 7-9, feature choice of section II-E)."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from taskflow_tasks.image_features import (
+from taskflow_tasks.viki.image_features import (
     CameraIntrinsics,
     as_intrinsics,
     bbox_corners,

@@ -1,4 +1,4 @@
-"""The evidence rules of ViKi-HyCo (taskflow_tasks.viki_evidence), against hand-computed values."""
+"""The evidence rules of ViKi-HyCo (taskflow_tasks.viki.evidence), against hand-computed values."""
 
 from __future__ import annotations
 
@@ -6,7 +6,9 @@ import math
 
 import numpy as np
 import pytest
-from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shift, view_shifts
+from taskflow_tasks.viki.evidence import box_cut_by_border, goal_offset, view_shift, view_shifts
+
+from taskflow.spatial import planar_apply_inverse
 
 
 @pytest.mark.parametrize("bbox, cut", [
@@ -33,11 +35,11 @@ def test_margin_zero_means_touching_and_bad_inputs_are_refused():
         box_cut_by_border((0.5, 10.0, 20.0, 30.0), 640, 360, -1.0)
 
 
-def test_in_robot_frame_and_goal_offset():
+def test_the_object_seen_from_the_robot_and_goal_offset():
     # robot at (1, 2) facing +y: a point at (1, 3) is 1 m ahead, one at (0, 2) is 1 m to the left
     pose = (1.0, 2.0, math.pi / 2)
-    np.testing.assert_allclose(in_robot_frame(pose, (1.0, 3.0)), (1.0, 0.0), atol=1e-12)
-    np.testing.assert_allclose(in_robot_frame(pose, (0.0, 2.0)), (0.0, 1.0), atol=1e-12)
+    np.testing.assert_allclose(planar_apply_inverse(pose, (1.0, 3.0)), (1.0, 0.0), atol=1e-12)
+    np.testing.assert_allclose(planar_apply_inverse(pose, (0.0, 2.0)), (0.0, 1.0), atol=1e-12)
     np.testing.assert_allclose(goal_offset(pose, (1.0, 3.0), (1.0, 0.0)), (0.0, 0.0), atol=1e-12)
     np.testing.assert_allclose(goal_offset(pose, (0.9, 3.05), (1.0, 0.0)), (0.05, 0.1), atol=1e-12)
 

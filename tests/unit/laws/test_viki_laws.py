@@ -1,4 +1,4 @@
-"""ViKi-HyCo geometry and the one-tick law (tasks/viki_laws.py), without a simulator."""
+"""ViKi-HyCo geometry and the one-tick law (tasks/viki/laws.py), without a simulator."""
 
 from __future__ import annotations
 
@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
-from taskflow_tasks.bbox_target import desired_bbox, static_desired_bbox
-from taskflow_tasks.car_visual_servo import car_vs_velocity
 from taskflow_tasks.core.hybrid import smooth_velocity
 from taskflow_tasks.ground.car_kinematics import car_command, kinematic_control
-from taskflow_tasks.image_features import bbox_features
-from taskflow_tasks.viki_laws import (
+from taskflow_tasks.viki.bbox_target import desired_bbox, static_desired_bbox
+from taskflow_tasks.viki.car_visual_servo import car_vs_velocity
+from taskflow_tasks.viki.image_features import bbox_features
+from taskflow_tasks.viki.laws import (
     ServoInputs,
     desired_centre,
     goal_heading,
@@ -30,34 +30,34 @@ K = (468.94, 468.94, 320.0, 179.0)
 T_REAR = RP.rear_camera.T_body_camera()
 T_FRONT = RP.front_camera.T_body_camera()
 LAM = np.array([0.85, 1.05, 1.0, 1.0, 1.0])
-KW = dict(intrinsics=K, T_robot_camera=T_REAR, lam=LAM, k1=np.array([1.0, 2.0]), d=RP.wheelbase, wheelbase=RP.wheelbase,
+KW = dict(intrinsics=K, T_body_camera=T_REAR, lam=LAM, k1=np.array([1.0, 2.0]), d=RP.wheelbase, wheelbase=RP.wheelbase,
           v_max=RP.v_max, psi_max=RP.psi_max)
 
 
-def project(T_robot_camera, P):
-    Pc = T_robot_camera[:3, :3].T @ (np.asarray(P, float) - T_robot_camera[:3, 3])
+def project(T_body_camera, P):
+    Pc = T_body_camera[:3, :3].T @ (np.asarray(P, float) - T_body_camera[:3, 3])
     return np.array([K[0] * Pc[0] / Pc[2] + K[2], K[1] * Pc[1] / Pc[2] + K[3]]), Pc[2]
 
 
-@pytest.mark.parametrize("T_robot_camera, P", [(T_REAR, (-1.2, 0.15, 0.06)), (T_FRONT, (1.6, -0.3, 0.1))])
-def test_eq18_object_point_round_trips_a_projected_point(T_robot_camera, P):
-    uv, Z = project(T_robot_camera, P)
+@pytest.mark.parametrize("T_body_camera, P", [(T_REAR, (-1.2, 0.15, 0.06)), (T_FRONT, (1.6, -0.3, 0.1))])
+def test_eq18_object_point_round_trips_a_projected_point(T_body_camera, P):
+    uv, Z = project(T_body_camera, P)
     bbox = (uv[0] - 10, uv[1] - 20, uv[0] + 10, uv[1] + 20)
-    np.testing.assert_allclose(object_point(bbox, Z, K, T_robot_camera), P, atol=1e-9)
+    np.testing.assert_allclose(object_point(bbox, Z, K, T_body_camera), P, atol=1e-9)
 
 
-@pytest.mark.parametrize("T_robot_camera, goal", [(T_REAR, (-0.9, 0.0)), (T_REAR, (-1.1, 0.2)), (T_FRONT, (1.0, 0.0))])
-def test_box_at_the_desired_centre_means_the_base_estimate_is_at_the_goal(T_robot_camera, goal):
+@pytest.mark.parametrize("T_body_camera, goal", [(T_REAR, (-0.9, 0.0)), (T_REAR, (-1.1, 0.2)), (T_FRONT, (1.0, 0.0))])
+def test_box_at_the_desired_centre_means_the_base_estimate_is_at_the_goal(T_body_camera, goal):
     r, z_c = 0.04, 0.12
-    c = desired_centre(goal, r, z_c, K, T_robot_camera)
+    c = desired_centre(goal, r, z_c, K, T_body_camera)
     # the visible surface point that projects there, at the object's half-width in front of the axis
-    cam = T_robot_camera[:2, 3]
+    cam = T_body_camera[:2, 3]
     u = (np.asarray(goal) - cam) / np.linalg.norm(np.asarray(goal) - cam)
     P = np.array([*(np.asarray(goal) - r * u), z_c])
-    uv, Z = project(T_robot_camera, P)
+    uv, Z = project(T_body_camera, P)
     np.testing.assert_allclose(uv, c, atol=1e-9)
     half_w = r * K[0] / Z
-    B, r_est, z_est = object_base((c[0] - half_w, c[1] - 15, c[0] + half_w, c[1] + 15), Z, K, T_robot_camera)
+    B, r_est, z_est = object_base((c[0] - half_w, c[1] - 15, c[0] + half_w, c[1] + 15), Z, K, T_body_camera)
     np.testing.assert_allclose(B, goal, atol=1e-9)
     assert r_est == pytest.approx(r) and z_est == pytest.approx(z_c)
 

@@ -10,9 +10,9 @@ from pydantic import ValidationError
 from taskflow_robots.racecar import Racecar
 from taskflow_tasks.ground.car_goto import CarGains
 from taskflow_tasks.ground.car_kinematics import kinematic_control
-from taskflow_tasks.viki_hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
-from taskflow_tasks.viki_laws import desired_centre, object_base, reverse_control, saturate_twist
-from taskflow_tasks.viki_rotation import ViKiRotate, k_turn_legs
+from taskflow_tasks.viki.hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
+from taskflow_tasks.viki.laws import desired_centre, object_base, reverse_control, saturate_twist
+from taskflow_tasks.viki.rotation import ViKiRotate, k_turn_legs
 
 from taskflow.api import Observation
 from taskflow.messages import Detection
@@ -224,19 +224,19 @@ def test_the_reported_camera_twist_is_the_derivative_of_the_camera_pose(camera):
     from taskflow import spatial
 
     task = make_task(camera=camera)
-    T_robot_camera = getattr(RP, f"{camera}_camera").T_body_camera()
+    T_body_camera = getattr(RP, f"{camera}_camera").T_body_camera()
     V = np.array([0.3, 0.8])
     h = 1e-6
 
     def T_world_camera(s):
         th = V[1] * s
         x, y = (V[0] / V[1]) * math.sin(th), (V[0] / V[1]) * (1.0 - math.cos(th))
-        return spatial.transform_xyz_yaw(x, y, 0.0, th) @ T_robot_camera
+        return spatial.transform_xyz_yaw(x, y, 0.0, th) @ T_body_camera
 
     X = spatial.inverse(T_world_camera(0.0)) @ (T_world_camera(h) - T_world_camera(-h)) / (2 * h)
     numeric = np.r_[X[:3, 3], spatial.vee(X[:3, :3])]
     np.testing.assert_allclose(task._cam_twist @ V, numeric, atol=1e-6)
-    assert not np.allclose(spatial.twist_adjoint(T_robot_camera)[:, [0, 5]] @ V, numeric, atol=1e-3)
+    assert not np.allclose(spatial.twist_adjoint(T_body_camera)[:, [0, 5]] @ V, numeric, atol=1e-3)
 
 
 def test_a_box_cut_by_the_border_steers_the_servo_but_does_not_move_the_target():
@@ -298,3 +298,18 @@ def test_keep_out_turns_the_fallback_around_within_the_margin():
     assert r.command["steer"][0] == pytest.approx(r_free.command["steer"][0])
     far = make_task({MEM_OBJECT.name: np.array([2.0, 0.0])}, keep_out_body=body, keep_out_margin=1.5, **front)
     assert far.step(obs(0.0, None)).command["v"][0] == pytest.approx(r_free.command["v"][0])
+
+
+def test_the_tasks_read_what_they_declare_and_a_missing_required_entry_is_an_error():
+    """requires and the reads are one set of keys: no silent default for the measured speed or the pose."""
+    from taskflow_tasks.viki.hyco import DETECTION, MEASURED_V, ODOM_POSE
+
+    from taskflow.specs import MissingObservation, required_specs
+
+    assert set(required_specs(ViKiHyCo.requires)) == {ODOM_POSE.name, DETECTION.name, MEASURED_V.name}
+    assert set(required_specs(ViKiRotate.requires)) == {ODOM_POSE.name, MEASURED_V.name}
+    task = make_task()
+    assert task.step(obs(0.0)).metrics["detected"] == 0.0  # the detection is optional: absent is "none yet"
+    no_speed = Observation(t=0.0, state={"pose": np.zeros(3)}, sensors={"detection": det(0.0)})
+    with pytest.raises(MissingObservation, match="state.v"):
+        make_task().step(no_speed)

@@ -1,8 +1,8 @@
-"""Tests for taskflow_sim.car_depth (ViKi-HyCo eq. 11-18: LiDAR projection, fusion, object localisation)."""
+"""Tests for taskflow_sim.viki.depth (ViKi-HyCo eq. 11-18: LiDAR projection, fusion, object localisation)."""
 
 import numpy as np
 import pytest
-from taskflow_sim.car_depth import (
+from taskflow_sim.viki.depth import (
     blind_spot_mask,
     blind_spot_radius,
     fuse_depth,

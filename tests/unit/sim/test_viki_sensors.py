@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
-from taskflow_sim.perception_common import CameraModel, DropoutModel, pixel_box, quantise_box
+from taskflow_sim.viki.camera import CameraModel, DropoutModel, pixel_box, quantise_box
 
 from taskflow.messages import Detection
 

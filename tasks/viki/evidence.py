@@ -1,6 +1,6 @@
 """What a ViKi-HyCo detection is worth as evidence: border-cut boxes, how far the view has moved since it.
 
-Pure functions (numbers in, numbers out) used by :mod:`taskflow_tasks.viki_hyco`:
+Pure functions (numbers in, numbers out) used by :mod:`taskflow_tasks.viki.hyco`:
 
 * :func:`box_cut_by_border` — a box that touches the image border (or comes within ``margin_px`` of it)
   is the visible part of an object the image cuts: its centre, width and eq. 18's position estimate are
@@ -16,12 +16,12 @@ Pure functions (numbers in, numbers out) used by :mod:`taskflow_tasks.viki_hyco`
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["box_cut_by_border", "view_shift", "view_shifts", "goal_offset", "in_robot_frame"]
+from taskflow.spatial import planar_apply, planar_apply_inverse
+
+__all__ = ["box_cut_by_border", "view_shift", "view_shifts", "goal_offset"]
 
 
 def box_cut_by_border(bbox: ArrayLike, width: int, height: int, margin_px: float) -> bool:
@@ -37,27 +37,15 @@ def box_cut_by_border(bbox: ArrayLike, width: int, height: int, margin_px: float
     return u0 <= lo_u + eps or v0 <= lo_v + eps or u2 >= hi_u - eps or v2 >= hi_v - eps
 
 
-def in_robot_frame(pose: ArrayLike, xy: ArrayLike) -> NDArray[np.float64]:
-    """An odometry point ``xy`` in the robot frame of ``pose = (x, y, theta)``."""
-    x, y, th = (float(v) for v in np.asarray(pose, dtype=float).reshape(3))
-    px, py = (float(v) for v in np.asarray(xy, dtype=float).reshape(2))
-    c, s = math.cos(th), math.sin(th)
-    dx, dy = px - x, py - y
-    return np.array([c * dx + s * dy, -s * dx + c * dy])
-
-
 def view_shifts(poses_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> NDArray[np.float64]:
     """Distance (m) in odometry between where the robot-frame ``point`` was at each of ``poses_then``
     (``(N, 3)`` rows ``(x, y, theta)``) and where it is at ``pose_now``: translation plus rotation times the
     point's lever arm (one per row; the settle rule checks every stored detection each tick)."""
     g = np.asarray(point, dtype=float).reshape(2)
-
-    def world(P: NDArray[np.float64]) -> NDArray[np.float64]:
-        c, s = np.cos(P[:, 2]), np.sin(P[:, 2])
-        return np.stack([P[:, 0] + c * g[0] - s * g[1], P[:, 1] + s * g[0] + c * g[1]], axis=1)
-
-    d = world(np.asarray(pose_now, dtype=float).reshape(1, 3)) - world(np.asarray(poses_then, dtype=float).reshape(-1, 3))
-    return np.hypot(d[:, 0], d[:, 1])
+    T_odom_then = np.asarray(poses_then, dtype=float).reshape(-1, 3)
+    d = planar_apply(np.asarray(pose_now, dtype=float).reshape(1, 3), g) - planar_apply(T_odom_then, g)
+    shifts: NDArray[np.float64] = np.hypot(d[:, 0], d[:, 1])
+    return shifts
 
 
 def view_shift(pose_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> float:
@@ -67,4 +55,5 @@ def view_shift(pose_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> f
 
 def goal_offset(pose: ArrayLike, object_xy: ArrayLike, desired: ArrayLike) -> NDArray[np.float64]:
     """Object (odometry ``object_xy``) in the robot frame of ``pose`` minus ``desired`` (robot frame), m."""
-    return in_robot_frame(pose, object_xy) - np.asarray(desired, dtype=float).reshape(2)
+    offset: NDArray[np.float64] = planar_apply_inverse(pose, object_xy) - np.asarray(desired, dtype=float).reshape(2)
+    return offset

@@ -3,7 +3,7 @@
 Per frame of the active camera:
 
 * ``getCameraImage`` (TinyRenderer, DIRECT) at the camera's resolution with the camera model of
-  :mod:`taskflow_sim.perception_common` (vertical FOV, principal point ``(W/2, H/2 - 1)``); its colour
+  :mod:`taskflow_sim.viki.camera` (vertical FOV, principal point ``(W/2, H/2 - 1)``); its colour
   image is kept as ``last_rgb`` (a read-only view, no copy) for the world to publish;
 * bounding box = extents of the object's pixels in the segmentation mask (a perfect detector; misses
   come from the shared dropout model), edges at ``.5`` (OpenCV convention); fewer than ``min_pixels``
@@ -14,7 +14,7 @@ Per frame of the active camera:
   itself discarded) is interpolated to 112 virtual layers, turned into points, kept in the world frame
   and projected into each frame with the camera pose of that frame (eq. 11–12, value = camera Z); the
   blind-spot mask of eq. 13–14 (computed once per mount) selects the camera depth on the ground disc
-  the LiDAR cannot see, the LiDAR depth elsewhere (eq. 15 as meant, :func:`taskflow_sim.car_depth.fuse_depth`);
+  the LiDAR cannot see, the LiDAR depth elsewhere (eq. 15 as meant, :func:`taskflow_sim.viki.depth.fuse_depth`);
   **rear camera**: its own depth image (paper section II-C, ``dI_c2``);
 * ``Z_o`` = eq. 16–17 on that depth image; ``depth_at`` reads it at a pixel, ``depth_in`` applies eq. 16–17
   to any box.
@@ -34,7 +34,8 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 from taskflow_robots.racecar import LidarMount
-from taskflow_sim.car_depth import (
+from taskflow_sim.viki.camera import CameraModel, pixel_box
+from taskflow_sim.viki.depth import (
     blind_spot_mask,
     fuse_depth,
     interpolate_lidar_layers,
@@ -42,7 +43,6 @@ from taskflow_sim.car_depth import (
     object_depth,
     project_lidar_points,
 )
-from taskflow_sim.perception_common import CameraModel, pixel_box
 
 VIRTUAL_LAYERS = 112
 
@@ -92,7 +92,7 @@ class RenderedPerception:
         if lidar is not None:
             # numpy's general (LU) inverses here, not spatial.inverse: the closed form differs in the last bits
             # (kept so the rendered runs' records stay the same)
-            T_camera_lidar = np.linalg.inv(camera.T_robot_camera()) @ lidar.mount.T_body_mount()
+            T_camera_lidar = np.linalg.inv(camera.T_body_camera()) @ lidar.mount.T_body_mount()
             self._mask = blind_spot_mask(T_camera_lidar, camera.intrinsics, camera.width, camera.height,
                                          lidar_height=lidar.mount.xyz[2], lowest_beam=lidar.mount.v_fov[0])
         self.render_s = 0.0

@@ -1,11 +1,11 @@
 """ViKi-HyCo geometry around the pure laws: object localisation (eq. 18), desired centre, kinematic target.
 
-Pure numpy.  The control laws themselves live in :mod:`taskflow_tasks.car_visual_servo` (eq. 20–24),
-:mod:`taskflow_tasks.bbox_target` (eq. 19), :mod:`taskflow_tasks.core.hybrid` (eq. 25–26) and :mod:`taskflow_tasks.ground.car_kinematics`
+Pure numpy.  The control laws themselves live in :mod:`taskflow_tasks.viki.car_visual_servo` (eq. 20–24),
+:mod:`taskflow_tasks.viki.bbox_target` (eq. 19), :mod:`taskflow_tasks.core.hybrid` (eq. 25–26) and :mod:`taskflow_tasks.ground.car_kinematics`
 (eq. 1–5); :func:`viki_velocity` chains them for one control tick.
 
 Frames: robot frame = rear-axle midpoint on the ground, x forward, y left, z up; camera frame = OpenCV
-optical frame; ``T_robot_camera`` (4x4) = robot ← camera (``CameraMount.T_body_camera()``).  Odometry pose
+optical frame; ``T_body_camera`` (4x4) = robot ← camera (``CameraMount.T_body_camera()``).  Odometry pose
 ``(x, y, theta)`` of the rear-axle midpoint.
 
 Where the desired features come from (as meant, not printed in the paper)
@@ -34,11 +34,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from taskflow_tasks.bbox_target import desired_bbox, static_desired_bbox
-from taskflow_tasks.car_visual_servo import car_vs_velocity
 from taskflow_tasks.core.hybrid import hybrid_velocity, smooth_velocity
 from taskflow_tasks.ground.car_kinematics import car_command, kinematic_control
-from taskflow_tasks.image_features import bbox_features, feature_error
+from taskflow_tasks.viki.bbox_target import desired_bbox, static_desired_bbox
+from taskflow_tasks.viki.car_visual_servo import car_vs_velocity
+from taskflow_tasks.viki.image_features import bbox_features, feature_error
+
+from taskflow.spatial import planar_apply
 
 FloatArray = NDArray[np.float64]
 
@@ -57,50 +59,51 @@ __all__ = [
 ]
 
 
-def _T(T_robot_camera: ArrayLike) -> FloatArray:
-    T = np.asarray(T_robot_camera, dtype=float)
+def _T(T_body_camera: ArrayLike) -> FloatArray:
+    T = np.asarray(T_body_camera, dtype=float)
     if T.shape != (4, 4):
-        raise ValueError(f"T_robot_camera must be a 4x4 transform, got shape {T.shape}")
+        raise ValueError(f"T_body_camera must be a 4x4 transform, got shape {T.shape}")
     return T
 
 
-def object_point(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_robot_camera: ArrayLike) -> FloatArray:
-    """Eq. 18 in the robot frame: ``T_robot_camera @ [(O_u - c_u) Z_o / f_x, (O_v - c_v) Z_o / f_y, Z_o]``."""
+def object_point(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_body_camera: ArrayLike) -> FloatArray:
+    """Eq. 18 in the robot frame: ``T_body_camera @ [(O_u - c_u) Z_o / f_x, (O_v - c_v) Z_o / f_y, Z_o]``."""
     fx, fy, cu, cv = (float(v) for v in np.asarray(intrinsics, dtype=float).reshape(4))
     b = np.asarray(bbox, dtype=float).reshape(4)
     if not Z_o > 0.0:
         raise ValueError(f"Z_o must be positive, got {Z_o}")
     ou, ov = 0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])
     Pc = np.array([(ou - cu) * Z_o / fx, (ov - cv) * Z_o / fy, Z_o])
-    T = _T(T_robot_camera)
-    return T[:3, :3] @ Pc + T[:3, 3]
+    T = _T(T_body_camera)
+    base: NDArray[np.float64] = T[:3, :3] @ Pc + T[:3, 3]
+    return base
 
 
-def object_base(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_robot_camera: ArrayLike) -> tuple[FloatArray, float, float]:
+def object_base(bbox: ArrayLike, Z_o: float, intrinsics: ArrayLike, T_body_camera: ArrayLike) -> tuple[FloatArray, float, float]:
     """Object base centre ``B`` (robot frame, m), half-width ``r`` (m) and measured height ``z_c`` (m).
 
     ``B = P_xy + r u`` (module docstring): ``P`` from eq. 18, ``r = w_o Z_o / (2 f_x)``, ``u`` the unit
     horizontal direction from the camera to ``P``.
     """
-    P = object_point(bbox, Z_o, intrinsics, T_robot_camera)
+    P = object_point(bbox, Z_o, intrinsics, T_body_camera)
     b = np.asarray(bbox, dtype=float).reshape(4)
     fx = float(np.asarray(intrinsics, dtype=float).reshape(4)[0])
     r = 0.5 * (b[2] - b[0]) * Z_o / fx
-    cam = _T(T_robot_camera)[:2, 3]
+    cam = _T(T_body_camera)[:2, 3]
     u = P[:2] - cam
     n = float(np.hypot(u[0], u[1]))
     u = u / n if n > 1e-9 else np.zeros(2)
     return P[:2] + r * u, float(r), float(P[2])
 
 
-def desired_centre(goal_xy: ArrayLike, r: float, z_c: float, intrinsics: ArrayLike, T_robot_camera: ArrayLike) -> FloatArray:
+def desired_centre(goal_xy: ArrayLike, r: float, z_c: float, intrinsics: ArrayLike, T_body_camera: ArrayLike) -> FloatArray:
     """Pixel ``(u, v)`` where the box centre is when the object's base centre is at ``goal_xy``.
 
     Projection of ``(G - r u_G, z_c)`` (module docstring).  Raises ``ValueError`` when that point is
     behind the camera (a goal the camera cannot see).
     """
     G = np.asarray(goal_xy, dtype=float).reshape(2)
-    T = _T(T_robot_camera)
+    T = _T(T_body_camera)
     cam = T[:2, 3]
     u = G - cam
     n = float(np.hypot(u[0], u[1]))
@@ -134,9 +137,8 @@ def kinematic_target(object_xy: ArrayLike, goal_xy: ArrayLike, theta_f: float, d
     """
     O = np.asarray(object_xy, dtype=float).reshape(2)
     g = np.asarray(goal_xy, dtype=float).reshape(2)
-    c, s = math.cos(theta_f), math.sin(theta_f)
-    p = O - np.array([c * g[0] - s * g[1], s * g[0] + c * g[1]])
-    return p + d * np.array([c, s])
+    p = O - planar_apply((0.0, 0.0, theta_f), g)  # p = O - R(theta_f) g
+    return planar_apply((p[0], p[1], theta_f), (d, 0.0))  # its control point (eq. 1)
 
 
 def reverse_control(pose: ArrayLike, target: ArrayLike, k1: ArrayLike, d: float) -> tuple[float, float]:
@@ -204,7 +206,7 @@ class ServoOutput:
     used_vs: bool
 
 
-def viki_velocity(inp: ServoInputs, *, intrinsics: ArrayLike, T_robot_camera: ArrayLike, lam: ArrayLike, k1: ArrayLike,
+def viki_velocity(inp: ServoInputs, *, intrinsics: ArrayLike, T_body_camera: ArrayLike, lam: ArrayLike, k1: ArrayLike,
                   d: float, wheelbase: float, v_max: float, psi_max: float, mode: str = "hybrid",
                   object_size: ArrayLike | None = None, smoothing: bool = True, direction: float = 0.0) -> ServoOutput:
     """One ViKi-HyCo control tick, eq. 19–26 then eq. 5.
@@ -216,13 +218,13 @@ def viki_velocity(inp: ServoInputs, *, intrinsics: ArrayLike, T_robot_camera: Ar
     * ``mode="vs_only"``: the same visual law, zero velocity without a detection (the paper's VS-only
       baseline, section III-B);
     * ``mode="mgbm"``: MGBM-YOLO baseline — static desired box of the known ``object_size`` (W, H) at
-      depth ``Z_d`` (:func:`taskflow_tasks.bbox_target.static_desired_bbox`), interaction-matrix depth from the
+      depth ``Z_d`` (:func:`taskflow_tasks.viki.bbox_target.static_desired_bbox`), interaction-matrix depth from the
       box areas (:func:`mgbm_depth`), zero velocity without a detection.
 
     Eq. 26 (as meant, :func:`taskflow_tasks.core.hybrid.smooth_velocity`) damps the change from ``inp.v_prev``.
     """
-    T = _T(T_robot_camera)
-    R_rc, t_rc = T[:3, :3], T[:3, 3]
+    T = _T(T_body_camera)
+    R_body_camera, t_body_camera = T[:3, :3], T[:3, 3]
     f = f_d = None
     err = None
     V_vs = None
@@ -241,7 +243,7 @@ def viki_velocity(inp: ServoInputs, *, intrinsics: ArrayLike, T_robot_camera: Ar
         f = bbox_features(bbox)
         f_d = bbox_features(box_d)
         err = feature_error(f, f_d)
-        V_vs = car_vs_velocity(f, f_d, Z, intrinsics, R_rc, t_rc, lam)  # eq. 24
+        V_vs = car_vs_velocity(f, f_d, Z, intrinsics, R_body_camera, t_body_camera, lam)  # eq. 24
     if mode == "hybrid":
         V_kin = None
         if inp.target is not None and not use_vs:  # eq. 25 selects one law: compute only that one

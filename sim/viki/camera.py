@@ -53,13 +53,13 @@ class CameraModel:
         """``(fx, fy, cu, cv)`` with TinyRenderer's principal point ``(W/2, H/2 - 1)``."""
         return tinyrenderer_intrinsics(self.width, self.height, self.mount.fov)
 
-    def T_robot_camera(self) -> NDArray[np.float64]:
+    def T_body_camera(self) -> NDArray[np.float64]:
         """Robot ← optical frame (4x4)."""
         return self.mount.T_body_camera()
 
     def pose(self, T_world_robot: NDArray[np.float64]) -> NDArray[np.float64]:
         """World ← optical frame for a robot pose ``T_world_robot`` (4x4)."""
-        return T_world_robot @ self.T_robot_camera()
+        return T_world_robot @ self.T_body_camera()
 
     def project(self, T_world_camera: NDArray[np.float64], P_w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Pixels ``(N, 2)`` and camera depths ``(N,)`` of world points ``(N, 3)``."""

@@ -6,7 +6,7 @@ origin of a scratch PyBullet client, the union of its links' bounding boxes on t
 for the car's body: the PyBullet racecar has no collision shape on its chassis, so the distance between
 the collision shapes themselves (``getClosestPoints``) would let an object pass under the chassis
 between the wheels untouched.  The object's footprint is its base outline: a circle for a cylinder, its
-turned rectangle for a box (:mod:`taskflow_sim.viki_objects`).
+turned rectangle for a box (:mod:`taskflow_sim.viki.objects`).
 
 :func:`footprint_clearance` is a few lines of float arithmetic (microseconds): the world evaluates it once per control
 tick, not per physics step.
@@ -19,8 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import pybullet as p
+from numpy.typing import NDArray
 from taskflow_sim.core.bodies import GroundBody
-from taskflow_sim.viki_objects import PlacedObject
+from taskflow_sim.viki.objects import PlacedObject
+
+from taskflow.spatial import planar_apply, planar_apply_inverse
 
 
 @dataclass(frozen=True)
@@ -52,26 +55,26 @@ def measure_footprint(body: GroundBody) -> Footprint:
 def footprint_clearance(car: Footprint, robot_pose: tuple[float, float, float], obj: PlacedObject) -> float:
     """Distance (m) between the car's footprint at ``robot_pose`` (world ``x, y, yaw``) and the object's
     base outline; 0 when they touch or overlap."""
-    x, y, yaw = robot_pose
-    c, s = math.cos(yaw), math.sin(yaw)
-    dx, dy = obj.x - x, obj.y - y
-    ox, oy = c * dx + s * dy, -s * dx + c * dy  # the object's base centre in the robot frame
+    yaw = robot_pose[2]
+    ox, oy = (float(v) for v in planar_apply_inverse(robot_pose, (obj.x, obj.y)))  # object centre, robot frame
     shape = obj.shape
     car_box = (car.x_min, car.x_max, car.y_min, car.y_max)
     if shape.shape == "cylinder":
         return max(0.0, _to_box(ox, oy, car_box) - shape.size[0])
     # two rectangles: the box's corners in the robot frame, the car's corners in the box's frame
-    a = obj.yaw - yaw
-    ca, sa = math.cos(a), math.sin(a)
+    T_robot_box = (ox, oy, obj.yaw - yaw)  # the box's frame in the robot frame
     hx, hy = 0.5 * shape.size[0], 0.5 * shape.size[1]
     box = (-hx, hx, -hy, hy)
-    box_corners = [(ox + ca * u - sa * v, oy + sa * u + ca * v) for u in (-hx, hx) for v in (-hy, hy)]
-    car_corners = [(ca * (u - ox) + sa * (v - oy), -sa * (u - ox) + ca * (v - oy))
-                   for u in car_box[:2] for v in car_box[2:]]
+    box_corners = [_xy(planar_apply(T_robot_box, (u, v))) for u in (-hx, hx) for v in (-hy, hy)]
+    car_corners = [_xy(planar_apply_inverse(T_robot_box, (u, v))) for u in car_box[:2] for v in car_box[2:]]
     if not (_separates(box_corners, car_box) or _separates(car_corners, box)):
         return 0.0  # no separating axis among the four edge directions: they overlap
     # disjoint convex polygons: the nearest pair has a corner of one of them
     return min(min(_to_box(u, v, car_box) for u, v in box_corners), min(_to_box(u, v, box) for u, v in car_corners))
+
+
+def _xy(q: NDArray[np.float64]) -> tuple[float, float]:
+    return float(q[0]), float(q[1])
 
 
 def _to_box(u: float, v: float, box: tuple[float, float, float, float]) -> float:

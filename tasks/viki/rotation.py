@@ -40,8 +40,8 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 from taskflow_tasks.ground.car_goto import CarGains, CarGeometry, car_control_point
 from taskflow_tasks.ground.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
-from taskflow_tasks.viki_hyco import MEM_OBJECT
-from taskflow_tasks.viki_laws import reverse_control
+from taskflow_tasks.viki.hyco import MEASURED_V, MEM_OBJECT, ODOM_POSE
+from taskflow_tasks.viki.laws import reverse_control
 
 from taskflow.api import (
     COUNT,
@@ -50,7 +50,6 @@ from taskflow.api import (
     WRAPPED_ANGLE,
     MemoryKey,
     Observation,
-    ObsSpec,
     StepResult,
     StrictModel,
     Task,
@@ -59,6 +58,7 @@ from taskflow.api import (
     array,
 )
 from taskflow.registry import register_task
+from taskflow.specs import Requires
 
 FloatArray = NDArray[np.float64]
 MEM_ROTATION: MemoryKey[NDArray[np.float64]] = MemoryKey(
@@ -129,7 +129,7 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
                                          "speed": SPEED}
     events: ClassVar[tuple[str, ...]] = ("no_target",)
     command_interface: ClassVar[str] = "ackermann"
-    requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3)}
+    requires: ClassVar[Requires] = (ODOM_POSE, MEASURED_V)
     robot_params: ClassVar[type[BaseModel]] = CarGeometry
     reads: ClassVar[tuple[MemoryKey[NDArray[np.float64]], ...]] = (MEM_OBJECT,)
     writes: ClassVar[tuple[MemoryKey[NDArray[np.float64]], ...]] = (MEM_ROTATION,)
@@ -168,8 +168,8 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
         MEM_ROTATION.set(self.memory, self.final.copy())
 
     def step(self, obs: Observation) -> StepResult:
-        pose = np.asarray(obs.state["pose"], dtype=float)
-        speed = abs(float(obs.state.get("v", 0.0)))
+        pose = np.asarray(ODOM_POSE(obs), dtype=float)
+        speed = abs(float(MEASURED_V(obs)))
         if self.legs is None:
             if not MEM_OBJECT.present(self.memory):
                 stop = {"v": np.zeros(1), "steer": np.zeros(1)}

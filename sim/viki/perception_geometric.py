@@ -1,7 +1,7 @@
 """``geometric`` perception: the object's box from its 3-D shape projected through the camera model.
 
 Fast stand-in for the rendered pipeline (SIMULATOR_NOTES.md: rendering every frame runs near real
-time), with the same camera model and the same depth rule (:mod:`taskflow_sim.perception_common`):
+time), with the same camera model and the same depth rule (:mod:`taskflow_sim.viki.camera`):
 
 1. silhouette: hull points of the object (:meth:`PlacedObject.hull_points`) projected with the camera
    intrinsics; their extents plus Gaussian pixel noise (``pixel_noise`` px per edge, seeded), quantised
@@ -23,9 +23,9 @@ from collections.abc import Callable
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-from taskflow_sim.car_depth import shrunk_box
-from taskflow_sim.perception_common import CameraModel, pixel_box, quantise_box
-from taskflow_sim.viki_objects import PlacedObject, ray_ground
+from taskflow_sim.viki.camera import CameraModel, pixel_box, quantise_box
+from taskflow_sim.viki.depth import shrunk_box
+from taskflow_sim.viki.objects import PlacedObject, ray_ground
 
 MAX_DEPTH_RAYS = 400
 

@@ -264,7 +264,8 @@ def blind_spot_mask(
     s = np.where(hit, s, 0.0)
     px = o[0] + s * (R[0, 0] * x + R[1, 0] * y + R[2, 0])
     py = o[1] + s * (R[0, 1] * x + R[1, 1] * y + R[2, 1])
-    return hit & (px * px + py * py <= radius * radius)
+    mask: NDArray[np.bool_] = hit & (px * px + py * py <= radius * radius)
+    return mask
 
 
 def fuse_depth(dI_l: ArrayLike, dI_c: ArrayLike, mask: ArrayLike) -> NDArray[np.float64]:

@@ -36,6 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "CameraIntrinsics",
+    "as_bbox",
     "as_intrinsics",
     "point_interaction_matrix",
     "bbox_corners",
@@ -137,23 +138,25 @@ def bbox_corners(bbox: ArrayLike) -> NDArray[np.float64]:
 
     ``p0 = (left, top)``, ``p1 = (left, bottom)``, ``p2 = (right, bottom)``, ``p3 = (right, top)``.
     """
-    u0, v0, u2, v2 = _bbox(bbox)
+    u0, v0, u2, v2 = as_bbox(bbox)
     return np.array([[u0, v0], [u0, v2], [u2, v2], [u2, v0]])
 
 
-def _bbox(bbox: ArrayLike) -> tuple[float, float, float, float]:
+def as_bbox(bbox: ArrayLike, name: str = "bbox") -> tuple[float, float, float, float]:
+    """``bbox`` as the floats ``(u0, v0, u2, v2)``, checked: four edges with ``u0 <= u2`` and ``v0 <= v2``
+    (``name`` is the argument the error message names)."""
     b = np.asarray(bbox, dtype=float)
     if b.shape != (4,):
-        raise ValueError(f"bbox must be (u0, v0, u2, v2), got shape {b.shape}")
+        raise ValueError(f"{name} must be (u0, v0, u2, v2), got shape {b.shape}")
     u0, v0, u2, v2 = b.tolist()
     if not (u0 <= u2 and v0 <= v2):
-        raise ValueError(f"bbox must satisfy u0 <= u2 and v0 <= v2, got {(u0, v0, u2, v2)}")
+        raise ValueError(f"{name} must satisfy u0 <= u2 and v0 <= v2, got {(u0, v0, u2, v2)}")
     return u0, v0, u2, v2
 
 
 def bbox_features(bbox: ArrayLike) -> NDArray[np.float64]:
     """Feature vector ``f = [u0, v0, u1, v1, u2, v2, u3, v3]`` (px) of section II-E: the corners."""
-    u0, v0, u2, v2 = _bbox(bbox)
+    u0, v0, u2, v2 = as_bbox(bbox)
     return np.array([u0, v0, u0, v2, u2, v2, u2, v0])
 
 

@@ -28,6 +28,8 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 
+from taskflow.spatial import planar_apply
+
 Kind = Literal["can", "bottle", "carton"]
 
 
@@ -90,12 +92,9 @@ class PlacedObject:
             top = np.column_stack([ring, np.full(n, s.height)])
             return np.vstack([bottom, top])
         hx, hy = 0.5 * s.size[0], 0.5 * s.size[1]
-        c, si = math.cos(self.yaw), math.sin(self.yaw)
-        corners = []
-        for z in (0.0, s.height):
-            for ax, ay in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy)):
-                corners.append((self.x + c * ax - si * ay, self.y + si * ax + c * ay, z))
-        return np.array(corners)
+        T_world_object = (self.x, self.y, self.yaw)
+        ring = planar_apply(T_world_object, [(hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy)])
+        return np.vstack([np.column_stack([ring, np.full(4, z)]) for z in (0.0, s.height)])
 
     def ray_hit(self, origin: NDArray[np.float64], dirs: NDArray[np.float64]) -> NDArray[np.float64]:
         """Ray parameter ``t`` of the first hit of rays ``origin + t dirs`` (t > 0) with the object.
@@ -172,7 +171,7 @@ def create_body(client: int, obj: PlacedObject) -> int:
         half = [0.5 * v for v in s.size]
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=client)
         vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=list(s.rgba), physicsClientId=client)
-    return p.createMultiBody(
+    body: int = p.createMultiBody(
         baseMass=0.0,
         baseCollisionShapeIndex=col,
         baseVisualShapeIndex=vis,
@@ -180,3 +179,4 @@ def create_body(client: int, obj: PlacedObject) -> int:
         baseOrientation=p.getQuaternionFromEuler([0.0, 0.0, obj.yaw]),
         physicsClientId=client,
     )
+    return body

@@ -6,13 +6,13 @@ Conventions
   command is ``V_r = [v, w]``: linear speed along robot x (m/s) and yaw rate about robot z (rad/s,
   positive = turning left).
 * Camera frame: OpenCV (x right, y down, z optical axis). The camera mount is given as the
-  camera pose in the robot frame, ``R_rc = ^rR_c`` (columns: camera axes in robot coordinates)
-  and ``t_rc = ^rt_c`` (camera origin in robot coordinates, m).
+  camera pose in the robot frame, ``R_body_camera = ^rR_c`` (columns: camera axes in robot coordinates)
+  and ``t_body_camera = ^rt_c`` (camera origin in robot coordinates, m).
 * Twists are ``[linear; angular]`` (6-vectors). A *robot twist* is the body velocity of the car
   expressed in robot axes, linear part = velocity of the robot origin. A *camera twist* ``V_c``
   is the camera's own body velocity in camera axes, linear part = velocity of the camera origin:
   the ``V_c`` of eq. 6-10 (camera moving through a static scene).
-* Features ``f`` are the four bounding-box corners (``taskflow_tasks.image_features.bbox_features``) in
+* Features ``f`` are the four bounding-box corners (``taskflow_tasks.viki.image_features.bbox_features``) in
   absolute pixels; ``f_d`` the desired corners of eq. 19.
 
 As-meant readings (see also /work/shared/REFERENCE.md section 1)
@@ -28,7 +28,7 @@ As-meant readings (see also /work/shared/REFERENCE.md section 1)
   a *camera* twist to the *robot* twist (``^rW_c``). Eq. 20 needs the opposite direction
   (robot twist -> camera twist), ``^cW_r = (^rW_c)^-1 = [[R^T, -R^T [t]x], [0, R^T]]``, which
   is eq. 22's form evaluated with the inverse transform ``(^cR_r, ^ct_r) = (R^T, -R^T t)``.
-  :func:`taskflow.spatial.twist_adjoint_inverse` ``(T_robot_camera)`` returns that matrix (the
+  :func:`taskflow.spatial.twist_adjoint_inverse` ``(T_body_camera)`` returns that matrix (the
   framework's one twist map, named by its direction); the tests check it against the numerical
   derivative of the camera pose of a car driven with the unicycle model.
 * The gains ``lambda`` (section III-A: front ``[0.85, 0.3, 1, 1, 1]``, rear
@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from taskflow_tasks.image_features import (
+from taskflow_tasks.viki.image_features import (
     CameraIntrinsics,
     as_intrinsics,
     point_interaction_matrix,
@@ -63,14 +63,14 @@ __all__ = [
 
 
 def _check_mount(
-    R_rc: ArrayLike, t_rc: ArrayLike
+    R_body_camera: ArrayLike, t_body_camera: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    R = np.asarray(R_rc, dtype=float)
-    t = np.asarray(t_rc, dtype=float)
+    R = np.asarray(R_body_camera, dtype=float)
+    t = np.asarray(t_body_camera, dtype=float)
     if R.shape != (3, 3):
-        raise ValueError(f"R_rc must be 3x3, got shape {R.shape}")
+        raise ValueError(f"R_body_camera must be 3x3, got shape {R.shape}")
     if t.shape != (3,):
-        raise ValueError(f"t_rc must be a 3-vector, got shape {t.shape}")
+        raise ValueError(f"t_body_camera must be a 3-vector, got shape {t.shape}")
     return R, t
 
 
@@ -79,8 +79,8 @@ def car_jacobian_r(d: float = 0.0) -> NDArray[np.float64]:
 
     The twist's linear part is the velocity of the body point ``(d, 0, 0)`` (robot frame):
     ``[v, d w, 0]``, angular part ``[0, 0, w]``. This is eq. 1-2 at ``theta_r = 0`` extended to
-    6-D. Use ``d = 0`` (default) with ``taskflow.spatial.twist_adjoint_inverse(T_robot_camera)`` of a mount measured from the
-    robot origin; for ``d != 0`` pass ``t_rc - [d, 0, 0]`` (the mount relative to the point),
+    6-D. Use ``d = 0`` (default) with ``taskflow.spatial.twist_adjoint_inverse(T_body_camera)`` of a mount measured from the
+    robot origin; for ``d != 0`` pass ``t_body_camera - [d, 0, 0]`` (the mount relative to the point),
     which gives the same camera twist.
     """
     J = np.zeros((6, 2))
@@ -126,14 +126,14 @@ def car_feature_jacobian(
     f: ArrayLike,
     Z: float | ArrayLike,
     intrinsics: CameraIntrinsics | ArrayLike,
-    R_rc: ArrayLike,
-    t_rc: ArrayLike,
+    R_body_camera: ArrayLike,
+    t_body_camera: ArrayLike,
 ) -> NDArray[np.float64]:
     """``A = L_f T_r^c J_r`` of eq. 20: (2n, 2) map from ``[v, w]`` to feature velocities (px/s)."""
     K = as_intrinsics(intrinsics)
-    R, t = _check_mount(R_rc, t_rc)
+    R, t = _check_mount(R_body_camera, t_body_camera)
     L = point_interaction_matrix(_feature_points(f, K), Z, K.fx, K.fy)
-    # T J_r, T = taskflow.spatial.twist_adjoint_inverse(T_robot_camera) (robot twist -> camera twist),
+    # T J_r, T = taskflow.spatial.twist_adjoint_inverse(T_body_camera) (robot twist -> camera twist),
     # keeps columns 0 (v along robot x) and 5 (w about robot z) of T; written out:
     # v -> camera twist [R^T e_x; 0], w -> [-R^T (t x e_z); R^T e_z].
     TJ = np.zeros((6, 2))
@@ -148,8 +148,8 @@ def car_vs_velocity(
     f_d: ArrayLike,
     Z: float | ArrayLike,
     intrinsics: CameraIntrinsics | ArrayLike,
-    R_rc: ArrayLike,
-    t_rc: ArrayLike,
+    R_body_camera: ArrayLike,
+    t_body_camera: ArrayLike,
     lam: float | ArrayLike,
 ) -> NDArray[np.float64]:
     """Car visual-servo law, eq. 24: ``V_r = -diag(lambda_v, lambda_w) (L_f T_r^c J_r)^+ (f-f_d)``.
@@ -161,7 +161,7 @@ def car_vs_velocity(
     Z : float or (n,)
         Depth of the features (m); the paper uses the object depth ``Z_o`` of eq. 17 for all.
     intrinsics : (fx, fy, cu, cv) or 3x3 K
-    R_rc, t_rc :
+    R_body_camera, t_body_camera :
         Pose of the camera in the robot frame (front camera for forward positioning, rear
         camera for backward positioning).
     lam :
@@ -180,7 +180,7 @@ def car_vs_velocity(
     if fa.shape != fd.shape:
         raise ValueError(f"f and f_d must have the same size, got {fa.size} and {fd.size}")
     e = fa - fd
-    A = car_feature_jacobian(fa, Z, intrinsics, R_rc, t_rc)
+    A = car_feature_jacobian(fa, Z, intrinsics, R_body_camera, t_body_camera)
     At = A.T
     (a, b), (_, c) = (At @ A).tolist()
     p, q = (At @ e).tolist()
@@ -216,4 +216,5 @@ def camera_vs_velocity(
         raise ValueError(f"lam must be a scalar or a 6-vector, got shape {g.shape}")
     if np.any(g < 0.0):
         raise ValueError("gains must be non-negative")
-    return -g * np.linalg.lstsq(L, e, rcond=None)[0]
+    twist: NDArray[np.float64] = -g * np.linalg.lstsq(L, e, rcond=None)[0]
+    return twist

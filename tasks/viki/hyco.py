@@ -13,12 +13,12 @@ One task, three ``mode`` s:
 Eq. 26 (as meant, never amplifying) smooths the output in every mode; eq. 5 and the robot's limits turn
 it into ``(v, steer)``.
 
-Camera: ``camera: front | rear`` picks the mount ``(R_rc, t_rc)`` of eq. 22 and is named in every step
+Camera: ``camera: front | rear`` picks the mount ``(R_body_camera, t_body_camera)`` of eq. 22 and is named in every step
 result (``StepResult.sensors = ("front_camera",)``), so the world processes only that camera.  A camera name the robot does not have is a load-time error.
 
 Desired features: ``desired: [x, y]`` is the object's desired position in the robot frame (e.g. the
 manipulation zone); the desired box centre follows from it and the measured object (see
-:mod:`taskflow_tasks.viki_laws`), or is given directly in pixels with ``desired_centre`` (the paper's way).  ``Z_d``
+:mod:`taskflow_tasks.viki.laws`), or is given directly in pixels with ``desired_centre`` (the paper's way).  ``Z_d``
 is read every frame in the depth image at the desired centre (eq. 19).  ``zd: pixel`` reads the single pixel
 (as printed; the world's ``depth_at``); ``zd: window`` (default) applies eq. 17's rule — mean depth of the
 40 %-shrunk box — to the current box moved to the desired centre (``depth_in``).  Away from the goal both
@@ -31,16 +31,16 @@ Kinematic target (eq. 25's fallback, eq. 4's ``h_d``): the object's position in 
 (eq. 18 + base-centre estimate) is stored in the mission data (key ``viki.object``) so later states —
 the rotation, the backward positioning — use it.  With ``target_update: latest`` (the default) every
 *whole* detection re-anchors it — one whose box is not within ``border_px`` of the image border
-(:func:`taskflow_tasks.viki_evidence.box_cut_by_border`: a cut box's centre and width are the visible
+(:func:`taskflow_tasks.viki.evidence.box_cut_by_border`: a cut box's centre and width are the visible
 part's, and trusting it drove the car onto the object at large bearings); a cut box still drives the
 visual servo, and fixes the object only when nothing else has.  A target frozen at the first detection
 (``target_update: first``, the paper's rule) lies 5–9 cm from where the visual servo converges, so
 each burst of missed detections dragged the car off by 20–30 cm.  A state turns the object into its
 control-point target on entry (if the memory has it) and after every re-anchoring: the pose with the
-object at ``desired`` and the heading of :func:`taskflow_tasks.viki_laws.goal_heading` (stored as
+object at ``desired`` and the heading of :func:`taskflow_tasks.viki.laws.goal_heading` (stored as
 ``viki.target``).  For a goal behind the robot
 (``desired[0] < 0``, the rear camera) the fallback is the paper's *backward* kinematic controller: eq. 4 on
-the car seen backwards, servoing the point ``d`` behind the rear axle (:func:`taskflow_tasks.viki_laws.reverse_control`;
+the car seen backwards, servoing the point ``d`` behind the rear axle (:func:`taskflow_tasks.viki.laws.reverse_control`;
 plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`` forces either.
 
 No detection yet and no object in memory: the robot holds still and, after ``search_timeout``, the task
@@ -51,7 +51,7 @@ command moving the body toward the object (memory) once within ``keep_out_margin
 
 Evidence for the settle rule (a completion a car can meet, docs/missions.md): ``goal_error`` (m) is the
 distance from ``desired`` to the mean object position of the last ``evidence_frames`` whole detections
-taken within ``evidence_window`` of view shift of the current pose (:func:`taskflow_tasks.viki_evidence.view_shifts`),
+taken within ``evidence_window`` of view shift of the current pose (:func:`taskflow_tasks.viki.evidence.view_shifts`),
 seen from the current odometry pose; ``view_shift`` (m) is how far the goal point has moved in odometry
 since the last whole detection (a still camera gives the same image: that detection still holds).
 
@@ -75,11 +75,12 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.racecar import CameraMount
-from taskflow_tasks.car_visual_servo import car_jacobian_r
+from taskflow_tasks.core.gains import positive_gains
 from taskflow_tasks.core.keep_out import keep_out_speed
 from taskflow_tasks.ground.car_goto import CarGains, CarGeometry
-from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shifts
-from taskflow_tasks.viki_laws import (
+from taskflow_tasks.viki.car_visual_servo import car_jacobian_r
+from taskflow_tasks.viki.evidence import box_cut_by_border, goal_offset, view_shifts
+from taskflow_tasks.viki.laws import (
     ServoInputs,
     desired_centre,
     goal_heading,
@@ -97,7 +98,7 @@ from taskflow.api import (
     MemoryKey,
     Metric,
     Observation,
-    ObsSpec,
+    ObsKey,
     StepResult,
     StrictModel,
     Task,
@@ -105,11 +106,17 @@ from taskflow.api import (
     TaskScene,
     array,
     mapping,
-    message,
+    scalar,
 )
 from taskflow.messages import Detection
 from taskflow.registry import register_task
-from taskflow.spatial import twist_adjoint_inverse
+from taskflow.spatial import planar_apply, planar_apply_inverse, twist_adjoint_inverse
+from taskflow.specs import Requires
+
+# the observations the ViKi-HyCo tasks read (declared in their ``requires``, called to read: one thing)
+ODOM_POSE: ObsKey[NDArray[np.float64]] = ObsKey("state.pose", array(3))
+MEASURED_V: ObsKey[float] = ObsKey("state.v", scalar())
+DETECTION = ObsKey("sensors.detection", Detection, optional=True)
 
 # the mission data the ViKi-HyCo tasks keep across states (one definition each)
 MEM_OBJECT: MemoryKey[NDArray[np.float64]] = MemoryKey(
@@ -126,7 +133,7 @@ class ViKiGains(CarGains):
 
     ``lam``: the paper's five numbers (section III-A: front ``[0.85, 0.3, 1, 1, 1]``, rear
     ``[0.85, 1.05, 1, 1, 1]``); ``diag(lam[0], lam[1])`` acts on ``[v, w]`` in eq. 24 and the other three
-    have no counterpart in the 2-DoF law (:func:`taskflow_tasks.car_visual_servo.car_gains`).  ``k1``: eq. 4's
+    have no counterpart in the 2-DoF law (:func:`taskflow_tasks.viki.car_visual_servo.car_gains`).  ``k1``: eq. 4's
     ``[k_x, k_y]`` (forward ``[2, 1]``, backward ``[1, 2]``).  ``d``: control-point distance of eq. 1
     (``None``: the wheelbase, as in the paper).
     """
@@ -142,9 +149,7 @@ class ViKiGains(CarGains):
             raise ValueError(
                 f"lam needs the paper's 5 gains [lambda_v, lambda_w, l3, l4, l5] (only the first two act in the "
                 f"2-DoF law), got {len(lam)}: {list(lam)}")
-        if not all(math.isfinite(v) and v > 0.0 for v in lam):
-            raise ValueError(f"lam gains must be finite and > 0, got {list(lam)}")
-        return lam
+        return positive_gains("lam", lam)
 
 
 class CameraCar(CarGeometry):
@@ -208,7 +213,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
     events: ClassVar[tuple[str, ...]] = ("no_target",)
     command_interface: ClassVar[str] = "ackermann"
     robot_params: ClassVar[type[BaseModel]] = CameraCar
-    requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "sensors.detection": message(Detection)}
+    requires: ClassVar[Requires] = (ODOM_POSE, DETECTION, MEASURED_V)
     writes: ClassVar[tuple[MemoryKey[Any], ...]] = (MEM_OBJECT, MEM_TARGET, MEM_FIRST)
 
     def __init__(self, ctx: TaskContext[ViKiHyCoParams, CameraCar]) -> None:
@@ -217,9 +222,9 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         self.p = params
         self.camera = params.camera
         mount = rp.front_camera if params.camera == "front" else rp.rear_camera
-        self.T_robot_camera = mount.T_body_camera()
+        self.T_body_camera = mount.T_body_camera()
         # camera twist of a robot velocity [v, w] (eq. 20-22): V_c = T_r^c J_r V_r, for the figures
-        self._cam_twist = twist_adjoint_inverse(self.T_robot_camera) @ car_jacobian_r()
+        self._cam_twist = twist_adjoint_inverse(self.T_body_camera) @ car_jacobian_r()
         self.lam = np.asarray(gains.lam, dtype=float)
         self.k1 = np.asarray(gains.k1, dtype=float)
         self.d = float(gains.d) if gains.d is not None else rp.wheelbase
@@ -261,20 +266,19 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         """Object base centre in odometry, half-width and height (eq. 18 + base estimate)."""
         if det.bbox is None or det.depth is None:
             raise ValueError("object position needs a detection with a box and a depth")
-        B, r, z_c = object_base(det.bbox, det.depth, det.intrinsics, self.T_robot_camera)
-        x, y, th = pose
-        c, s = math.cos(th), math.sin(th)
-        return np.array([x + c * B[0] - s * B[1], y + s * B[0] + c * B[1]]), r, z_c
+        B, r, z_c = object_base(det.bbox, det.depth, det.intrinsics, self.T_body_camera)
+        return planar_apply(pose, B[:2]), r, z_c  # T_odom_body applied to the base centre
 
     # -- one tick ------------------------------------------------------------------------------------
     def step(self, obs: Observation) -> StepResult:
-        pose = np.asarray(obs.state["pose"], dtype=float)
-        raw = obs.sensors.get("detection")
-        det = raw if isinstance(raw, Detection) and raw.camera == self.camera else None
+        pose = np.asarray(ODOM_POSE(obs), dtype=float)
+        det = DETECTION(obs)
+        if det is not None and det.camera != self.camera:
+            det = None
         usable = det is not None and det.detected and obs.t - det.stamp <= self.p.max_age + 1e-9
         # a box cut by the image border still steers the visual servo (toward bringing the object into view)
         # but is no evidence of where the object is: it anchors the target only when nothing else has
-        whole = usable and det is not None and not box_cut_by_border(det.bbox, det.width, det.height, self.p.border_px)
+        whole = usable and det is not None and det.bbox is not None and not box_cut_by_border(det.bbox, det.width, det.height, self.p.border_px)
         events: tuple[str, ...] = ()
         bbox = Z_o = Z_d = centre = None
         if det is not None and usable:
@@ -298,7 +302,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
                 centre = np.asarray(self.p.desired_centre, dtype=float)
             else:
                 try:
-                    centre = desired_centre(self.goal, r, z_c, det.intrinsics, self.T_robot_camera)
+                    centre = desired_centre(self.goal, r, z_c, det.intrinsics, self.T_body_camera)
                 except ValueError:
                     centre = None
             if centre is not None:
@@ -316,11 +320,11 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             ServoInputs(pose=pose, detected=bool(usable), bbox=bbox, Z_o=Z_o, Z_d=Z_d, centre=centre,
                         target=self.target, reverse=self.reverse, v_prev=self.v_prev),
             intrinsics=det.intrinsics if det is not None else (1.0, 1.0, 0.0, 0.0),
-            T_robot_camera=self.T_robot_camera, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
+            T_body_camera=self.T_body_camera, lam=self.lam, k1=self.k1, d=self.d, wheelbase=self.wheelbase, v_max=self.v_max,
             psi_max=self.psi_max, mode=self.p.mode, object_size=self.p.object_size, smoothing=self.p.smoothing,
             direction=self.direction)
         # the object (memory) in the robot frame, once per tick: for the keep-out and the object_x/y metrics
-        object_robot = in_robot_frame(pose, MEM_OBJECT(self.memory)) if MEM_OBJECT.present(self.memory) else None
+        object_robot = planar_apply_inverse(pose, MEM_OBJECT(self.memory)) if MEM_OBJECT.present(self.memory) else None
         if self.p.keep_out_body is not None and object_robot is not None:
             v_safe = keep_out_speed(out.v_cmd, self.p.keep_out_body, object_robot, self.object_radius,
                                     self.p.keep_out_margin)
@@ -333,15 +337,14 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         if out.feature_error is not None:
             self.last_feature_error = out.feature_error
         metrics: dict[str, float] = {"detected": 1.0 if out.used_vs else 0.0, "v_cmd": out.v_cmd,
-                                     "speed": abs(float(obs.state.get("v", 0.0)))}
+                                     "speed": abs(float(MEASURED_V(obs)))}
         metrics.update(zip(_CAM_KEYS, (self._cam_twist @ out.V).tolist()))
         if self.last_feature_error is not None:
             metrics["feature_error"] = self.last_feature_error
         if self.last_detection_t is not None:
             metrics["detection_age"] = obs.t - self.last_detection_t
         if self.target is not None:
-            c, s = math.cos(pose[2]), math.sin(pose[2])
-            h = pose[:2] + self.d_point * np.array([c, s])  # the controlled point, eq. 1
+            h = planar_apply(pose, (self.d_point, 0.0))  # the controlled point, eq. 1
             metrics["pos_error"] = float(np.hypot(*(self.target - h)))
         if self.evidence:
             shifts = view_shifts([P for P, _ in self.evidence], pose, self.goal)
@@ -359,8 +362,8 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
     def _goal_depth(self, r: float, z_c: float) -> float:
         """MGBM's desired depth: camera Z of the object's box-centre point at the goal."""
         G = self.goal
-        cam = self.T_robot_camera[:2, 3]
+        cam = self.T_body_camera[:2, 3]
         u = G - cam
         u = u / max(float(np.hypot(*u)), 1e-9)
         P = np.array([*(G - r * u), z_c])
-        return float((self.T_robot_camera[:3, :3].T @ (P - self.T_robot_camera[:3, 3]))[2])
+        return float((self.T_body_camera[:3, :3].T @ (P - self.T_body_camera[:3, 3]))[2])

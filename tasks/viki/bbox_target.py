@@ -2,7 +2,7 @@
 
 Boxes are ``(u0, v0, u2, v2) = (left, top, right, bottom)`` in pixels; the desired centre
 ``(O_du, O_dv)`` is in absolute pixels. Turn a box into the servo features with
-``taskflow_tasks.image_features.bbox_features``.
+``taskflow_tasks.viki.image_features.bbox_features``.
 
 Eq. 19 (section II-E)::
 
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from taskflow_tasks.image_features import CameraIntrinsics, as_intrinsics
+from taskflow_tasks.viki.image_features import CameraIntrinsics, as_bbox, as_intrinsics
 
 __all__ = ["desired_bbox", "static_desired_bbox"]
 
@@ -45,12 +45,7 @@ def desired_bbox(
     centred at ``desired_centre``. Call it every frame with the current box and depths."""
     if not (Z_o > 0.0 and Z_d > 0.0):
         raise ValueError(f"depths must be positive, got Z_o={Z_o}, Z_d={Z_d}")
-    b = np.asarray(current_bbox, dtype=float)
-    if b.shape != (4,):
-        raise ValueError(f"current_bbox must be (u0, v0, u2, v2), got shape {b.shape}")
-    u0, v0, u2, v2 = b.tolist()
-    if not (u0 <= u2 and v0 <= v2):
-        raise ValueError(f"current_bbox must satisfy u0 <= u2 and v0 <= v2, got {tuple(b)}")
+    u0, v0, u2, v2 = as_bbox(current_bbox, "current_bbox")
     k = Z_o / Z_d
     hw = 0.5 * k * (u2 - u0)
     hh = 0.5 * k * (v2 - v0)
