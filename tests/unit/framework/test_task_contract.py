@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 from pydantic import Field
-from taskflow.contracts import kinematics_problem
 
 from taskflow.api import NoParams, Robot, StrictModel, Task
+from taskflow.mission.contracts import kinematics_problem
 from taskflow.testing import task_context
 
 
