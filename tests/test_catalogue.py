@@ -19,7 +19,7 @@ from typing import Any
 import jsonschema
 import pytest
 from pydantic import Field
-from taskflow.catalogue.catalogue.declarations import param_unit, params_of
+from taskflow.catalogue.declarations import param_unit, params_of
 
 from taskflow.api import StrictModel
 from taskflow.catalogue.catalogue import Catalogue, Entry, build, entry_from_json, entry_to_json
