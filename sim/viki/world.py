@@ -152,11 +152,9 @@ class VikiGround(FlatGround):
         if wp.odom_scale_error != 0.0 or wp.odom_slip > 0.0:  # its own stream: the ideal runs draw nothing
             self._slip = SlipOdometry(np.random.default_rng([self.seed, 0x511]), wp.odom_scale_error, wp.odom_slip)
             self._slip.reset(np.asarray(scene.car.pose(), dtype=float))
-
-    def reset(self) -> None:
-        super().reset()
-        self._poll()  # the ground truth and the readings at t = 0, seen by the first observation
-        self.start_streams()
+        # the ground truth and the readings at t = 0, seen by the first observation; FlatGround.reset then
+        # starts the declared streams (the cameras' first frame)
+        self._poll()
 
     @property
     def sensors(self) -> VikiCameras:
