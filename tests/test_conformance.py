@@ -15,7 +15,6 @@ SHIPPED_WORLDS = sorted(ep.name for ep in metadata.entry_points(group="taskflow.
 SHIPPED_ROBOTS = sorted(ep.name for ep in metadata.entry_points(group="taskflow.robots"))
 FAST = {"quad_room": {"perception": "geometric"}}  # projected landmarks instead of rendered frames
 PAIRS = pairs(SHIPPED_WORLDS, SHIPPED_ROBOTS)
-OBSERVE_NOT_YET_PURE = {"viki_ground"}  # captures frames in observe() until its world moves onto SensorStream
 
 
 def test_every_shipped_robot_has_a_world_and_ground_robots_share_flat_ground():
@@ -29,8 +28,6 @@ def test_every_shipped_robot_has_a_world_and_ground_robots_share_flat_ground():
 @pytest.mark.parametrize("world_cls, robot_cls", PAIRS, ids=[f"{w.name}-{r.name}" for w, r in PAIRS])
 def test_shipped_pair_conforms(world_cls, robot_cls):
     res = check_pair(world_cls, robot_cls, FAST.get(world_cls.name), steps=4)
-    if world_cls.name in OBSERVE_NOT_YET_PURE:
-        res.problems = [p for p in res.problems if not p.startswith(IMPURE)]
     assert res.ok, str(res)
 
 
