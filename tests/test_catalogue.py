@@ -19,11 +19,11 @@ from typing import Any
 import jsonschema
 import pytest
 from pydantic import Field
-from taskflow.catalogue.declarations import param_unit, params_of
 
 from taskflow.api import StrictModel
 from taskflow.catalogue.catalogue import Catalogue, Entry, build, entry_from_json, entry_to_json
 from taskflow.catalogue.completions import completed_json_schema
+from taskflow.catalogue.declarations import param_unit, params_of
 from taskflow.cli import main
 from taskflow.mission.yamlsrc import load_yaml_file
 from taskflow.registry import ROBOTS, TASKS, WORLDS
