@@ -40,8 +40,8 @@ from taskflow.execution.runtime import run_mission
 from taskflow.execution.summary import RunResult
 from taskflow.mission.contracts import build_robot_params
 from taskflow.mission.data import DataAccess
-from taskflow.mission.loader import CompiledMission
 from taskflow.mission.loader import load_mission as _load
+from taskflow.mission.model import CompiledMission
 
 
 @dataclass
@@ -78,13 +78,12 @@ class ScriptedWorld(World):
     name = "scripted"
 
     def __init__(self, robot: Robot, script: Script, mission: CompiledMission) -> None:
-        super().__init__(robot, None, 0)  # type: ignore[arg-type]
+        super().__init__(robot, None, 0)  # type: ignore[arg-type]  # a scripted world has no parameters
         self.script = script
         self.mission = mission
-        self.ground_truth_keys = ()  # type: ignore[misc]
         self.t = 0.0
         self._tick = 0
-        self._dt = 1.0 / mission.spec.rate_hz
+        self._dt = 1.0 / float(mission.spec.rate_hz)  # a number once validated (schema.Rate)
         self._events = sorted(script.events)
         self._next_event = 0
         self._pending: list[tuple[float, str]] = []
@@ -130,10 +129,10 @@ class ScriptedWorld(World):
         self._pending.clear()
 
 
-class _IdleTask(Task):
+class _IdleTask(Task[Any, Any]):
     """Stands in for every task under a script: holds the robot still, publishes nothing."""
 
-    def __init__(self, ctx: TaskContext) -> None:
+    def __init__(self, ctx: TaskContext[Any, Any]) -> None:
         super().__init__(ctx)
         self._stop = ctx.robot.stop_command()
 
@@ -155,7 +154,7 @@ def drive(mission: CompiledMission, script: Script, *, max_time: float | None = 
     if on_world is not None:
         on_world(world)
 
-    def factory(cls: type[Task], ctx: TaskContext) -> Task:
+    def factory(cls: type[Task[Any, Any]], ctx: TaskContext[Any, Any]) -> Task[Any, Any]:
         return _IdleTask(ctx)
 
     def attach(executor: Any) -> None:
@@ -174,9 +173,9 @@ def run_on_world(mission: CompiledMission, *, seed: int | None = None, max_time:
 # -- assertions ---------------------------------------------------------------------------------
 
 
-def task_context(task: type[Task], params: Any, robot: Robot, profiles: dict[str, Any] | None = None, *,
+def task_context(task: type[Task[Any, Any]], params: Any, robot: Robot, profiles: dict[str, Any] | None = None, *,
                  t: float = 0.0, memory: dict[str, Any] | None = None, items: dict[str, Any] | None = None,
-                 dt: float = 0.0) -> TaskContext:
+                 dt: float = 0.0) -> TaskContext[Any, Any]:
     """The context the executor would give ``task`` on entry — for unit tests of one task outside a
     mission: ``robot_params`` is built from the robot's parameters as the framework builds it, and
     ``memory`` (the run's mission data: a plain dict the test may read and fill) is reached through the
@@ -215,7 +214,7 @@ def assert_outcome(result: RunResult, outcome: str) -> None:
 def time_in(result: RunResult, state: str) -> float:
     """Total simulated seconds spent in leaf ``state`` (or in every leaf under a composite)."""
     spent = result.summary["time_in_state_s"]
-    return sum(v for k, v in spent.items() if k == state or k.startswith(state + "."))
+    return float(sum(v for k, v in spent.items() if k == state or k.startswith(state + ".")))
 
 
 # -- pytest plugin --------------------------------------------------------------------------------
