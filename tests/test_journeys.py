@@ -210,7 +210,7 @@ def check_view(run: Path, records: list[dict[str, Any]], mission: CompiledMissio
         page, kind = get(url + "/")
         assert kind.startswith("text/html") and b"view.js" in page
         for asset in ("view.js", "view.css"):
-            assert get(f"{url}/web/{asset}")[0] == (ROOT / "taskflow" / "web" / asset).read_bytes()
+            assert get(f"{url}/web/{asset}")[0] == (ROOT / "taskflow" / "operate" / "web" / asset).read_bytes()
         summary = json.loads((run / "summary.json").read_text())
         assert get_json(url + "/view/summary") == summary
         state = get_json(url + "/state")

@@ -217,8 +217,9 @@ class RayBackend:
                     except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError,
                             ray.exceptions.LocalRayletDiedError) as exc:
                         raise WorkerLost(f"a Ray worker died after Ray's retries ({type(exc).__name__})") from None
-                    if files and jobs[i].run_dir is not None:
-                        _write_files(Path(jobs[i].run_dir), files)
+                    run_dir = jobs[i].run_dir
+                    if files and run_dir is not None:
+                        _write_files(Path(run_dir), files)
                     on_result(i, result)
         except BaseException:
             for ref in pending:

@@ -72,7 +72,9 @@ class Condition:
 
 def _split_values(text: str) -> list[str]:
     """Split at the commas that are not inside brackets, braces or quotes: ``1,[2, 3],'a,b'`` has three."""
-    out, depth, quote, cur = [], 0, "", []
+    out: list[str] = []
+    cur: list[str] = []
+    depth, quote = 0, ""
     for ch in text:
         if quote:
             quote = "" if ch == quote else quote

@@ -19,9 +19,12 @@ from __future__ import annotations
 import dataclasses
 import typing
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
 from pydantic_core import to_jsonable_python
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 from taskflow import api
 from taskflow.api import ObsSpec, Robot, Task, World, required_specs
@@ -41,6 +44,13 @@ from taskflow.catalogue.declarations import (
 from taskflow.fidelity import Fidelity
 from taskflow.mission.contracts import hosts, task_problem
 from taskflow.registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError, describe_choices
+
+C = TypeVar("C", bound=type)
+D = TypeVar("D", bound="DataclassInstance")
+TaskClass = type[Task[Any, Any]]
+Tasks = dict[str, TaskClass]
+Robots = dict[str, type[Robot]]
+Worlds = dict[str, type[World]]
 
 Kind = Literal["task", "robot", "world", "sensor"]
 KINDS: tuple[Kind, ...] = ("task", "robot", "world", "sensor")
@@ -161,14 +171,16 @@ class UnknownEntry(LookupError):
     """A name no entry has (or several have, without ``kind``); the message names the valid ones."""
 
 
-def _loaded(registry: Registry[Any], broken: dict[str, str]) -> dict[str, type]:
-    """The registry's classes by name; an entry point that fails to load is noted in ``broken``."""
-    out = {}
+def loaded(registry: Registry[C], broken: dict[str, str] | None = None) -> dict[str, C]:
+    """The registry's classes by name; an entry point that fails to load is noted in ``broken`` (left out
+    either way: the loader reports it when a mission names it)."""
+    out: dict[str, C] = {}
     for name in registry.names():
         try:
             out[name] = registry.get(name)
         except RegistryError as exc:
-            broken[f"{registry.kind} {name}"] = str(exc)
+            if broken is not None:
+                broken[f"{registry.kind} {name}"] = str(exc)
     return out
 
 
@@ -201,7 +213,7 @@ class Catalogue:
 def build() -> Catalogue:
     """The catalogue of everything registered now (entry points are imported)."""
     broken: dict[str, str] = {}
-    tasks, robots, worlds = _loaded(TASKS, broken), _loaded(ROBOTS, broken), _loaded(WORLDS, broken)
+    tasks, robots, worlds = loaded(TASKS, broken), loaded(ROBOTS, broken), loaded(WORLDS, broken)
     entries = [task_entry(t, robots, worlds) for t in tasks.values()]
     entries += [robot_entry(r, tasks, worlds) for r in robots.values()]
     entries += [world_entry(w, tasks, robots) for w in worlds.values()]
@@ -209,24 +221,24 @@ def build() -> Catalogue:
     return Catalogue(tuple(entries), broken)
 
 
-def _providers(key: str, need: ObsSpec, robots: dict[str, type], worlds: dict[str, type]) -> tuple[str, ...]:
+def _providers(key: str, need: ObsSpec, robots: Robots, worlds: Worlds) -> tuple[str, ...]:
     out = [f"robot {n}" for n, r in robots.items() if key in r.observations and r.observations[key].satisfies(need)]
     out += [f"world {n}" for n, w in worlds.items() if key in w.observations and w.observations[key].satisfies(need)]
     return tuple(out)
 
 
-def _readers(key: str, spec: ObsSpec, tasks: dict[str, type]) -> tuple[str, ...]:
+def _readers(key: str, spec: ObsSpec, tasks: Tasks) -> tuple[str, ...]:
     return tuple(f"task {n}" for n, t in tasks.items() if key in t.requires and spec.satisfies(t.requires[key]))
 
 
-def _worlds_for(task: type[Task], robot: type[Robot], worlds: dict[str, type]) -> tuple[str, ...]:
+def _worlds_for(task: TaskClass, robot: type[Robot], worlds: Worlds) -> tuple[str, ...]:
     """The worlds on which ``task`` can run with ``robot``: each hosts the robot, and the task's interface,
     the robot parameters it reads and the observations it requires are there (the compiler's rule,
     :func:`taskflow.mission.contracts.task_problem`)."""
     return tuple(n for n, w in worlds.items() if hosts(w, robot) and task_problem(task, robot, w) is None)
 
 
-def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type]) -> Entry:
+def task_entry(task: TaskClass, robots: Robots, worlds: Worlds) -> Entry:
     doc = class_doc(task)
     slots = tuple(Slot(name=s, profile_kind=getattr(m, "kind", None) or s, model=m.__name__,
                        required=slot_required(m), summary=summary_of(own_doc(m)), fields=params_of(m))
@@ -241,7 +253,7 @@ def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type
         works_with=works, types=nested_models([task.Params, *task.slots.values(), task.robot_params]))
 
 
-def robot_entry(robot: type[Robot], tasks: dict[str, type], worlds: dict[str, type]) -> Entry:
+def robot_entry(robot: type[Robot], tasks: Tasks, worlds: Worlds) -> Entry:
     doc = class_doc(robot)
     drivers = [f"task {n}" for n, t in tasks.items() if _worlds_for(t, robot, worlds)]
     hosting = [f"world {n}" for n, w in worlds.items() if hosts(w, robot)]
@@ -255,7 +267,7 @@ def robot_entry(robot: type[Robot], tasks: dict[str, type], worlds: dict[str, ty
         works_with=tuple(hosting + drivers), types=nested_models([robot.Params]))
 
 
-def world_entry(world: type[World], tasks: dict[str, type], robots: dict[str, type]) -> Entry:
+def world_entry(world: type[World], tasks: Tasks, robots: Robots) -> Entry:
     doc = class_doc(world)
     action_models = [world.action_params.get(a) for a in world.actions]
     needs = world.needs
@@ -292,7 +304,7 @@ def _message_model(cls: type | None) -> tuple[Model, ...]:
     return (Model(cls.__name__, summary_of(own_doc(cls)), fields),)
 
 
-def sensor_entries(tasks: dict[str, type], robots: dict[str, type], worlds: dict[str, type]) -> list[Entry]:
+def sensor_entries(tasks: Tasks, robots: Robots, worlds: Worlds) -> list[Entry]:
     """One entry per ``sensors.*`` observation entry any robot or world provides or any task reads."""
     declared: dict[str, list[tuple[str, ObsSpec]]] = {}
     for kind, table in (("robot", robots), ("world", worlds)):
@@ -331,7 +343,7 @@ def entry_to_json(entry: Entry) -> dict[str, Any]:
     return dataclasses.asdict(entry)
 
 
-def _from(cls: type, data: Any) -> Any:
+def _from(cls: type[D], data: Any) -> D:
     hints = typing.get_type_hints(cls)
     kwargs = {}
     for f in dataclasses.fields(cls):
@@ -339,7 +351,7 @@ def _from(cls: type, data: Any) -> Any:
             continue
         t, v = hints[f.name], data[f.name]
         args = typing.get_args(t)
-        if typing.get_origin(t) is tuple and args and dataclasses.is_dataclass(args[0]):
+        if typing.get_origin(t) is tuple and args and isinstance(args[0], type) and dataclasses.is_dataclass(args[0]):
             v = tuple(_from(args[0], x) for x in v)
         elif typing.get_origin(t) is tuple:
             v = tuple(v)
@@ -349,4 +361,4 @@ def _from(cls: type, data: Any) -> Any:
 
 def entry_from_json(data: dict[str, Any]) -> Entry:
     """The :class:`Entry` a :func:`entry_to_json` dict describes (``--json`` output read back)."""
-    return _from(Entry, data)  # type: ignore[no-any-return]
+    return _from(Entry, data)

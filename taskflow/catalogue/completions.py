@@ -20,9 +20,10 @@ from typing import Any
 from pydantic import BaseModel
 from pydantic.json_schema import models_json_schema
 
+from taskflow.catalogue.catalogue import loaded
 from taskflow.mission.distributions import KINDS as DISTRIBUTIONS
 from taskflow.mission.schema import mission_json_schema
-from taskflow.registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError
+from taskflow.registry import ROBOTS, TASKS, WORLDS
 
 Schema = dict[str, Any]
 
@@ -33,16 +34,6 @@ DISTRIBUTION: Schema = {"type": "object", "minProperties": 1, "maxProperties": 1
                         "description": "a value drawn with the run's seed: {uniform: [a, b]}, {normal: [mu, sigma]}, "
                                        "{choice: [...]}, {randint: [a, b]}"}
 _KEEP_OUTSIDE = ("title", "description", "default")
-
-
-def _loaded(registry: Registry[Any]) -> dict[str, type]:
-    out = {}
-    for name in registry.names():
-        try:
-            out[name] = registry.get(name)
-        except RegistryError:
-            continue  # a broken plugin: the loader reports it when a mission names it
-    return out
 
 
 def _also(node: Any, alternatives: list[Schema]) -> Any:
@@ -111,7 +102,7 @@ def completed_json_schema() -> Schema:
     """:func:`~taskflow.mission.schema.mission_json_schema` with the registered names and their parameters."""
     schema = copy.deepcopy(mission_json_schema())
     defs: Schema = schema.setdefault("$defs", {})
-    tasks, robots, worlds = _loaded(TASKS), _loaded(ROBOTS), _loaded(WORLDS)
+    tasks, robots, worlds = loaded(TASKS), loaded(ROBOTS), loaded(WORLDS)
     actions = {a: w.action_params.get(a) for w in worlds.values() for a in w.actions}
 
     task_refs, task_defs = _params_defs("task", (t.Params for t in tasks.values()), [REFERENCE])

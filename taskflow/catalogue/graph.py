@@ -102,7 +102,7 @@ def to_mermaid(m: CompiledMission) -> str:
 
     def block(node: StateNode, indent: str) -> None:
         if node.children and not node.parallel:
-            lines.append(f"{indent}[*] --> {ids[node.children[node.initial].path]}")  # type: ignore[index]
+            lines.append(f"{indent}[*] --> {ids[node.initial_child().path]}")
         for i, child in enumerate(node.children.values()):
             if node.parallel and i:
                 lines.append(f"{indent}--")

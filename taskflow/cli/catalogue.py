@@ -47,9 +47,9 @@ def cmd_check(args: argparse.Namespace) -> int:
         raise UsageError(f"{flag} {exc.name}: {exc}") from None
     for r in results:
         print(r)
-    bad = sum(not r.ok for r in results)
-    print(f"{len(results) - bad}/{len(results)} world x robot pairings conform")
-    return 1 if bad else 0
+    failed = sum(not r.ok for r in results)
+    print(f"{len(results) - failed}/{len(results)} world x robot pairings conform")
+    return 1 if failed else 0
 
 
 def cmd_list(args: argparse.Namespace) -> int:

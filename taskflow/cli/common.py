@@ -5,8 +5,12 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from taskflow.errors import MissionError
+
+if TYPE_CHECKING:  # the verbs import the machinery when they run (a bad flag answers before it loads)
+    from taskflow.mission.model import CompiledMission
 
 
 def default_mission() -> Path:
@@ -74,7 +78,7 @@ def seed_flag(flag: str, value: int | None, count: int = 1) -> int | None:
     return value
 
 
-def load(path: str, overrides: list[str] | None = None):  # type: ignore[no-untyped-def]
+def load(path: str, overrides: list[str] | None = None) -> CompiledMission:
     from taskflow.mission.loader import load_mission
 
     return load_mission(path, overrides)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from taskflow.cli.common import UsageError, load, seed_flag
@@ -24,6 +25,15 @@ def cmd_teach(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_files(write: Callable[[], Iterable[Path]], refused: type[Exception]) -> None:
+    """Print each file ``write`` makes as it makes it; ``refused`` (a bad record) is a usage error."""
+    try:
+        for f in write():
+            print(f)
+    except refused as exc:
+        raise UsageError(str(exc)) from None
+
+
 def cmd_plot(args: argparse.Namespace) -> int:
     from taskflow.readers.recorded import RunDirError, load_run
 
@@ -32,11 +42,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
         from taskflow.campaigns.campaign import CampaignError
         from taskflow.campaigns.campaign_plots import plot_campaign  # a batch directory: the campaign's figures
 
-        try:
-            for f in plot_campaign(run_dir):
-                print(f)
-        except CampaignError as exc:
-            raise UsageError(str(exc)) from None
+        _print_files(lambda: plot_campaign(run_dir), CampaignError)
         return 0
     try:
         run = load_run(args.run_dir)  # a folder that is not a run is refused before matplotlib loads
@@ -44,11 +50,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     from taskflow.readers.plots import plot_recorded
 
-    try:
-        for f in plot_recorded(run):
-            print(f)
-    except RunDirError as exc:
-        raise UsageError(str(exc)) from None
+    _print_files(lambda: plot_recorded(run), RunDirError)
     return 0
 
 

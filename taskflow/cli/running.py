@@ -7,6 +7,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from taskflow.cli.common import (
     UsageError,
@@ -19,6 +20,12 @@ from taskflow.cli.common import (
     signal_exit_code,
     user_name,
 )
+
+if TYPE_CHECKING:  # imported when the verb runs
+    from taskflow.execution.control import OperatorAction
+    from taskflow.execution.summary import RunResult
+    from taskflow.mission.model import CompiledMission
+    from taskflow.operate.control_http import ControlServer
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -58,7 +65,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0 if result.succeeded else 1
 
 
-def _operator_options(args: argparse.Namespace, mission):  # type: ignore[no-untyped-def]
+def _operator_options(args: argparse.Namespace, mission: CompiledMission,
+                      ) -> tuple[ControlServer | None, list[OperatorAction] | None]:
     """The control endpoint (bound now, so a port in use is a usage error) and the operator script of ``run``."""
     from taskflow.execution.control import ControlError, load_operator_script
     from taskflow.operate.control_http import ControlServer
@@ -121,7 +129,7 @@ def cmd_ctl(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_run(result) -> None:  # type: ignore[no-untyped-def]
+def _print_run(result: RunResult) -> None:
     """The terminal summary (:mod:`taskflow.readers.report`) from the run's record, which is read back for it."""
     from taskflow.readers.recorded import RunDirError, load_run
     from taskflow.readers.report import format_report

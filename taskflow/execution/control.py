@@ -167,9 +167,9 @@ def load_operator_script(path: str | Path, mission: CompiledMission, live: bool 
             problems.append(smap.problem((i, "args", key), str(exc)))
     if problems:
         raise MissionError(problems)
-    i = None if live else unended_pause(script)
-    if i is not None:
-        raise MissionError([smap.problem((i, "action"), _never_resumed(script[i]))])
+    unended = None if live else unended_pause(script)
+    if unended is not None:
+        raise MissionError([smap.problem((unended, "action"), _never_resumed(script[unended]))])
     return script
 
 

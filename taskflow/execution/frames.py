@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from taskflow.messages import Image
 
@@ -68,7 +69,7 @@ def encode(image: Image) -> bytes:
     """``image`` as PNG bytes (RGB in, so swapped to OpenCV's BGR; grey as is)."""
     import cv2
 
-    px = np.ascontiguousarray(image.pixels)
+    px: NDArray[Any] = np.ascontiguousarray(image.pixels)
     if px.ndim == 3:
         px = cv2.cvtColor(px, cv2.COLOR_RGB2BGR)
     ok, buf = cv2.imencode(f".{FORMAT}", px)

@@ -127,7 +127,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
     max_time = float(mission.spec.max_time) if max_time is None else parse_max_time(max_time)
     channel, server = _operator(mission, control, operator)
     robot = mission.build_robot()
-    dt = 1.0 / mission.spec.rate_hz
+    dt = 1.0 / float(mission.spec.rate_hz)  # a number once validated (schema.Rate)
     recorder: RunRecorder | None = None
     if record:
         run_dir = Path(out_dir) if out_dir is not None else default_run_dir(mission, seed)

@@ -95,4 +95,5 @@ def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: f
         out["preempted"] = [p.as_dict() for p in ex.preemptions]
     if ex.held_s > 0.0:
         out["held_s"] = round(ex.held_s, 9)
-    return clean_floats(out)
+    summary: dict[str, Any] = clean_floats(out)
+    return summary

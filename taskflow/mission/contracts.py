@@ -9,10 +9,15 @@ mismatch) and by :mod:`taskflow.catalogue.conformance` (which robots each world 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any, TypeVar
+
 from pydantic import BaseModel
 
 from taskflow.api import ObsSpec, Robot, Task, World, required_specs
-from taskflow.registry import BODIES, ROBOTS, TASKS, WORLDS, RegistryError
+from taskflow.registry import BODIES, ROBOTS, TASKS, WORLDS, Registry, RegistryError
+
+C = TypeVar("C", bound=type)
 
 Problem = tuple[str, str]
 
@@ -31,12 +36,12 @@ def interface_label(robot: type[Robot]) -> str:
     return f"{robot.command_interface or '(none)'} ({keys})" if keys else robot.command_interface or "(none)"
 
 
-def _names_where(registry: object, pred: object) -> list[str]:
+def _names_where(registry: Registry[C], pred: Callable[[C], bool]) -> list[str]:
     """Registered names whose class satisfies ``pred`` (entry points that fail to load are skipped)."""
     out = []
-    for n in registry.names():  # type: ignore[attr-defined]
+    for n in registry.names():
         try:
-            if pred(registry.get(n)):  # type: ignore[attr-defined, operator]
+            if pred(registry.get(n)):
                 out.append(n)
         except RegistryError:
             continue
@@ -83,7 +88,7 @@ def _unhosted(world: type[World], robot: type[Robot]) -> str | None:
     return None
 
 
-def task_problem(task: type[Task], robot: type[Robot], world: type[World]) -> Problem | None:
+def task_problem(task: type[Task[Any, Any]], robot: type[Robot], world: type[World]) -> Problem | None:
     """Why ``task`` cannot run with ``robot`` on ``world`` (None: it can)."""
     if task.command_interface and task.command_interface != robot.command_interface:
         drivers = _names_where(TASKS, lambda t: t.command_interface == robot.command_interface)
@@ -112,7 +117,7 @@ def _fits(have: object, need: object) -> bool:
     return isinstance(have, type) and isinstance(need, type) and issubclass(have, need)
 
 
-def _robot_params_misfit(task: type[Task], robot: type[Robot]) -> list[str]:
+def _robot_params_misfit(task: type[Task[Any, Any]], robot: type[Robot]) -> list[str]:
     """What ``robot``'s parameters lack of those ``task`` reads (empty: nothing)."""
     model = task.robot_params
     if model is None:
@@ -130,7 +135,7 @@ def _robot_params_misfit(task: type[Task], robot: type[Robot]) -> list[str]:
     return why
 
 
-def robot_params_problem(task: type[Task], robot: type[Robot]) -> Problem | None:
+def robot_params_problem(task: type[Task[Any, Any]], robot: type[Robot]) -> Problem | None:
     """Why ``robot``'s parameters cannot give ``task`` the robot parameters it reads (None: they can)."""
     why = _robot_params_misfit(task, robot)
     if not why:
@@ -157,7 +162,7 @@ def _type_name(t: object) -> str:
     return t.__name__ if isinstance(t, type) else str(t).replace("typing.", "")
 
 
-def build_robot_params(task: type[Task], robot: Robot) -> BaseModel | None:
+def build_robot_params(task: type[Task[Any, Any]], robot: Robot) -> BaseModel | None:
     """The task's :attr:`~taskflow.api.Task.robot_params` model filled from ``robot``'s parameters."""
     model = task.robot_params
     if model is None:

@@ -35,12 +35,13 @@ class DataAccess(MutableMapping[str, Any]):
     """One task's view of the run's mission data: it reads the keys it declares (``reads`` and ``writes``)
     and writes those of ``writes``, each value checked against the key's spec; anything else raises
     :class:`DataAccessError` naming the task and the key.  The values live in the run's one dict
-    (``values``), shared by every task's view."""
+    (``values``, kept as ``_store``: the name ``values`` is the mapping's method), shared by every task's
+    view."""
 
-    __slots__ = ("values", "owner", "_readable", "_writable")
+    __slots__ = ("_store", "owner", "_readable", "_writable")
 
-    def __init__(self, values: dict[str, Any], task: type[Task]) -> None:
-        self.values = values
+    def __init__(self, values: dict[str, Any], task: type[Task[Any, Any]]) -> None:
+        self._store = values
         self.owner = task.name or task.__name__
         self._writable: dict[str, MemoryKey[Any]] = {k.name: k for k in task.writes}
         self._readable: frozenset[str] = frozenset(k.name for k in (*task.reads, *task.writes))
@@ -54,17 +55,17 @@ class DataAccess(MutableMapping[str, Any]):
     def __getitem__(self, name: str) -> Any:
         if name not in self._readable:
             raise self._refuse("reads", name)
-        return self.values[name]
+        return self._store[name]
 
     def get(self, name: str, default: Any = None) -> Any:
         if name not in self._readable:
             raise self._refuse("reads", name)
-        return self.values.get(name, default)
+        return self._store.get(name, default)
 
     def __contains__(self, name: object) -> bool:
         if name not in self._readable:
             raise self._refuse("reads", str(name))
-        return name in self.values
+        return name in self._store
 
     def __setitem__(self, name: str, value: Any) -> None:
         key = self._writable.get(name)
@@ -74,24 +75,24 @@ class DataAccess(MutableMapping[str, Any]):
         if problem is not None:
             raise DataAccessError(f"task {self.owner!r} writes mission data {name!r} a value that {problem} "
                                   f"— the key holds {key.spec}")
-        self.values[name] = value
+        self._store[name] = value
 
     def setdefault(self, name: str, default: Any = None) -> Any:
-        if name in self.values and name in self._writable:
-            return self.values[name]
+        if name in self._store and name in self._writable:
+            return self._store[name]
         self[name] = default
         return default
 
     def __delitem__(self, name: str) -> None:
         if name not in self._writable:
             raise self._refuse("writes", name)
-        del self.values[name]
+        del self._store[name]
 
     def __iter__(self) -> Iterator[str]:
-        return (k for k in self.values if k in self._readable)
+        return (k for k in self._store if k in self._readable)
 
     def __len__(self) -> int:
-        return sum(1 for k in self.values if k in self._readable)
+        return sum(k in self._readable for k in self._store)
 
 
 def clean_floats(data: Any) -> Any:

@@ -33,7 +33,7 @@ import operator
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 from taskflow.units import BASE_UNIT_OF, UNITS, dimension
 from taskflow.units import with_article as _a
@@ -178,9 +178,9 @@ class _Parser:
         if not self.toks:
             raise GuardSyntaxError("empty guard", 0, "write e.g. 'feature_error < 2 px'")
         node = self.expr()
-        if self.peek() is not None:
-            kind, val, off = self.peek()  # type: ignore[misc]
-            raise GuardSyntaxError(f"unexpected {val!r}", off, "join comparisons with 'and' / 'or'")
+        rest = self.peek()
+        if rest is not None:
+            raise GuardSyntaxError(f"unexpected {rest[1]!r}", rest[2], "join comparisons with 'and' / 'or'")
         return node
 
     def expr(self) -> Node:
@@ -263,11 +263,11 @@ class _Parser:
         if left[0] != "metric" or right[0] == "metric":
             raise GuardSyntaxError("a comparison needs exactly one metric and one value", left[2],
                                    "write e.g. 'pos_error < 1 cm'")
-        name, absolute = left[1]  # type: ignore[misc]
+        name, absolute = cast(tuple[str, bool], left[1])  # operand(): a metric's value is (name, abs)
         if right[0] == "param":
-            cmp = Comparison(name, absolute, op, None, None, right[1], left[2])  # type: ignore[arg-type]
+            cmp = Comparison(name, absolute, op, None, None, cast(str, right[1]), left[2])
         else:
-            value, unit = right[1]  # type: ignore[misc]
+            value, unit = cast(tuple[float, str], right[1])  # operand(): a quantity's value is (value, unit)
             cmp = Comparison(name, absolute, op, value, unit, None, left[2])
         return Node("cmp", cmp=cmp)
 
@@ -337,7 +337,8 @@ def never_holds(c: Comparison, low: float | None, high: float | None) -> bool:
 
 def _data_comparison(c: Comparison) -> Predicate:
     """A comparison of a mission-data value: a scalar, a flag (1/0) or one component of an array."""
-    fn, (key, index), value, absolute = _OPS[c.op], _data_key(c.metric), float(c.value), c.absolute  # type: ignore[arg-type]
+    assert c.value is not None, "bind_units() must run first"
+    fn, (key, index), value, absolute = _OPS[c.op], _data_key(c.metric), float(c.value), c.absolute
 
     def pred(m: Metrics, d: Data) -> bool:
         x = d.get(key)
@@ -362,11 +363,13 @@ def compile_guard(guard: Guard) -> Predicate:
                 return _data_comparison(c)
             fn, name, value = _OPS[c.op], c.metric, float(c.value)
             if c.absolute:
-                def pred(m: Metrics, d: Data, fn=fn, name=name, value=value) -> bool:
+                def pred(m: Metrics, d: Data, fn: Callable[[float, float], bool] = fn, name: str = name,
+                         value: float = value) -> bool:
                     x = m.get(name)
                     return x is not None and not math.isnan(x) and fn(abs(x), value)
             else:
-                def pred(m: Metrics, d: Data, fn=fn, name=name, value=value) -> bool:
+                def pred(m: Metrics, d: Data, fn: Callable[[float, float], bool] = fn, name: str = name,
+                         value: float = value) -> bool:
                     x = m.get(name)
                     return x is not None and fn(x, value)  # NaN compares false except '!='
             return pred

@@ -17,9 +17,9 @@ from typing import Any
 from pydantic import BaseModel
 
 from taskflow.api import Robot, Task, World
-from taskflow.mission.data import DATA_PREFIX, DataCatalogue, json_value
+from taskflow.mission.data import DataCatalogue, json_value
 from taskflow.mission.distributions import sample, world_rng
-from taskflow.mission.guards import Guard, Predicate
+from taskflow.mission.guards import DATA_PREFIX, Guard, Predicate
 from taskflow.mission.schema import Mission
 
 YPath = tuple[Any, ...]
@@ -117,7 +117,7 @@ class StateNode:
     ypath: YPath
     children: dict[str, StateNode] = field(default_factory=dict)
     initial: str | None = None
-    task_cls: type[Task] | None = None  # effective (inherited)
+    task_cls: type[Task[Any, Any]] | None = None  # effective (inherited)
     task_params: dict[str, Any] = field(default_factory=dict)  # raw, may hold $refs
     task_ypath: YPath = ()
     bind: dict[str, tuple[str, Any, YPath]] = field(default_factory=dict)  # slot → (kind, name|inline, where)
@@ -158,12 +158,17 @@ class StateNode:
             n = n.children[n.initial] if n.initial is not None else next(iter(n.children.values()))
         return n
 
+    def initial_child(self) -> StateNode:
+        """The child a composite (not parallel) state enters first."""
+        assert self.initial is not None, f"{self.path}: a composite state has an initial child"
+        return self.children[self.initial]
+
     def entry_point(self) -> StateNode:
         """What entering this state makes active: its initial leaf, or the first parallel state on the
         way there (entering that enters every region's initial chain)."""
         n = self
         while n.children and not n.parallel:
-            n = n.children[n.initial]  # type: ignore[index]
+            n = n.initial_child()
         return n
 
     def entry_leaves(self) -> list[StateNode]:
@@ -172,7 +177,7 @@ class StateNode:
             return [self]
         if self.parallel:
             return [leaf for r in self.children.values() for leaf in r.entry_leaves()]
-        return self.children[self.initial].entry_leaves()  # type: ignore[index]
+        return self.initial_child().entry_leaves()
 
     @property
     def region(self) -> StateNode | None:

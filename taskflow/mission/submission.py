@@ -259,7 +259,8 @@ class _Expander:
                 st[key] = machine[key]
                 self.smap.graft(Graft(ypath + (key,), inner_map, ("machine", key), via))
         if isinstance(machine.get("bind"), dict):
-            own = st.get("bind") if isinstance(st.get("bind"), dict) else {}
+            bind = st.get("bind")
+            own: dict[str, Any] = bind if isinstance(bind, dict) else {}
             for slot in machine["bind"]:
                 if slot not in own:
                     self.smap.graft(Graft(ypath + ("bind", slot), inner_map, ("machine", "bind", slot), via))

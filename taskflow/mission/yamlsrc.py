@@ -54,10 +54,10 @@ MissionLoader.add_constructor("tag:yaml.org,2002:bool", _construct_bool)
 try:
     from yaml._yaml import CParser as _CParser  # libyaml, shipped in PyYAML's wheels
 except ImportError:  # pragma: no cover - pure-Python PyYAML: every document takes the Python path
-    _CParser = None
+    _CParser = None  # type: ignore[misc, assignment]  # no libyaml: None marks its absence
 
 if _CParser is not None:
-    class _FastLoader(_CParser, yaml.constructor.SafeConstructor, yaml.resolver.Resolver):  # type: ignore[misc, valid-type]
+    class _FastLoader(_CParser, yaml.constructor.SafeConstructor, yaml.resolver.Resolver):
         """:class:`MissionLoader`'s resolvers and constructors over libyaml's composer (about four times
         faster on a big document); used only for text the Python reader accepts, and any YAML error is
         re-read by :class:`MissionLoader` so that messages and positions are its own."""

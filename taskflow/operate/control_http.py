@@ -41,6 +41,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pydantic import ValidationError
+
 from taskflow.execution.control import ACTIONS, ControlError, OperatorAction, OperatorChannel
 
 if TYPE_CHECKING:
@@ -175,11 +177,15 @@ def _app(channel: OperatorChannel | None, host: str, view: RunView | None = None
     from starlette.routing import Route
 
     async def state(request: Request) -> JSONResponse:
-        return JSONResponse(channel.snapshot() if channel is not None else view.replay_state())  # type: ignore[union-attr]
+        if channel is not None:
+            return JSONResponse(channel.snapshot())
+        assert view is not None, "a replay serves its view"
+        return JSONResponse(view.replay_state())
 
     async def mission(request: Request) -> JSONResponse:
         if channel is None:
-            return JSONResponse({"mission": view.mission.name, "actions": [], "states": [], "events": []})  # type: ignore[union-attr]
+            assert view is not None, "a replay serves its view"
+            return JSONResponse({"mission": view.mission.name, "actions": [], "states": [], "events": []})
         return JSONResponse(channel.describe())
 
     async def act(request: Request) -> JSONResponse:
@@ -203,8 +209,8 @@ def _app(channel: OperatorChannel | None, host: str, view: RunView | None = None
             channel.submit(action)
         except ControlError as exc:
             return JSONResponse({"error": str(exc)}, status_code=400)
-        except ValueError as exc:  # pydantic's ValidationError
-            msgs = "; ".join(e["msg"].removeprefix("Value error, ") for e in exc.errors())  # type: ignore[attr-defined]
+        except ValidationError as exc:
+            msgs = "; ".join(e["msg"].removeprefix("Value error, ") for e in exc.errors())
             return JSONResponse({"error": f"{name}: {msgs}"}, status_code=400)
         return JSONResponse({"queued": name, "who": action.who})
 

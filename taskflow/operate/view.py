@@ -40,16 +40,9 @@ from taskflow.execution.frames import FrameRecord, frames_from, nearest, read_fr
 from taskflow.execution.record_io import RunDirError, check_summary, lines, read_json
 from taskflow.execution.records import OperatorRecord, TransitionRecord
 from taskflow.markers import Marker
+from taskflow.mission import model
 from taskflow.mission.guards import Guard, Node
-from taskflow.mission.model import (
-    CompiledMission,
-    DoneTransition,
-    EventTransition,
-    GuardTransition,
-    StateNode,
-    TimeoutTransition,
-    Transition,
-)
+from taskflow.mission.model import CompiledMission, StateNode, Transition
 from taskflow.readers.run_files import check_trace_header, parse_trace_row, read_transitions
 from taskflow.readers.scene import Scene, mission_scene
 
@@ -82,13 +75,13 @@ def transition_json(tr: Transition) -> dict[str, Any]:
     """One compiled transition: where it leads, its kind and what the page needs to show its progress."""
     out: dict[str, Any] = {"index": tr.index, "source": tr.source.path, "target": tr.target.path,
                            "label": tr.label}
-    if isinstance(tr, GuardTransition):
+    if isinstance(tr, model.GuardTransition):
         out.update(kind="guard", guard=_guard(tr.guard), dwell=tr.dwell)
-    elif isinstance(tr, TimeoutTransition):
+    elif isinstance(tr, model.TimeoutTransition):
         out.update(kind="timeout", after=tr.after, since=tr.since.path, since_first=tr.since_first)
-    elif isinstance(tr, EventTransition):
+    elif isinstance(tr, model.EventTransition):
         out.update(kind="event", event=tr.event, guard=_guard(tr.guard))
-    elif isinstance(tr, DoneTransition):
+    elif isinstance(tr, model.DoneTransition):
         out.update(kind="done", outcome=tr.outcome)
     return out
 

@@ -79,8 +79,8 @@ class RecordedRun:
             if guard is None:
                 continue
             for c in guard.comparisons():
-                if _bound(c):
-                    out.append(Threshold(c.metric, c.op, float(c.value), c.absolute,  # type: ignore[arg-type]
+                if c.value is not None and _bound(c):
+                    out.append(Threshold(c.metric, c.op, float(c.value), c.absolute,
                                          tr.source.path, tr.target.path, tr.label))
         return out
 

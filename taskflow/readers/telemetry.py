@@ -135,7 +135,7 @@ class _Mcap:
                            data=json.dumps(msg, allow_nan=False).encode())
 
     def finish(self) -> None:
-        self.w.finish()
+        self.w.finish()  # type: ignore[no-untyped-call]  # mcap's Writer.finish has no annotations
 
 
 def _scene_update(run: RecordedRun) -> dict[str, Any]:

@@ -154,7 +154,8 @@ def _witness(key: str, leaf: StateNode, starts: set[str], preds: dict[str, set[s
     while queue:
         p = queue.popleft()
         if p in starts:
-            out, cur = [], p
+            out: list[str] = []
+            cur: str | None = p
             while cur is not None:
                 out.append(cur)
                 cur = back[cur]

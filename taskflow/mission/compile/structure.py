@@ -83,7 +83,7 @@ def _check_reachable(c: Compilation, root: StateNode) -> None:
                 reached.add(s.path)
                 frontier.append(s)
 
-    enter(root.children[root.initial])  # type: ignore[index]
+    enter(root.initial_child())
     while frontier:
         s = frontier.pop()
         for t in s.transitions:
@@ -98,6 +98,6 @@ def _check_reachable(c: Compilation, root: StateNode) -> None:
 def _initial_chain(n: StateNode) -> list[StateNode]:
     """The states entering ``n`` enters below it (every region's chain under a parallel state)."""
     chain: list[StateNode] = []
-    for child in (n.children.values() if n.parallel else [n.children[n.initial]] if n.children else []):  # type: ignore[index]
+    for child in (n.children.values() if n.parallel else [n.initial_child()] if n.children else []):
         chain += [child, *_initial_chain(child)]
     return chain

@@ -78,7 +78,7 @@ def _build_regions(c: Compilation, node: StateNode, spec: State, ypath: YPath) -
     if len(spec.regions) < 2:
         c.err(ypath + ("regions",), "a parallel state needs at least two regions",
               "one region is an ordinary composite: use `states` and `initial`")
-    parts = c.robot.command_keys  # type: ignore[union-attr]
+    parts = c.robot.command_keys
     enclosing = node.region
     owner: dict[str, str] = {}
     for name, rspec in spec.regions.items():
@@ -103,7 +103,7 @@ def _build_regions(c: Compilation, node: StateNode, spec: State, ypath: YPath) -
         node.children[name] = child
         c.states[child.path] = child
         _build(c, child, rspec, rpath)
-    rules = []
+    rules: list[tuple[str, dict[str, str]]] = []
     for outcome, need in spec.outcome_map.items():
         for region in need:
             if region not in spec.regions:
