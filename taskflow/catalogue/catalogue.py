@@ -228,7 +228,8 @@ def _providers(key: str, need: ObsSpec, robots: Robots, worlds: Worlds) -> tuple
 
 
 def _readers(key: str, spec: ObsSpec, tasks: Tasks) -> tuple[str, ...]:
-    return tuple(f"task {n}" for n, t in tasks.items() if key in t.requires and spec.satisfies(t.requires[key]))
+    return tuple(f"task {n}" for n, t in tasks.items()
+                 if key in (req := required_specs(t.requires)) and spec.satisfies(req[key]))
 
 
 def _worlds_for(task: TaskClass, robot: type[Robot], worlds: Worlds) -> tuple[str, ...]:
@@ -314,7 +315,7 @@ def sensor_entries(tasks: Tasks, robots: Robots, worlds: Worlds) -> list[Entry]:
                     declared.setdefault(key, []).append((f"{kind} {n}", spec))
     readers: dict[str, list[tuple[str, ObsSpec]]] = {}
     for n, t in tasks.items():
-        for key, spec in t.requires.items():
+        for key, spec in required_specs(t.requires).items():
             if key.startswith(SENSOR_PREFIX):
                 readers.setdefault(key, []).append((f"task {n}", spec))
     out = []

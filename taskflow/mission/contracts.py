@@ -147,7 +147,7 @@ def robot_params_problem(task: type[Task[Any, Any]], robot: type[Robot]) -> Prob
             f"{robot.name!r} {' and '.join(why)}", f"robots that have them: {', '.join(fits) or '(none)'}")
 
 
-def kinematics_problem(task: type[Task], robot: type[Robot]) -> Problem | None:
+def kinematics_problem(task: type[Task[Any, Any]], robot: type[Robot]) -> Problem | None:
     """Why ``robot`` cannot give ``task`` the kinematics it computes with (None: it can, or the task needs none)."""
     need = task.kinematics
     have = robot.kinematics_model
