@@ -9,7 +9,7 @@ import numpy as np
 import pybullet as p
 import pytest
 from taskflow_robots.mobile_iiwa import MobileIiwa
-from taskflow_sim.screw_world import ScrewConveyor, ScrewdriverParams
+from taskflow_sim.screw.world import ScrewConveyor, ScrewdriverParams
 from taskflow_tasks import pbvs
 
 from taskflow import spatial

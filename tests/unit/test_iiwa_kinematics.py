@@ -92,7 +92,7 @@ def test_robot_params_reject_bad_values():
 
 def test_pybullet_and_pinocchio_tool_frames_agree_within_0_1_mm(robot):
     import pybullet as p
-    from taskflow_sim.screw_robot import MobileIiwaBody
+    from taskflow_sim.screw.body import MobileIiwaBody
 
     client = p.connect(p.DIRECT)
     try:

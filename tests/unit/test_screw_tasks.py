@@ -11,7 +11,7 @@ from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_tasks import pbvs
 from taskflow_tasks.impedance import ImpedanceProfile
 from taskflow_tasks.pid import PidProfile
-from taskflow_tasks.screw_tasks import (
+from taskflow_tasks.screw.pbvs_tasks import (
     ADMITTANCE,
     PID_B,
     Q_NOM,

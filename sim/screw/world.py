@@ -2,7 +2,7 @@
 
 A motor-cover part with bolts (the ``bolts`` layout in the part frame, four by default) and an ArUco
 marker moves on a conveyor (constant 50 mm/s) or on an irregularly pushed trolley
-(:mod:`taskflow_sim.screw_motion`); the mobile iiwa (:mod:`taskflow_sim.screw_robot`) follows it.  What the robot gets (:meth:`observe`):
+(:mod:`taskflow_sim.screw.motion`); the mobile iiwa (:mod:`taskflow_sim.screw.body`) follows it.  What the robot gets (:meth:`observe`):
 
 * ``state``: ``q``/``qd`` (measured joints), ``q_ref`` (the joint reference the arm servo is
   heading to), ``base_twist`` (platform odometry twist ``v_x, v_y, ω_z``), ``odom`` (platform pose);
@@ -88,13 +88,13 @@ import pybullet as p
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
-from taskflow_sim import screw_scene as sc
+from taskflow_sim.screw import scene as sc
 from taskflow_sim.car_scene import connect
 from taskflow_sim.faults import FaultIntervals, IntervalFault
-from taskflow_sim.screw_motion import PartMotion
-from taskflow_sim.screw_perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
-from taskflow_sim.screw_robot import MobileIiwaBody
-from taskflow_sim.screwdriver import BitErrors, Screwdriver
+from taskflow_sim.screw.motion import PartMotion
+from taskflow_sim.screw.perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
+from taskflow_sim.screw.body import MobileIiwaBody
+from taskflow_sim.screw.screwdriver import BitErrors, Screwdriver
 from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
 
 from taskflow.api import Command, Marker, Observation, ObsSpec, Robot, RobotNeeds, StrictModel, message
@@ -579,7 +579,7 @@ class ScrewConveyor(SteppedWorld):
         reading = self.body.tool_joint_wrench()  # force of the flange on the tool, tool frame
         self._wrench = self.force.read(reading, self.body.link_rotation(self.body.tool_link))
 
-    # -- the screwdriver (the state machine is taskflow_sim.screwdriver) ----------------------------
+    # -- the screwdriver (the state machine is taskflow_sim.screw.screwdriver) ----------------------------
     def bit_errors(self, bolt: int | None = None) -> tuple[int, BitErrors]:
         """The bolt (the nearest when ``bolt`` is None) and the bit's errors to it (:meth:`tool_errors`)."""
         b, et, er, lat, ax, tilt = self.tool_errors(bolt)

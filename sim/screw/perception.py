@@ -19,7 +19,7 @@
 
 Both modes report a :class:`MarkerDetection` with the capture time; it becomes visible to the robot
 ``latency`` seconds later (image transfer + processing, as on the real system).  The world's
-``dropout`` (a frame that misses the marker) acts in both modes (:mod:`taskflow_sim.screw_world`).
+``dropout`` (a frame that misses the marker) acts in both modes (:mod:`taskflow_sim.screw.world`).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ import pybullet as p
 from numpy.typing import NDArray
 from taskflow_robots.camera import tinyrenderer_intrinsics
 from taskflow_robots.mobile_iiwa import CameraParams
-from taskflow_sim.screw_scene import MARKER_DICT, MARKER_ID, MARKER_SIZE
+from taskflow_sim.screw.scene import MARKER_DICT, MARKER_ID, MARKER_SIZE
 
 from taskflow.spatial import rotation_angle, transform
 
