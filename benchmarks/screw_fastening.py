@@ -153,8 +153,8 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     _register()
     import numpy as np
     from taskflow_robots.mobile_iiwa import MobileIiwa
-    from taskflow_tasks.impedance import ImpedanceProfile
-    from taskflow_tasks.pid import PidProfile
+    from taskflow_tasks.core.impedance import ImpedanceProfile
+    from taskflow_tasks.core.pid import PidProfile
     from taskflow_tasks.screw.pbvs_tasks import ArmParams, PbvsArm, Prediction
 
     from taskflow.api import Observation

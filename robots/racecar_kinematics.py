@@ -2,8 +2,8 @@
 
 The bicycle model (ViKi-HyCo section II-A) seen from the vehicle: a bicycle steering angle ``psi`` is
 realised by two hinge angles whose wheel axes meet at one centre of rotation, and the rear wheels turn
-at the speeds that centre implies.  The simulated body (``taskflow_sim.racecar_body``) drives its joints
-with these functions; the control laws (``taskflow_tasks.car_kinematics``) use the same bicycle model
+at the speeds that centre implies.  The simulated body (``taskflow_sim.ground.racecar_body``) drives its joints
+with these functions; the control laws (``taskflow_tasks.ground.car_kinematics``) use the same bicycle model
 from the other side (twist → steering).  Pure ``math``; robot geometry in, angles and speeds out.
 """
 

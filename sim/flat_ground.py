@@ -20,7 +20,7 @@ import numpy as np
 import pybullet as p
 from pydantic import BaseModel, Field, model_validator
 from taskflow_sim.bodies import BodyOptions, GroundBody, make_body
-from taskflow_sim.car_scene import add_floor, connect
+from taskflow_sim.ground.ground_plane import add_floor, connect
 from taskflow_sim.stepped import SteppedWorld, check_command
 
 from taskflow.api import Command, Marker, Observation, Robot, RobotNeeds, StrictModel

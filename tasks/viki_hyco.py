@@ -46,7 +46,7 @@ plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`
 No detection yet and no object in memory: the robot holds still and, after ``search_timeout``, the task
 raises ``no_target`` every tick (declare ``on: no_target`` to an error state).
 
-Keep-out (:mod:`taskflow_tasks.keep_out`): with ``keep_out_body`` (the car's footprint, robot frame) a
+Keep-out (:mod:`taskflow_tasks.core.keep_out`): with ``keep_out_body`` (the car's footprint, robot frame) a
 command moving the body toward the object (memory) once within ``keep_out_margin`` is turned around.
 
 Evidence for the settle rule (a completion a car can meet, docs/missions.md): ``goal_error`` (m) is the
@@ -75,9 +75,9 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.racecar import CameraMount
-from taskflow_tasks.car_goto import CarGains, CarGeometry
 from taskflow_tasks.car_visual_servo import car_jacobian_r
-from taskflow_tasks.keep_out import keep_out_speed
+from taskflow_tasks.core.keep_out import keep_out_speed
+from taskflow_tasks.ground.car_goto import CarGains, CarGeometry
 from taskflow_tasks.viki_evidence import box_cut_by_border, goal_offset, in_robot_frame, view_shifts
 from taskflow_tasks.viki_laws import (
     ServoInputs,
@@ -173,7 +173,7 @@ class ViKiHyCoParams(StrictModel):
                                    "than this since (view_shift)")
     keep_out_body: tuple[float, float, float, float] | None = Field(
         default=None, description="m: the car's body (x_min, x_max, y_min, y_max) in the robot frame; with it the "
-        "car never drives toward the object once within keep_out_margin (taskflow_tasks.keep_out)")
+        "car never drives toward the object once within keep_out_margin (taskflow_tasks.core.keep_out)")
     keep_out_margin: float = Field(default=0.3, ge=0.0, description="m: body-object gap that triggers the keep-out")
     border_px: float = Field(default=2.0, ge=0.0, description="px: a box this close to the image border is cut by "
                              "it: it does not re-anchor the target nor count as evidence (goal_error)")

@@ -1,7 +1,7 @@
 """ViKi-HyCo geometry around the pure laws: object localisation (eq. 18), desired centre, kinematic target.
 
 Pure numpy.  The control laws themselves live in :mod:`taskflow_tasks.car_visual_servo` (eq. 20–24),
-:mod:`taskflow_tasks.bbox_target` (eq. 19), :mod:`taskflow_tasks.hybrid` (eq. 25–26) and :mod:`taskflow_tasks.car_kinematics`
+:mod:`taskflow_tasks.bbox_target` (eq. 19), :mod:`taskflow_tasks.core.hybrid` (eq. 25–26) and :mod:`taskflow_tasks.ground.car_kinematics`
 (eq. 1–5); :func:`viki_velocity` chains them for one control tick.
 
 Frames: robot frame = rear-axle midpoint on the ground, x forward, y left, z up; camera frame = OpenCV
@@ -35,9 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from taskflow_tasks.bbox_target import desired_bbox, static_desired_bbox
-from taskflow_tasks.car_kinematics import car_command, kinematic_control
 from taskflow_tasks.car_visual_servo import car_vs_velocity
-from taskflow_tasks.hybrid import hybrid_velocity, smooth_velocity
+from taskflow_tasks.core.hybrid import hybrid_velocity, smooth_velocity
+from taskflow_tasks.ground.car_kinematics import car_command, kinematic_control
 from taskflow_tasks.image_features import bbox_features, feature_error
 
 FloatArray = NDArray[np.float64]
@@ -219,7 +219,7 @@ def viki_velocity(inp: ServoInputs, *, intrinsics: ArrayLike, T_robot_camera: Ar
       depth ``Z_d`` (:func:`taskflow_tasks.bbox_target.static_desired_bbox`), interaction-matrix depth from the
       box areas (:func:`mgbm_depth`), zero velocity without a detection.
 
-    Eq. 26 (as meant, :func:`taskflow_tasks.hybrid.smooth_velocity`) damps the change from ``inp.v_prev``.
+    Eq. 26 (as meant, :func:`taskflow_tasks.core.hybrid.smooth_velocity`) damps the change from ``inp.v_prev``.
     """
     T = _T(T_robot_camera)
     R_rc, t_rc = T[:3, :3], T[:3, 3]

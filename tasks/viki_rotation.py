@@ -20,7 +20,7 @@ leg than the point of the leg nearest to the control point.  Forward legs use th
 ahead of the rear axle (eq. 1); **reverse** legs use eq. 4 on the car seen backwards (heading + pi,
 speed negated), i.e. a control point ``d`` behind the rear axle — the leading point when reversing, for
 which the heading dynamics are stable (a point ahead of the axle while reversing jack-knifes).  Eq. 5
-and the limits then give ``(v, steer)`` (:func:`taskflow_tasks.car_kinematics.car_command`).  A leg ends when its
+and the limits then give ``(v, steer)`` (:func:`taskflow_tasks.ground.car_kinematics.car_command`).  A leg ends when its
 carrot is the leg's end and the control point is within ``leg_tolerance`` of it; the last leg's end is
 the final target, approached by eq. 4 alone.
 
@@ -38,8 +38,8 @@ from typing import ClassVar, Literal, cast
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
-from taskflow_tasks.car_goto import CarGains, CarGeometry, car_control_point
-from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
+from taskflow_tasks.ground.car_goto import CarGains, CarGeometry, car_control_point
+from taskflow_tasks.ground.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 from taskflow_tasks.viki_hyco import MEM_OBJECT
 from taskflow_tasks.viki_laws import reverse_control
 

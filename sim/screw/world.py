@@ -88,12 +88,12 @@ import pybullet as p
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
-from taskflow_sim.screw import scene as sc
-from taskflow_sim.car_scene import connect
 from taskflow_sim.faults import FaultIntervals, IntervalFault
+from taskflow_sim.ground.ground_plane import connect
+from taskflow_sim.screw import scene as sc
+from taskflow_sim.screw.body import MobileIiwaBody
 from taskflow_sim.screw.motion import PartMotion
 from taskflow_sim.screw.perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
-from taskflow_sim.screw.body import MobileIiwaBody
 from taskflow_sim.screw.screwdriver import BitErrors, Screwdriver
 from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
 

@@ -26,8 +26,8 @@ The PID and admittance states, the nominal joint trajectory ``q*`` and the part-
 mission data (declared keys ``screw.*``, written by every PBVS task): a state change switches gains and set-points, not the
 controllers' memory (the platform keeps the integral that carries it along with the part).
 
-Profile slots: ``platform`` and ``arm`` take ``pid`` profiles (:class:`taskflow_tasks.pid.PidProfile`),
-``impedance`` takes ``impedance`` profiles (:class:`taskflow_tasks.impedance.ImpedanceProfile`),
+Profile slots: ``platform`` and ``arm`` take ``pid`` profiles (:class:`taskflow_tasks.core.pid.PidProfile`),
+``impedance`` takes ``impedance`` profiles (:class:`taskflow_tasks.core.impedance.ImpedanceProfile`),
 ``prediction`` takes a ``prediction`` profile (:class:`Prediction`, default: off — the paper's plain
 PID).  With prediction on, the part's velocity is estimated by a least-squares fit of its pose in the
 odometry frame over a short window, the stale marker pose is propagated to the current time (the
@@ -46,9 +46,9 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
-from taskflow_tasks import pbvs
-from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step
-from taskflow_tasks.pid import PidProfile, PidState, pid_step
+from taskflow_tasks.core import pbvs
+from taskflow_tasks.core.impedance import AdmittanceState, ImpedanceProfile, admittance_step
+from taskflow_tasks.core.pid import PidProfile, PidState, pid_step
 
 from taskflow.api import (
     DISTANCE,

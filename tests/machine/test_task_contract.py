@@ -8,8 +8,8 @@ import pytest
 from pydantic import Field
 from taskflow_robots.husky import Husky
 from taskflow_robots.racecar import Racecar
-from taskflow_tasks.car_goto import CarGeometry, CarGoto
-from taskflow_tasks.unicycle_goto import UnicycleGoto
+from taskflow_tasks.ground.car_goto import CarGeometry, CarGoto
+from taskflow_tasks.ground.unicycle_goto import UnicycleGoto
 from toys import ToyGoto, ToyLine
 
 from taskflow.api import Robot, StepResult, StrictModel

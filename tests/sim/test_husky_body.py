@@ -10,7 +10,7 @@ import pytest
 from taskflow_robots.husky import Husky
 from taskflow_sim.bodies import GroundBody
 from taskflow_sim.flat_ground import FlatGround
-from taskflow_sim.husky_body import HuskyBody
+from taskflow_sim.ground.husky_body import HuskyBody
 
 ROBOT = Husky(Husky.Params())
 DT = 0.05

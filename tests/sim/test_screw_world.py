@@ -10,7 +10,7 @@ import pybullet as p
 import pytest
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim.screw.world import ScrewConveyor, ScrewdriverParams
-from taskflow_tasks import pbvs
+from taskflow_tasks.core import pbvs
 
 from taskflow import spatial
 from taskflow.registry import WORLDS

@@ -15,8 +15,8 @@ from taskflow_robots.racecar_kinematics import (
     bicycle_from_wheel_angles,
     differential_wheel_speeds,
 )
-from taskflow_tasks.car_goto import CarGains, CarGoto
-from taskflow_tasks.car_kinematics import (
+from taskflow_tasks.ground.car_goto import CarGains, CarGoto
+from taskflow_tasks.ground.car_kinematics import (
     car_command,
     car_jacobian_b,
     car_jacobian_b_inv,

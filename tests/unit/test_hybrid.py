@@ -1,10 +1,10 @@
-"""Tests for taskflow_tasks.hybrid (ViKi-HyCo eq. 25 as meant, eq. 26 as meant)."""
+"""Tests for taskflow_tasks.core.hybrid (ViKi-HyCo eq. 25 as meant, eq. 26 as meant)."""
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from taskflow_tasks.hybrid import hybrid_velocity, smooth_velocity
+from taskflow_tasks.core.hybrid import hybrid_velocity, smooth_velocity
 
 
 def test_hybrid_uses_visual_servo_when_detected():

@@ -11,7 +11,7 @@ from pydantic import ValidationError
 from scipy.spatial.transform import Rotation
 from taskflow_robots.iiwa_urdf import ARM_JOINTS, installed_iiwa_urdf
 from taskflow_robots.mobile_iiwa import MobileIiwa, Pose
-from taskflow_tasks import pbvs
+from taskflow_tasks.core import pbvs
 
 from taskflow import spatial
 from taskflow.registry import ROBOTS

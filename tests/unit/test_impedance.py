@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from pydantic import ValidationError
-from taskflow_tasks.impedance import AdmittanceState, ImpedanceProfile, admittance_step, static_displacement
+from taskflow_tasks.core.impedance import AdmittanceState, ImpedanceProfile, admittance_step, static_displacement
 
 
 def contact(k_env: float, F_cmd: float, K: float, D: float, M: float, dt: float, steps: int):

@@ -1,11 +1,11 @@
-"""The keep-out rule (taskflow_tasks.keep_out) against hand-computed gaps."""
+"""The keep-out rule (taskflow_tasks.core.keep_out) against hand-computed gaps."""
 
 from __future__ import annotations
 
 import math
 
 import pytest
-from taskflow_tasks.keep_out import body_gap, keep_out_speed
+from taskflow_tasks.core.keep_out import body_gap, keep_out_speed
 
 BODY = (-0.05, 0.41, -0.15, 0.15)
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from taskflow_tasks import pbvs
+from taskflow_tasks.core import pbvs
 
 from taskflow import spatial
 

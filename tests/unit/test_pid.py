@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from pydantic import ValidationError
-from taskflow_tasks.pid import PidGains, PidProfile, PidState, pid_step
+from taskflow_tasks.core.pid import PidGains, PidProfile, PidState, pid_step
 
 
 def test_proportional_integral_derivative_terms():

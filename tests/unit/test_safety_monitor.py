@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from taskflow_tasks.safety_monitor import ContactMonitor, MonitorParams, force_magnitude, marker_age
+from taskflow_tasks.core.safety_monitor import ContactMonitor, MonitorParams, force_magnitude, marker_age
 
 from taskflow.api import Observation
 from taskflow.messages import MarkerPose, Wrench

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.mobile_iiwa import MobileIiwa
-from taskflow_tasks import pbvs
-from taskflow_tasks.impedance import ImpedanceProfile
-from taskflow_tasks.pid import PidProfile
+from taskflow_tasks.core import pbvs
+from taskflow_tasks.core.impedance import ImpedanceProfile
+from taskflow_tasks.core.pid import PidProfile
 from taskflow_tasks.screw.pbvs_tasks import (
     ADMITTANCE,
     PID_B,

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.husky import Husky
-from taskflow_tasks.unicycle_goto import UnicycleGains, UnicycleGoto, saturate, unicycle_point_law
+from taskflow_tasks.ground.unicycle_goto import UnicycleGains, UnicycleGoto, saturate, unicycle_point_law
 
 from taskflow.api import Observation
 from taskflow.testing import task_context

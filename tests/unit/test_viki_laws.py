@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
 from taskflow_tasks.bbox_target import desired_bbox, static_desired_bbox
-from taskflow_tasks.car_kinematics import car_command, kinematic_control
 from taskflow_tasks.car_visual_servo import car_vs_velocity
-from taskflow_tasks.hybrid import smooth_velocity
+from taskflow_tasks.core.hybrid import smooth_velocity
+from taskflow_tasks.ground.car_kinematics import car_command, kinematic_control
 from taskflow_tasks.image_features import bbox_features
 from taskflow_tasks.viki_laws import (
     ServoInputs,

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 from taskflow_robots.racecar import Racecar
-from taskflow_tasks.car_goto import CarGains
-from taskflow_tasks.car_kinematics import kinematic_control
+from taskflow_tasks.ground.car_goto import CarGains
+from taskflow_tasks.ground.car_kinematics import kinematic_control
 from taskflow_tasks.viki_hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
 from taskflow_tasks.viki_laws import desired_centre, object_base, reverse_control, saturate_twist
 from taskflow_tasks.viki_rotation import ViKiRotate, k_turn_legs

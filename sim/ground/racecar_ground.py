@@ -1,5 +1,5 @@
 """The racecar as a :class:`~taskflow_sim.bodies.GroundBody`: an adapter over
-:class:`~taskflow_sim.racecar_body.RacecarBody` (no behaviour of its own).
+:class:`~taskflow_sim.ground.racecar_body.RacecarBody` (no behaviour of its own).
 
 Attributes it does not define are the wrapped car's (``body``, ``joints``, ``_base_frame`` ...), so code
 written against the racecar body (the ViKi-HyCo scene's LiDAR and camera poses) keeps working.
@@ -14,7 +14,7 @@ import pybullet as p
 from numpy.typing import NDArray
 from taskflow_robots.racecar import Racecar
 from taskflow_sim.bodies import BodyOptions, GroundBody
-from taskflow_sim.racecar_body import Actuation, RacecarBody
+from taskflow_sim.ground.racecar_body import Actuation, RacecarBody
 
 from taskflow.api import Command, Robot
 

@@ -14,7 +14,7 @@ large ``K`` is as safe as a compliant one::
     ⇒ x⁺ = (ΔF + M (x + dt v)/dt² + D x/dt) / (M/dt² + D/dt + K)                     (39, as meant)
 
 Its steady state is ``K Δx = ΔF``.  The displacement is added to the nominal joints with the
-pseudo-inverse at the nominal configuration (eq. 40, :func:`taskflow_tasks.pbvs.arm_twist_step` does the
+pseudo-inverse at the nominal configuration (eq. 40, :func:`taskflow_tasks.core.pbvs.arm_twist_step` does the
 solve).
 
 Axes: the paper's compliant profile ``I_c`` is compliant in X, Y, Z (translation only), so the law

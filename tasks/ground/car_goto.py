@@ -2,7 +2,7 @@
 
 Eq. (4) ``V = J_b^-1 (k1 tanh(h_d - h))`` servoes the **control point** ``h`` — the point ``d`` ahead of
 the rear-axle midpoint along the heading (eq. 1; with ``d = wheelbase`` it is the front-axle midpoint)
-— to the target; eq. (5) turns the twist into a steering angle (:func:`taskflow_tasks.car_kinematics.car_command`).
+— to the target; eq. (5) turns the twist into a steering angle (:func:`taskflow_tasks.ground.car_kinematics.car_command`).
 A car cannot servo its rear axle to an arbitrary point, but the point ``d`` ahead is controllable, so
 that is the point a mission's target refers to and the point ``pos_error`` is measured at.
 
@@ -23,8 +23,8 @@ from typing import ClassVar, cast
 
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
-from taskflow_tasks.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
-from taskflow_tasks.targets import PlanarTarget
+from taskflow_tasks.core.targets import PlanarTarget
+from taskflow_tasks.ground.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 
 from taskflow.api import (
     DISTANCE,

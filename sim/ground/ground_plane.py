@@ -1,4 +1,4 @@
-"""Building blocks shared by the worlds: a PyBullet client and a box floor.
+"""The ground plane every world stands on: a PyBullet client (:func:`connect`) and a box floor (:func:`add_floor`).
 
 ``flat_ground`` is a floor and a robot body; a ViKi-HyCo world adds the object, cameras and LiDAR on top
 of it (subclass :class:`taskflow_sim.flat_ground.FlatGround` and override its ``_populate`` hook);

@@ -32,7 +32,7 @@ from typing import ClassVar, cast
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
-from taskflow_tasks.targets import PlanarTarget
+from taskflow_tasks.core.targets import PlanarTarget
 
 from taskflow.api import (
     DISTANCE,
