@@ -38,37 +38,15 @@ Ground truth (never in observations): :meth:`ground_truth` gives the platform po
 yaw rate measured from PyBullet's base pose over the last physics step (``base_speed`` m/s,
 ``base_yaw_rate`` rad/s), the largest arm joint speed PyBullet reports (``arm_speed`` rad/s), the part
 pose, the tool tip's errors to the nearest bolt and the contact force.  :meth:`summary_metrics`
-describes what happened at the part, per screwdriver operation (the mission's items are the
-framework's to count):
+describes what happened at the part, per screwdriver operation (:mod:`taskflow_sim.screw.scoring`).
 
-* ``operations`` — operations started (one per activation); ``operations_fastened``,
-  ``operations_failed`` (of which ``operations_no_bolt`` found no bolt under the tool) and
-  ``operations_unfinished`` (cancelled, interrupted or still running at the end);
-* ``operation_log`` — per operation: ``operation`` (index), ``bolt`` (the bolt worked on, None when
-  there was none), ``nearest_bolt`` and ``nearest_bolt_mm`` (tool tip → nearest bolt frame at the
-  start), ``bolt_already_fastened``, ``t_start``, ``t_end``, ``outcome`` (``fastened``, ``failed``,
-  ``cancelled``, ``interrupted``, or ``activating`` / ``coupled`` / ``fastening`` if the run ended
-  first), ``failure`` (``no_bolt``, ``coupling``, ``slipped``, ``not_coupled`` or None),
-  ``coupling_error_mm`` (largest lateral error during activation), ``err_t_mean_mm``,
-  ``err_t_max_mm``, ``err_r_mean_deg``, ``err_r_max_deg`` and ``err_samples`` (tool tip to the
-  operation's bolt, sampled every control tick while the screwdriver runs; None without a bolt),
-  ``screwing_s`` (activation start → fastened);
-* ``fastened_err_t_{min,max,mean}_mm``, ``fastened_err_r_{min,max,mean}_deg`` over the samples of the
-  fastened operations only (``fastened_err_operations`` of them, ``fastened_err_samples`` samples);
-  ``at_bolt_err_*`` the same over every operation that had a bolt (fastened, failed at the bolt,
-  cancelled: ``at_bolt_err_operations``, ``at_bolt_err_samples``) — the paper's Table 2 measures all
-  its screwing attempts; operations without a bolt have no bolt error and are in neither;
-* ``screwing_time_mean_s`` over the fastened operations; ``bolts_on_part`` and ``bolts_fastened``
-  (distinct bolts of the part fastened);
-* ``final_base_speed_mps`` and ``final_arm_speed_radps`` (ground truth, as in :meth:`ground_truth`),
-  ``final_part_x_m``; the marker pose error at capture against the truth (``perception_rms_xy_mm``
-  across the view, ``perception_rms_z_mm`` along it, ``perception_rms_r_deg``) — measured in the
-  rendered mode, injected in the pose mode; in the rendered mode ``rendered_frames`` (images
-  processed), ``rendered_searches`` (full-view searches) and ``rendered_dropped`` (frames the dropout
-  skipped).
+The world is assembled from its parts: parameters (:mod:`taskflow_sim.screw.params`), the PyBullet
+scene (:mod:`taskflow_sim.screw.scene`), the robot's body (:mod:`taskflow_sim.screw.body`), the sensors
+(:mod:`taskflow_sim.screw.sensors`), the screwdriver (:mod:`taskflow_sim.screw.screwdriver`) and the
+scoring (:mod:`taskflow_sim.screw.scoring`).
 
 Fidelity: ``fidelity: paper`` sets the marker ``latency`` and the platform's command delay
-``base_delay`` from the paper's stated rates (``ScrewWorldParams.FIDELITY``, with sources); the
+``base_delay`` from the paper's stated rates (``ScrewWorldParams.FIDELITY`` in :mod:`taskflow_sim.screw.params`, with sources); the
 platform's velocity lag is ``base_tau``.
 
 :meth:`safe_stop` brakes the platform to rest at the robot's ``brake_decel`` (0.5 s from the 1 m/s
@@ -80,155 +58,28 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal, cast
+from typing import Any, ClassVar, cast
 
 import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
-from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
-from taskflow_sim.faults import FaultIntervals, IntervalFault
+from pydantic import BaseModel
+from taskflow_robots.mobile_iiwa import MobileIiwa
+from taskflow_sim.faults import IntervalFault
 from taskflow_sim.ground.ground_plane import connect
 from taskflow_sim.screw import scene as sc
+from taskflow_sim.screw import scoring
 from taskflow_sim.screw.body import MobileIiwaBody
 from taskflow_sim.screw.motion import PartMotion
+from taskflow_sim.screw.params import ScrewdriverParams, ScrewWorldParams
 from taskflow_sim.screw.perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw.screwdriver import BitErrors, Screwdriver
+from taskflow_sim.screw.sensors import MarkerStream, WrenchSensor, perception_error
 from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
 
-from taskflow.api import Command, Marker, Observation, ObsSpec, Robot, RobotNeeds, StrictModel, message
-from taskflow.fidelity import Fidelity, Level, Sourced
+from taskflow.api import Command, Marker, Observation, ObsSpec, Robot, RobotNeeds, message
 from taskflow.messages import Image, MarkerPose, Wrench
 from taskflow.registry import register_world
-from taskflow.spatial import rotation_angle
-
-GRAVITY = 9.81
-
-
-class ScrewWorldParams(Fidelity):
-    """Part motion, start poses, perception mode and noise, contact, timing.  Every number must be
-    finite (an infinite latency or a NaN speed is refused, not simulated)."""
-
-    model_config = ConfigDict(allow_inf_nan=False)
-
-    FIDELITY: ClassVar[Mapping[str, Level]] = {
-        "paper": {
-            # the camera already runs at the paper's 40 Hz (robot parameter camera.rate_hz, §8); the pose-mode
-            # noise stays the one measured on this project's rendered ArUco detector (640x480, half the paper
-            # camera's 1280x1024 resolution, so no kinder), see noise_xy
-            "latency": Sourced(0.045, "papers/002 §8: the IDS UI-5240CP camera runs up to 50 fps (a frame is read "
-                               "out 20 ms after exposure) and the ArUco detector delivers poses at 40 Hz (up to 25 ms "
-                               "of detection per frame): 20 + 25 ms capture → pose; §10 names latency as a cause of "
-                               "the failures (the paper gives no measured figure)"),
-            "base_delay": Sourced(0.025, "papers/002 §8 gives no platform response figure: the twist is sent at the "
-                                  "control law's 40 Hz over ROS to the platform's driver; one 40 Hz period (25 ms) of "
-                                  "transport and hold before the wheels act is assumed (the platform's 0.1 s velocity "
-                                  "lag, base_tau, is kept)"),
-        },
-    }
-
-    motion: Literal["conveyor", "trolley"] = Field(default="conveyor", description="conveyor: straight at speed; "
-                                                   "trolley: speed and heading fluctuate (trolley_*)")
-    speed: float = Field(default=0.05, ge=0.0, le=0.5, description="nominal part speed (m/s): at most 0.5, half the "
-                         "platform's 1 m/s limit (it must catch up with the part and follow it)")
-    direction: float = Field(default=0.0, ge=-2.0 * math.pi, le=2.0 * math.pi,
-                             description="heading of the motion in the world (rad): one turn either way")
-    trolley_speed_sigma: float = Field(default=0.3, ge=0.0, le=1.0, description="trolley speed fluctuation (fraction "
-                                       "of speed): at most 1 (the fluctuation as large as the speed itself)")
-    trolley_heading_sigma: float = Field(default=0.06, ge=0.0, le=1.0, description="trolley heading fluctuation "
-                                         "(rad): at most 1 (57 deg)")
-    trolley_tau: float = Field(default=1.5, gt=0.0, le=60.0, description="correlation time of the fluctuations (s): "
-                               "at most 60")
-    trolley_yaw_gain: float = Field(default=0.5, ge=0.0, le=2.0, description="part yaw change per heading change: at most 2")
-    part_start: tuple[float, float, float] = Field(default=(-0.60, 0.0, 0.0), description="(x, y, yaw) of the part at "
-                                                   "the start (m, m, rad)")
-    bolts: tuple[tuple[float, float], ...] = Field(
-        default=sc.BOLTS_XY,
-        description="the part's bolt layout: [[x, y], ...] bolt centres in the part frame P (m; centre of the top face, "
-                    "x along the part); at least one, each head on the top face and off the marker, no two closer than two bolt radii")
-    robot_offset: tuple[float, float, float] = Field(
-        default=(-0.30, 0.10, -0.30),
-        description="platform start relative to its nominal pose beside the part: (along the conveyor, away from it, yaw) m, m, rad; "
-                    "within ±2 m and ±pi rad")
-    perception: Literal["pose", "rendered"] = Field(default="pose", description="pose: the marker pose with "
-                                                    "calibrated noise (fast); rendered: an ArUco detector on rendered frames")
-    # pose-mode noise calibrated on the rendered mode (benchmarks/screw_fastening.py prints its RMS error
-    # against the truth: 0.10 mm across the view, 0.53 mm along it, 0.12 deg, over two full sequences)
-    noise_xy: float = Field(default=0.00007, ge=0.0, le=0.01, description="pose mode: std across the view, per axis "
-                            "(m): at most 1 cm, three times the tool's 3 mm coupling tolerance (the measured detector: 0.1 mm)")
-    noise_z: float = Field(default=0.0005, ge=0.0, le=0.05, description="pose mode: std along the view (m): at most "
-                           "5 cm (the measured detector: 0.5 mm)")
-    noise_r: float = Field(default=math.radians(0.068), ge=0.0, le=0.1, description="pose mode: rotation std per axis "
-                           "(rad): at most 0.1 (6 deg; the measured detector: 0.12 deg)")
-    noise_tau: float = Field(default=0.1, ge=0.0, le=10.0, description="pose mode: noise correlation time (s): at most 10")
-    latency: float = Field(default=0.025, ge=0.0, le=0.2, description="capture → available to the robot (s): at most "
-                           "0.2 s; the arm loop with the paper's largest gain (kp = 7 /s, arm_boost) and a delay tau is "
-                           "stable only while kp tau < pi/2 (0.22 s), and the tasks place a pose at its capture time "
-                           "from the last 0.5 s of odometry")
-    base_delay: float = Field(default=0.0, ge=0.0, le=0.7,
-                              description="platform: transport delay of a twist command before the platform acts on it "
-                              "(s): at most 0.7 s, with latency at most 0.75 s; the platform loop with the paper's largest gain (kp = 2 /s, "
-                              "platform_boost) and its delay (this plus latency) is stable only while kp x delay < pi/2 (0.78 s)")
-    base_tau: float = Field(default=0.1, gt=0.0, le=5.0,
-                            description="platform: time constant of the first-order lag of its twist behind the command "
-                            "(s): at most 5")
-    dropout: float = Field(default=0.01, ge=0.0, lt=1.0, description="probability a frame misses the marker (both "
-                           "modes): below 1 (a camera that misses every frame sees nothing)")
-    image_noise: float = Field(default=2.0, ge=0.0, le=64.0,
-                               description="rendered mode: std of the camera's pixel noise (8-bit grey levels), seeded: "
-                               "at most 64, a quarter of the grey range")
-    roi_px: int = Field(default=224, gt=32, le=4096, description="rendered mode: region-of-interest side (px): above "
-                        "32 (the 10 cm marker's cells need pixels), at most 4096 (cropped to the image)")
-    lost_after: float = Field(default=0.2, gt=0.0, le=10.0, description="no detection for this long → target_lost (s); "
-                              "longer than one camera period, at most 10 s")
-    occlusions: FaultIntervals = Field(default_factory=list, description="[t0, t1] intervals hiding the marker (s)")
-    physics_hz: float = Field(default=100.0, ge=100.0, le=10_000.0, description="physics rate (Hz): one step per 100 Hz control tick; 250 gives the same benchmark errors at twice the cost; a whole multiple of rate_hz")
-    contact_stiffness: float = Field(default=1e4, ge=100.0, le=1e5, description="tool-part contact stiffness "
-                                     "(N/m): 100 to 1e5; the 0.6 kg tool on a stiffer contact oscillates with a period "
-                                     "2 pi sqrt(m / k) under 15 ms, 1.5 steps of the 100 Hz physics, and bounces "
-                                     "instead of resting; softer, the bit sinks centimetres into the part")
-    contact_damping: float = Field(default=200.0, ge=0.0, le=1e4, description="N s/m: at most 1e4")
-    ft_noise: float = Field(default=0.05, ge=0.0, le=10.0, description="F/T sensor force noise std (N): at most 10, "
-                            "a quarter of the missions' 40 N over-force limit (noisier, the contact monitor fires on noise)")
-    fasten_s: float = Field(default=3.0, gt=0.0, le=600.0, description="default fastening duration (s)")
-
-    @model_validator(mode="after")
-    def _delays(self) -> ScrewWorldParams:
-        if max(abs(self.robot_offset[0]), abs(self.robot_offset[1])) > 2.0 or abs(self.robot_offset[2]) > math.pi:
-            raise ValueError(f"robot_offset {list(self.robot_offset)}: the platform starts within 2 m of its nominal "
-                             "pose (along, away) and turned at most pi rad, so the camera can find the marker")
-        if self.latency + self.base_delay > 0.75:
-            raise ValueError(f"latency + base_delay = {self.latency + self.base_delay:g} s: the platform loop sees both "
-                             "delays, and with the paper's largest platform gain (kp = 2 /s) it is stable only while kp x "
-                             "delay < pi/2 — keep the sum at most 0.75 s")
-        return self
-
-    @classmethod
-    def min_rate_hz(cls, speed: float, tol_t: float, motion: str = "conveyor", speed_sigma: float = 0.0) -> float:
-        """The slowest control rate (Hz) at which the part moves at most the tool's coupling tolerance ``tol_t``
-        (m) per tick: ``speed / tol_t`` (the trolley's speed fluctuates: ``speed (1 + 2 sigma)``)."""
-        top = speed * (1.0 + 2.0 * speed_sigma) if motion == "trolley" else speed
-        return top / tol_t
-
-    @field_validator("bolts")
-    @classmethod
-    def _bolt_layout(cls, bolts: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
-        problem = sc.bolt_layout_problem(bolts)
-        if problem is not None:
-            raise ValueError(problem)
-        return bolts
-
-
-class ScrewdriverParams(StrictModel):
-    """Parameters of the ``screwdriver`` action: ``phase`` and its ``duration`` (s; default the tool's
-    ``activation_s`` for ``activate``, the world's ``fasten_s`` for ``fasten``)."""
-
-    model_config = ConfigDict(allow_inf_nan=False)
-
-    phase: Literal["activate", "fasten"] = "activate"
-    duration: float | None = Field(default=None, gt=0.0, le=600.0, description="how long the phase runs (s)")
-
 
 NOMINAL_DISTANCE = 0.80  # platform origin → part frame, across the conveyor (m)
 
@@ -239,53 +90,6 @@ def nominal_platform(part: tuple[float, float, float]) -> tuple[float, float, fl
     x, y, yaw = part
     th = yaw + 0.5 * math.pi
     return (x - NOMINAL_DISTANCE * math.cos(th), y - NOMINAL_DISTANCE * math.sin(th), th)
-
-
-@dataclass
-class MarkerStream:
-    """The camera's marker detections: when frames are taken (``schedule``, at the camera's rate), the
-    occlusion fault, the pose-mode noise and the dropout stream (``rng``, both modes), the rendered
-    ``detector`` (None in the pose mode), ``dropped``: rendered frames the dropout skipped,
-    detections in flight (``queue``, delivered after the latency), the perception error of every
-    detection against the truth (``errors``: m across the view, m along it, rad) and the lost/found
-    bookkeeping (``last_seen``: capture time of the last delivered detection)."""
-
-    schedule: SensorSchedule
-    occlusions: IntervalFault
-    noise: PoseNoise
-    rng: np.random.Generator
-    detector: RenderedDetector | None
-    queue: list[MarkerDetection] = field(default_factory=list)
-    errors: list[tuple[float, float, float]] = field(default_factory=list)
-    last_seen: float | None = None
-    visible: bool = False
-    dropped: int = 0
-
-
-@dataclass
-class WrenchSensor:
-    """The F/T sensor on the fixed tool joint, gravity-compensated for the screwdriver (``weight`` N,
-    centre of mass ``com`` in the tool frame), with white force noise of std ``noise`` N."""
-
-    rng: np.random.Generator
-    noise: float
-    com: NDArray[np.float64]
-    weight: float
-
-    @classmethod
-    def for_tool(cls, tool: ToolParams, rng: np.random.Generator, noise: float) -> WrenchSensor:
-        return cls(rng, noise, np.array([0.0, 0.0, 0.5 * (tool.length - tool.bit_length)]), tool.mass * GRAVITY)
-
-    def read(self, reading: NDArray[np.float64], R_wt: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The contact wrench (force N, torque N·m about the tool joint, tool frame) from the joint's
-        ``reading`` (force of the flange on the tool) and the tool's orientation ``R_wt``."""
-        w = R_wt[2] * -self.weight  # the tool's weight in the tool frame (Rᵀ [0, 0, −mg])
-        f = -reading[:3] - w
-        c = self.com
-        m = -reading[3:] - np.array([c[1] * w[2] - c[2] * w[1], c[2] * w[0] - c[0] * w[2], c[0] * w[1] - c[1] * w[0]])
-        if self.noise > 0.0:
-            f = f + self.rng.normal(0.0, self.noise, 3)
-        return np.concatenate([f, m])
 
 
 @register_world("screw_conveyor")
@@ -442,23 +246,6 @@ class ScrewConveyor(SteppedWorld):
         HP = self.part_pose()
         return [HP @ H for H in self._bolts_P]
 
-    def tool_errors(self, bolt: int | None = None) -> tuple[int, float, float, float, float, float]:
-        """``(bolt, translation, rotation, lateral, axial, tilt)`` of the tool tip to a bolt's frame
-        (the nearest when ``bolt`` is None); m and rad, ground truth."""
-        tip = self.body.tip_pose()
-        bolts = self.bolt_poses()
-        if bolt is None:
-            bolt = int(np.argmin([np.linalg.norm(b[:3, 3] - tip[:3, 3]) for b in bolts]))
-        B = bolts[bolt]
-        d = tip[:3, 3] - B[:3, 3]
-        z = B[:3, 2]
-        axial = float(d @ z)
-        lateral = float(np.linalg.norm(d - axial * z))
-        Rrel = B[:3, :3].T @ tip[:3, :3]
-        rot = rotation_angle(Rrel)
-        tilt = math.acos(max(-1.0, min(1.0, float(tip[:3, 2] @ z))))
-        return bolt, float(np.linalg.norm(d)), rot, lateral, axial, tilt
-
     # -- the loop ------------------------------------------------------------------------------
     def observe(self) -> Observation:
         q, qd = self.body.joints()
@@ -553,10 +340,7 @@ class ScrewConveyor(SteppedWorld):
             else:
                 det = MarkerDetection(t, st.noise.apply(H, t))
         if det.H_co is not None:  # perception error against the truth at capture (camera frame)
-            truth = self.true_H_co()
-            d = det.H_co[:3, 3] - truth[:3, 3]
-            R = det.H_co[:3, :3] @ truth[:3, :3].T
-            st.errors.append((math.hypot(d[0], d[1]), abs(d[2]), rotation_angle(R)))
+            st.errors.append(perception_error(det.H_co, self.true_H_co()))
         st.queue.append(det)
 
     def _deliver(self, t: float) -> None:
@@ -581,9 +365,8 @@ class ScrewConveyor(SteppedWorld):
 
     # -- the screwdriver (the state machine is taskflow_sim.screw.screwdriver) ----------------------------
     def bit_errors(self, bolt: int | None = None) -> tuple[int, BitErrors]:
-        """The bolt (the nearest when ``bolt`` is None) and the bit's errors to it (:meth:`tool_errors`)."""
-        b, et, er, lat, ax, tilt = self.tool_errors(bolt)
-        return b, BitErrors(et, er, lat, ax, tilt)
+        """The bolt (the nearest when ``bolt`` is None) and the bit's errors to it (ground truth)."""
+        return scoring.bit_errors(self.body.tip_pose(), self.bolt_poses(), bolt)
 
     def start_action(self, name: str, params: Mapping[str, Any]) -> None:
         model = self.action_params.get(name)
@@ -627,67 +410,23 @@ class ScrewConveyor(SteppedWorld):
     def ground_truth(self) -> dict[str, float]:
         ps = self.body.platform.pose
         m = self.motion
-        _, et, er, *_ = self.tool_errors()
+        _, e = self.bit_errors()
         _, qd = self.body.joints()
         return {"base_x": float(ps[0]), "base_y": float(ps[1]), "base_yaw": float(ps[2]),
                 "base_speed": self._base_rate[0], "base_yaw_rate": self._base_rate[1],
                 "arm_speed": float(np.max(np.abs(qd))), "part_x": m.x, "part_y": m.y,
-                "part_yaw": m.yaw, "tool_err_t": et, "tool_err_r": er,
+                "part_yaw": m.yaw, "tool_err_t": e.translation, "tool_err_r": e.rotation,
                 "contact_force": float(np.linalg.norm(self._wrench[:3]))}
 
     def operation_log(self) -> list[dict[str, Any]]:
-        """The operations with their errors to their bolt (see the module docstring)."""
-        out = []
-        for op in self.screwdriver.log.ops:
-            rec = op.record()
-            t, r = np.array(op.err_t), np.array(op.err_r)
-            rec["err_samples"] = int(len(t))
-            rec["err_t_mean_mm"] = float(np.mean(t) * 1e3) if len(t) else None
-            rec["err_t_max_mm"] = float(np.max(t) * 1e3) if len(t) else None
-            rec["err_r_mean_deg"] = float(np.degrees(np.mean(r))) if len(r) else None
-            rec["err_r_max_deg"] = float(np.degrees(np.max(r))) if len(r) else None
-            out.append(rec)
-        return out
+        """The operations with their errors to their bolt (:func:`scoring.operation_log`)."""
+        return scoring.operation_log(self.screwdriver.log)
 
     def summary_metrics(self) -> dict[str, Any]:
-        log = self.screwdriver.log
-        ops = log.ops
-        fastened = [i for i, op in enumerate(ops) if op.outcome == "fastened"]
-        failed = [i for i, op in enumerate(ops) if op.outcome == "failed"]
-        at_bolt = [i for i, op in enumerate(ops) if op.bolt is not None]
-        out: dict[str, Any] = {
-            "operations": len(ops),
-            "operations_fastened": len(fastened),
-            "operations_failed": len(failed),
-            "operations_no_bolt": sum(1 for op in ops if op.failure == "no_bolt"),
-            "operations_unfinished": len(ops) - len(fastened) - len(failed),
-            "bolts_on_part": len(self._bolts_P),
-            "bolts_fastened": len(log.bolts_done),
-            "operation_log": self.operation_log(),
-        }
-        for group, idx in (("fastened", fastened), ("at_bolt", at_bolt)):
-            ts = np.array([x for i in idx for x in ops[i].err_t])
-            rs = np.array([x for i in idx for x in ops[i].err_r])
-            out[f"{group}_err_operations"] = len(idx)
-            out[f"{group}_err_samples"] = int(len(ts))
-            for name, arr, scale, unit in (("err_t", ts, 1e3, "mm"), ("err_r", rs, 180.0 / math.pi, "deg")):
-                for stat, fn in (("min", np.min), ("max", np.max), ("mean", np.mean)):
-                    out[f"{group}_{name}_{stat}_{unit}"] = float(fn(arr) * scale) if len(arr) else None
-        times = [ops[i].screwing_s for i in fastened]
-        out["screwing_time_mean_s"] = float(np.mean(times)) if times else None
-        if self.client is not None:
-            gt = self.ground_truth()
-            out["final_base_speed_mps"] = gt["base_speed"]
-            out["final_arm_speed_radps"] = gt["arm_speed"]
-            out["final_part_x_m"] = gt["part_x"]
-        if self.stream.errors:
-            pe = np.array(self.stream.errors)
-            rms = np.sqrt(np.mean(pe * pe, axis=0))
-            out["perception_frames"] = int(len(pe))
-            out["perception_rms_xy_mm"], out["perception_rms_z_mm"] = float(rms[0] * 1e3), float(rms[1] * 1e3)
-            out["perception_rms_r_deg"] = float(math.degrees(rms[2]))
-        if self.detector is not None:
-            out["rendered_frames"] = self.detector.frames
-            out["rendered_searches"] = self.detector.searches
-            out["rendered_dropped"] = self.stream.dropped
-        return out
+        """What happened at the part (:func:`scoring.summary_metrics`)."""
+        det = self.detector
+        rendered = None if det is None else {"rendered_frames": det.frames, "rendered_searches": det.searches,
+                                             "rendered_dropped": self.stream.dropped}
+        return scoring.summary_metrics(self.screwdriver.log, len(self._bolts_P),
+                                       self.ground_truth() if self.client is not None else None,
+                                       self.stream.errors, rendered)
