@@ -30,11 +30,26 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict
 
 from .markers import ControlPoint, Marker, TaskScene
-from .specs import ObsSpec, RobotNeeds, array, flag, instance, mapping, message, scalar, sequence, text
+from .specs import (
+    MissingObservation,
+    ObsKey,
+    ObsSpec,
+    Requires,
+    RobotNeeds,
+    array,
+    flag,
+    instance,
+    mapping,
+    message,
+    required_specs,
+    scalar,
+    sequence,
+    text,
+)
 
-__all__ = ["AGE", "COUNT", "DISTANCE", "FLAG", "FORCE", "ROTATION_ANGLE", "SPEED", "WEIGHT", "WRAPPED_ANGLE", "Command", "ControlPoint", "Marker", "MemoryKey", "Metric", "NO_DEFAULT", "NoParams", "ObsSpec", "Observation", "Robot",
+__all__ = ["AGE", "COUNT", "DISTANCE", "FLAG", "FORCE", "ROTATION_ANGLE", "SPEED", "WEIGHT", "WRAPPED_ANGLE", "Command", "ControlPoint", "Marker", "MemoryKey", "Metric", "MissingObservation", "NO_DEFAULT", "NoParams", "ObsKey", "ObsSpec", "Observation", "Robot",
            "RobotNeeds", "StepResult", "StrictModel", "Task", "TaskContext", "TaskScene", "World", "array", "flag",
-           "instance", "mapping", "message", "scalar", "sequence", "text"]
+           "instance", "mapping", "message", "required_specs", "scalar", "sequence", "text"]
 
 Command = dict[str, NDArray[np.float64]]
 """Robot command: named arrays (e.g. ``{"v": [0.3], "steer": [0.1]}``); keys are the robot's."""
@@ -264,8 +279,9 @@ class Task(Generic[ParamsT, RobotParamsT]):
     * ``events`` — events ``step`` may raise;
     * ``command_interface`` — the robot command interface its commands are in (``"ackermann"``,
       ``"unicycle"`` ...; empty: it commands no motion), checked against the mission's robot;
-    * ``requires`` — observation entries ``step`` reads (``"state.pose": array(3)``), checked against
-      what the robot and the world provide;
+    * ``requires`` — observation entries ``step`` reads: :class:`ObsKey` s (``(POSE, MARKER)``, the keys
+      ``step`` reads with, ``POSE(obs)``) or the older mapping ``{"state.pose": array(3)}``, checked
+      against what the robot and the world provide (the class keeps it as the mapping, name → spec);
     * ``robot_params`` — a pydantic model of the robot parameters the law reads (geometry, limits,
       camera mounts).  The robot is accepted for its fields, not its name: the loader checks that the
       robot's ``Params`` has each field with a compatible type, and the framework builds this model from
@@ -282,10 +298,15 @@ class Task(Generic[ParamsT, RobotParamsT]):
     metrics: ClassVar[dict[str, str]] = {}
     events: ClassVar[tuple[str, ...]] = ()
     command_interface: ClassVar[str] = ""
-    requires: ClassVar[dict[str, ObsSpec]] = {}
+    requires: ClassVar[Requires] = {}
     robot_params: ClassVar[type[BaseModel] | None] = None
     writes: ClassVar[tuple[MemoryKey[Any], ...]] = ()
     reads: ClassVar[tuple[MemoryKey[Any], ...]] = ()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "requires" in cls.__dict__:
+            cls.requires = required_specs(cls.requires)
 
     def __init__(self, ctx: TaskContext[ParamsT, RobotParamsT]) -> None:
         self.ctx = ctx

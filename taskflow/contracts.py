@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel
 
-from .api import ObsSpec, Robot, Task, World
+from .api import ObsSpec, Robot, Task, World, required_specs
 from .registry import BODIES, ROBOTS, TASKS, WORLDS, RegistryError
 
 Problem = tuple[str, str]
@@ -94,7 +94,7 @@ def task_problem(task: type[Task], robot: type[Robot], world: type[World]) -> Pr
     if geometry is not None:
         return geometry
     have = provided(robot, world)
-    for key, need in task.requires.items():
+    for key, need in required_specs(task.requires).items():
         got = have.get(key)
         if got is None:
             return (f"task {task.name!r} reads observation {key} ({need}), which neither robot {robot.name!r} "

@@ -4,13 +4,19 @@ Robots and worlds declare what they provide (``"state.pose": array(3)``, ``"sens
 message(Detection)``), tasks what they require; the compiler matches the two (:mod:`taskflow.contracts`)
 and :mod:`taskflow.conformance` checks real observations against them.  Re-exported by
 :mod:`taskflow.api`, where task, robot and world authors import them from.
+
+A task names what it reads with :class:`ObsKey` s: ``MARKER = ObsKey("sensors.marker", MarkerPose,
+optional=True)`` goes in its ``requires`` (``requires = (POSE, MARKER)``, checked at load against what
+the robot and world provide) and reads the observation (``MARKER(obs)``: the typed value; ``None`` for an
+absent optional entry; a :class:`MissingObservation` naming the key for an absent required one).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import dataclasses
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Generic, Literal, Protocol, TypeVar, overload
 
 import numpy as np
 
@@ -117,6 +123,83 @@ def instance(cls: type, optional: bool = False) -> ObsSpec:
     """Any object of class ``cls`` that is not a sensor message: a controller's state kept in mission data
     (:class:`taskflow.api.MemoryKey`), e.g. ``instance(PidState)``."""
     return ObsSpec("message", cls=cls, optional=optional)
+
+
+class ObservationLike(Protocol):
+    """What :class:`ObsKey` reads: an :class:`taskflow.api.Observation` (its two sections)."""
+
+    state: dict[str, Any]
+    sensors: dict[str, Any]
+
+
+class MissingObservation(KeyError):
+    """A required observation entry is absent on this tick (the error names it)."""
+
+
+T = TypeVar("T")
+
+
+class ObsKey(Generic[T]):
+    """One observation entry a task reads: its whole name (``"state.pose"``, ``"sensors.marker"``) and its
+    :class:`ObsSpec`, declared in the task's ``requires`` and called to read it.
+
+    ``ObsKey("sensors.marker", MarkerPose, optional=True)`` — a message class: ``message(cls)``, typed
+    ``ObsKey[MarkerPose | None]``; ``POSE: ObsKey[NDArray[np.float64]] = ObsKey("state.pose", array(3))``
+    — a spec (its ``optional`` unless given here).  ``key(obs)`` is one dict lookup: the value; ``None``
+    when an optional entry is absent; :class:`MissingObservation` when a required one is."""
+
+    __slots__ = ("entry", "name", "optional", "sensors", "spec")
+
+    @overload
+    def __init__(self: ObsKey[T | None], name: str, of: type[T], *, optional: Literal[True]) -> None: ...
+    @overload
+    def __init__(self: ObsKey[T], name: str, of: type[T], *, optional: Literal[False] = ...) -> None: ...
+    @overload
+    def __init__(self, name: str, of: ObsSpec, *, optional: bool | None = None) -> None: ...
+
+    def __init__(self, name: str, of: ObsSpec | type, *, optional: bool | None = None) -> None:
+        section, _, entry = name.partition(".")
+        if section not in ("state", "sensors") or not entry:
+            raise ValueError(f"an observation key is 'state.<entry>' or 'sensors.<entry>', got {name!r}")
+        if isinstance(of, ObsSpec):
+            spec = of if optional is None else dataclasses.replace(of, optional=optional)
+        else:
+            spec = ObsSpec("message", cls=of, optional=bool(optional))
+        self.name = name
+        self.spec = spec
+        self.entry = entry
+        self.sensors = section == "sensors"
+        self.optional = spec.optional
+
+    def __call__(self, obs: ObservationLike) -> T:
+        try:
+            return (obs.sensors if self.sensors else obs.state)[self.entry]  # type: ignore[no-any-return]  # the declared type, checked by the conformance check
+        except KeyError:
+            if self.optional:
+                return None  # type: ignore[return-value]  # T is X | None for an optional key (the overloads)
+            raise MissingObservation(f"observation has no {self.name!r} (required, {self.spec})") from None
+
+    def __repr__(self) -> str:
+        return f"ObsKey({self.name!r}, {self.spec})"
+
+
+Requires = Mapping[str, ObsSpec] | Sequence[ObsKey[Any]]
+"""A task's ``requires``: observation keys (``(POSE, MARKER)``) or the older mapping ``{"state.pose": array(3)}``."""
+
+
+def required_specs(requires: Requires) -> dict[str, ObsSpec]:
+    """``requires`` in its mapping form (name → spec), whichever form it was declared in; a key declared
+    twice with different specs is a ``ValueError``."""
+    if isinstance(requires, Mapping):
+        return dict(requires)
+    out: dict[str, ObsSpec] = {}
+    for k in requires:
+        if not isinstance(k, ObsKey):
+            raise TypeError(f"requires holds ObsKey objects (or is a mapping name → ObsSpec), got {k!r}")
+        if out.get(k.name, k.spec) != k.spec:
+            raise ValueError(f"observation key {k.name!r} required twice, as {out[k.name]} and {k.spec}")
+        out[k.name] = k.spec
+    return out
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from typing import ClassVar, Literal
 
 from pydantic import ConfigDict, Field, field_validator, model_validator
-from taskflow_sim.faults import FaultIntervals
+from taskflow_sim.core.faults import FaultIntervals
 from taskflow_sim.screw import scene as sc
 
 from taskflow.api import StrictModel

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 from taskflow_robots.mobile_iiwa import ToolParams
-from taskflow_sim.faults import IntervalFault
+from taskflow_sim.core.faults import IntervalFault
+from taskflow_sim.core.stepped import SensorSchedule
 from taskflow_sim.screw.perception import MarkerDetection, PoseNoise, RenderedDetector
-from taskflow_sim.stepped import SensorSchedule
 
 from taskflow.spatial import rotation_angle
 

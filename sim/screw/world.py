@@ -65,7 +65,8 @@ import pybullet as p
 from numpy.typing import NDArray
 from pydantic import BaseModel
 from taskflow_robots.mobile_iiwa import MobileIiwa
-from taskflow_sim.faults import IntervalFault
+from taskflow_sim.core.faults import IntervalFault
+from taskflow_sim.core.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
 from taskflow_sim.ground.ground_plane import connect
 from taskflow_sim.screw import scene as sc
 from taskflow_sim.screw import scoring
@@ -75,7 +76,6 @@ from taskflow_sim.screw.params import ScrewdriverParams, ScrewWorldParams
 from taskflow_sim.screw.perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw.screwdriver import BitErrors, Screwdriver
 from taskflow_sim.screw.sensors import MarkerStream, WrenchSensor, perception_error
-from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
 
 from taskflow.api import Command, Marker, Observation, ObsSpec, Robot, RobotNeeds, message
 from taskflow.messages import Image, MarkerPose, Wrench
