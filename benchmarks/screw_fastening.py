@@ -64,7 +64,8 @@ TARGETS = {"conveyor": (97.5, 1.0), "trolley": (90.0, 2.0)}  # success %, mean t
 def _register() -> None:
     import taskflow_robots.mobile_iiwa  # noqa: F401
     import taskflow_sim.screw.world  # noqa: F401
-    import taskflow_tasks.screw.pbvs_tasks  # noqa: F401
+    import taskflow_tasks.screw.home
+    import taskflow_tasks.screw.mobile_pbvs  # noqa: F401
 
 
 def run_one(job: tuple[str, int, bool, str, str]) -> dict[str, Any]:
@@ -155,7 +156,8 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     from taskflow_robots.mobile_iiwa import MobileIiwa
     from taskflow_tasks.core.impedance import ImpedanceProfile
     from taskflow_tasks.core.pid import PidProfile
-    from taskflow_tasks.screw.pbvs_tasks import ArmParams, PbvsArm, Prediction
+    from taskflow_tasks.screw.mobile_pbvs import ArmParams, PbvsArm
+    from taskflow_tasks.screw.prediction import Prediction
 
     from taskflow.api import Observation
     from taskflow.messages import MarkerPose, Wrench

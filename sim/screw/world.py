@@ -66,21 +66,23 @@ from numpy.typing import NDArray
 from pydantic import BaseModel
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim.core.faults import IntervalFault
-from taskflow_sim.core.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
+from taskflow_sim.core.stepped import SteppedWorld, check_command
 from taskflow_sim.ground.ground_plane import connect
 from taskflow_sim.screw import scene as sc
 from taskflow_sim.screw import scoring
 from taskflow_sim.screw.body import MobileIiwaBody
 from taskflow_sim.screw.motion import PartMotion
 from taskflow_sim.screw.params import ScrewdriverParams, ScrewWorldParams
-from taskflow_sim.screw.perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
+from taskflow_sim.screw.perception import ImageNoise, PoseNoise, RenderedDetector
 from taskflow_sim.screw.screwdriver import BitErrors, Screwdriver
-from taskflow_sim.screw.sensors import MarkerStream, WrenchSensor, perception_error
+from taskflow_sim.screw.sensors import MarkerCamera, WrenchSensor, marker_stream, wrench_stream
 
 from taskflow.api import Command, Marker, Observation, ObsSpec, Robot, RobotNeeds, message
 from taskflow.messages import Image, MarkerPose, Wrench
 from taskflow.registry import register_world
+from taskflow.spatial import T_from_planar, planar_apply, planar_between
 
+_NO_WRENCH = np.zeros(6)
 NOMINAL_DISTANCE = 0.80  # platform origin → part frame, across the conveyor (m)
 
 
@@ -139,10 +141,10 @@ class ScrewConveyor(SteppedWorld):
         ``bolts`` layout placed with the part's start pose, each a circle of the bolt radius)."""
         wp = cast(ScrewWorldParams, params)
         x, y, yaw = wp.part_start
-        c, s = math.cos(yaw), math.sin(yaw)
+        at_start = planar_apply(wp.part_start, wp.bolts)  # the bolts in the world at the part's start
         return [Marker.point("object", "part at start", x, y, yaw=yaw),
-                *(Marker.point("object", f"bolt {i}", x + c * bx - s * by, y + s * bx + c * by, radius=sc.BOLT_RADIUS)
-                  for i, (bx, by) in enumerate(wp.bolts))]
+                *(Marker.point("object", f"bolt {i}", float(bx), float(by), radius=sc.BOLT_RADIUS)
+                  for i, (bx, by) in enumerate(at_start))]
     robot: MobileIiwa
 
     def __init__(self, robot: Robot, params: ScrewWorldParams, seed: int, gui: bool = False) -> None:
@@ -156,12 +158,12 @@ class ScrewConveyor(SteppedWorld):
         self.client: int | None = None
         self.occlusions = IntervalFault(params.occlusions, "occlusions")
         rp = robot.params
-        self.H_bc = rp.H_bc()
+        self.T_body_camera = rp.T_body_camera()
         # numpy's general (LU) inverse, not spatial.inverse: the closed form differs in the last bits and
         # those propagate into the screw missions' traces (they were recorded with this one)
-        self._H_cb = np.linalg.inv(self.H_bc)
-        self._H_Pm = sc.marker_in_P()
-        self._bolts_P = sc.bolt_frames_in_P(params.bolts)
+        self._T_camera_body = np.linalg.inv(self.T_body_camera)
+        self._T_part_marker = sc.T_part_marker()
+        self._T_part_bolts = sc.T_part_bolts(params.bolts)
         self._cam_K = rp.camera.K()
 
     # -- lifecycle -----------------------------------------------------------------------------
@@ -187,21 +189,20 @@ class ScrewConveyor(SteppedWorld):
                                    base_delay=wp.base_delay)
         p.changeDynamics(self.body.id, self.body.tool_link, contactStiffness=wp.contact_stiffness,
                          contactDamping=wp.contact_damping, lateralFriction=0.3, physicsClientId=c)
-        self.stream = MarkerStream(
-            SensorSchedule(rp.camera.rate_hz), self.occlusions, PoseNoise(r_sense, wp.noise_xy, wp.noise_z, wp.noise_r, wp.noise_tau),
-            r_sense, RenderedDetector(c, rp.camera, roi=wp.roi_px, noise=ImageNoise(r_image, wp.image_noise))
-            if wp.perception == "rendered" else None)
-        self.force = WrenchSensor.for_tool(rp.tool, r_ft, wp.ft_noise)
+        self.camera = MarkerCamera(rp.camera, self.true_T_camera_object, self.body.camera_pose,
+                                   PoseNoise(r_sense, wp.noise_xy, wp.noise_z, wp.noise_r, wp.noise_tau),
+                                   RenderedDetector(c, rp.camera, roi=wp.roi_px, noise=ImageNoise(r_image, wp.image_noise))
+                                   if wp.perception == "rendered" else None, self._cam_K)
+        self.marker = self.add_stream("marker", marker_stream(self.camera, wp, r_sense, self.occlusions))
+        self.force = WrenchSensor.for_tool(rp.tool, wp.ft_noise)
+        self.wrench = self.add_stream("wrench", wrench_stream(self.force, self._read_wrench, r_ft, self.physics_hz))
         self.screwdriver = Screwdriver(rp.tool)
         self.restart_clock()
-        self._events: list[str] = []
+        self._ft_raw: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None  # no step yet: nothing to read
+        self.start_streams()
+        self._events: list[str] = []  # the screwdriver's end events of this tick (the streams keep theirs)
         self._dq_pending = np.zeros(7)
         self._base_rate = (0.0, 0.0)  # ground truth: platform speed (m/s) and yaw rate (rad/s) over the last step
-        # what the robot receives: the latest delivered marker detection (numbered) and the wrench
-        self._marker: MarkerPose | None = None
-        self._image: Image | None = None  # rendered mode: the detector's latest image
-        self._seq = 0
-        self._wrench = np.zeros(6)
         if self.gui:
             p.resetDebugVisualizerCamera(1.8, 20.0, -30.0, [x0, y0, 0.8], physicsClientId=c)
 
@@ -216,35 +217,33 @@ class ScrewConveyor(SteppedWorld):
     @property
     def detector(self) -> RenderedDetector | None:
         """The rendered mode's ArUco detector (None in the pose mode)."""
-        return self.stream.detector
+        return self.camera.detector
 
     # -- geometry ------------------------------------------------------------------------------
     def part_pose(self) -> NDArray[np.float64]:
+        """``T_world_part``."""
         m = self.motion
         return sc.planar_pose(m.x, m.y, m.yaw, sc.part_top_height())
 
     def marker_pose(self) -> NDArray[np.float64]:
-        return self.part_pose() @ self._H_Pm
+        """``T_world_marker``."""
+        return self.part_pose() @ self._T_part_marker
 
     def camera_pose(self) -> NDArray[np.float64]:
-        return self.body.base_pose() @ self.H_bc
+        """``T_world_camera`` from the platform's pose and the camera mount."""
+        return self.body.base_pose() @ self.T_body_camera
 
-    def true_H_co(self) -> NDArray[np.float64]:
-        """The marker in the camera frame: ``H_cb · H_bw · H_wo`` (planar platform and part)."""
+    def true_T_camera_object(self) -> NDArray[np.float64]:
+        """The marker in the camera frame: ``T_camera_body · T_body_part · T_part_marker`` (planar platform
+        and part, ``T_body_part`` from their planar poses)."""
         m = self.motion
-        bx, by, bth = self.body._pose
-        # part frame in the base frame: a planar transform
-        c, s = math.cos(bth), math.sin(bth)
-        dx, dy = m.x - bx, m.y - by
-        dyaw = m.yaw - bth
-        cd, sd = math.cos(dyaw), math.sin(dyaw)
-        H_bP = np.array([[cd, -sd, 0.0, c * dx + s * dy], [sd, cd, 0.0, -s * dx + c * dy],
-                         [0.0, 0.0, 1.0, sc.part_top_height()], [0.0, 0.0, 0.0, 1.0]])
-        return self._H_cb @ H_bP @ self._H_Pm
+        T_body_part = T_from_planar(planar_between(self.body._pose, (m.x, m.y, m.yaw)), sc.part_top_height())
+        return self._T_camera_body @ T_body_part @ self._T_part_marker
 
     def bolt_poses(self) -> list[NDArray[np.float64]]:
-        HP = self.part_pose()
-        return [HP @ H for H in self._bolts_P]
+        """``T_world_bolt`` of every bolt (its operation frame)."""
+        T_world_part = self.part_pose()
+        return [T_world_part @ T for T in self._T_part_bolts]
 
     # -- the loop ------------------------------------------------------------------------------
     def observe(self) -> Observation:
@@ -252,12 +251,14 @@ class ScrewConveyor(SteppedWorld):
         ps = self.body.platform
         state = {"q": q, "qd": qd, "q_ref": self.body.q_ref_target.copy(), "base_twist": ps.twist.copy(),
                  "odom": ps.pose.copy()}
+        marker = self.marker.last_present
+        w = self._wrench()
         sensors: dict[str, Any] = {
-            "marker": self._marker,
-            "wrench": Wrench(stamp=self.t, frame="tool", force=self._wrench[:3].copy(), torque=self._wrench[3:].copy())}
-        if self.stream.detector is not None:
-            sensors["image"] = self._image
-        return Observation(t=self.t, state=state, sensors=sensors, events=tuple(self._events))
+            "marker": None if marker is None else marker.value,
+            "wrench": Wrench(stamp=self.t, frame="tool", force=w[:3].copy(), torque=w[3:].copy())}
+        if self.camera.detector is not None:
+            sensors["image"] = self.camera.image
+        return Observation(t=self.t, state=state, sensors=sensors, events=(*self.marker.events, *self._events))
 
     def apply(self, command: Command) -> None:
         """``base_twist`` (3) to the platform now; ``arm_dq`` (7) spread over the next ``advance``'s steps."""
@@ -297,12 +298,6 @@ class ScrewConveyor(SteppedWorld):
         self.body.before_step(h, self.t)
         p.stepSimulation(physicsClientId=self.client)
 
-    def after_physics_step(self, h: float) -> None:
-        t = self.t
-        if self.stream.schedule.poll(t):
-            self._capture(t)  # the frame is taken at this physics step (stamped with its time)
-        self._deliver(t)
-
     def end_steps(self, n: int, h: float) -> None:
         if n <= 0:
             return
@@ -310,7 +305,9 @@ class ScrewConveyor(SteppedWorld):
         self._base_rate = (math.hypot(after[0] - before[0], after[1] - before[1]) / h,
                            math.remainder(after[2] - before[2], 2.0 * math.pi) / h)
         self.body.sync_state()
-        self._sense_wrench()
+        # the F/T joint's reaction and the tool's orientation as the last step left them, latched before the
+        # screwdriver's checks recompute the arm's forward kinematics (the wrench stream reads this)
+        self._ft_raw = (self.body.tool_joint_wrench(), self.body.link_rotation(self.body.tool_link))
         self._update_action()
 
     def _require_client(self) -> int:
@@ -318,50 +315,18 @@ class ScrewConveyor(SteppedWorld):
             raise RuntimeError("screw_conveyor: call reset() first")
         return self.client
 
-    # -- perception -----------------------------------------------------------------------------
-    def _capture(self, t: float) -> None:
-        wp, st = self.params, self.stream
-        if st.occlusions.active(t):
-            det = MarkerDetection(t, None)
-        elif st.detector is not None:
-            if st.rng.random() < wp.dropout:  # the frame misses the marker: nothing to render or detect
-                st.dropped += 1
-                det = MarkerDetection(t, None)
-            else:
-                det = st.detector(self.body.camera_pose(), t)
-                img = st.detector.last_image  # what this frame's detection was run on (set by every call)
-                if img is not None:
-                    img.setflags(write=False)
-                    self._image = Image(stamp=t, frame="camera", pixels=img)
-        else:
-            H = self.true_H_co()
-            if not visible(self.robot.params.camera, H, K=self._cam_K) or st.rng.random() < wp.dropout:
-                det = MarkerDetection(t, None)
-            else:
-                det = MarkerDetection(t, st.noise.apply(H, t))
-        if det.H_co is not None:  # perception error against the truth at capture (camera frame)
-            st.errors.append(perception_error(det.H_co, self.true_H_co()))
-        st.queue.append(det)
-
-    def _deliver(self, t: float) -> None:
-        lat, st = self.params.latency, self.stream
-        while st.queue and st.queue[0].t + lat <= t + EPS_T:
-            det = st.queue.pop(0)
-            if det.H_co is not None:
-                self._seq += 1
-                self._marker = MarkerPose(stamp=det.t, frame="camera", T_camera_object=det.H_co, seq=self._seq)
-                st.last_seen = det.t
-                if not st.visible:
-                    st.visible = True
-                    self._events.append("target_found")
-        if st.visible and st.last_seen is not None and t - st.last_seen > self.params.lost_after + lat:
-            st.visible = False
-            self._events.append("target_lost")
-
     # -- force sensing ---------------------------------------------------------------------------
-    def _sense_wrench(self) -> None:
-        reading = self.body.tool_joint_wrench()  # force of the flange on the tool, tool frame
-        self._wrench = self.force.read(reading, self.body.link_rotation(self.body.tool_link))
+    def _read_wrench(self, _stamp: float, _state: object) -> NDArray[np.float64] | None:
+        """The ``wrench`` stream's ``read``: the latched F/T reading (force of the flange on the tool, tool
+        frame), compensated for the tool's weight; nothing before the first physics step."""
+        if self._ft_raw is None:
+            return None
+        return self.force.compensate(*self._ft_raw)
+
+    def _wrench(self) -> NDArray[np.float64]:
+        """The latest delivered contact wrench (zeros before the first)."""
+        r = self.wrench.last_present
+        return _NO_WRENCH if r is None or r.value is None else r.value
 
     # -- the screwdriver (the state machine is taskflow_sim.screw.screwdriver) ----------------------------
     def bit_errors(self, bolt: int | None = None) -> tuple[int, BitErrors]:
@@ -416,7 +381,7 @@ class ScrewConveyor(SteppedWorld):
                 "base_speed": self._base_rate[0], "base_yaw_rate": self._base_rate[1],
                 "arm_speed": float(np.max(np.abs(qd))), "part_x": m.x, "part_y": m.y,
                 "part_yaw": m.yaw, "tool_err_t": e.translation, "tool_err_r": e.rotation,
-                "contact_force": float(np.linalg.norm(self._wrench[:3]))}
+                "contact_force": float(np.linalg.norm(self._wrench()[:3]))}
 
     def operation_log(self) -> list[dict[str, Any]]:
         """The operations with their errors to their bolt (:func:`scoring.operation_log`)."""
@@ -426,7 +391,7 @@ class ScrewConveyor(SteppedWorld):
         """What happened at the part (:func:`scoring.summary_metrics`)."""
         det = self.detector
         rendered = None if det is None else {"rendered_frames": det.frames, "rendered_searches": det.searches,
-                                             "rendered_dropped": self.stream.dropped}
-        return scoring.summary_metrics(self.screwdriver.log, len(self._bolts_P),
+                                             "rendered_dropped": self.marker.dropped}
+        return scoring.summary_metrics(self.screwdriver.log, len(self._T_part_bolts),
                                        self.ground_truth() if self.client is not None else None,
-                                       self.stream.errors, rendered)
+                                       self.camera.errors, rendered)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
 import taskflow_sim.screw.world  # noqa: F401 - registers screw_conveyor
-import taskflow_tasks.screw.pbvs_tasks  # noqa: F401 - registers the pbvs tasks
+import taskflow_tasks.screw.mobile_pbvs  # noqa: F401 - registers the pbvs tasks
 
 from taskflow.errors import MissionError
 from taskflow.loader import load_mission

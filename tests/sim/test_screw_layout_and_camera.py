@@ -11,7 +11,7 @@ import numpy as np
 import pybullet as p
 import pytest
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
-import taskflow_tasks.screw.pbvs_tasks  # noqa: F401 - registers the pbvs tasks
+import taskflow_tasks.screw.mobile_pbvs  # noqa: F401 - registers the pbvs tasks
 from pydantic import ValidationError
 from taskflow_robots.mobile_iiwa import CameraParams, MobileIiwa
 from taskflow_sim.screw import scene as sc

@@ -90,7 +90,7 @@ def test_pose_mode_marker_latency_noise_and_lost_found_events():
         o = w.observe()
         m = o.sensors["marker"]
         assert o.t - m.stamp >= lat - 1e-9 and m.frame == "camera"
-        err = spatial.inverse(m.T_camera_object) @ w.true_H_co()
+        err = spatial.inverse(m.T_camera_object) @ w.true_T_camera_object()
         # the measurement is stale by its age: the part moved 50 mm/s x age relative to the camera
         assert np.linalg.norm(err[:3, 3]) < 0.05 * (o.t - m.stamp) + 0.002
     finally:
@@ -103,7 +103,7 @@ def test_rendered_mode_finds_the_marker_to_a_fraction_of_a_millimetre():
         run(w, 0.1)
         m = w.observe().sensors["marker"]
         assert m is not None
-        truth = w.true_H_co()  # nothing moves: the truth at capture is the truth now
+        truth = w.true_T_camera_object()  # nothing moves: the truth at capture is the truth now
         H = m.T_camera_object
         assert np.linalg.norm(truth[:3, 3] - H[:3, 3]) < 0.001
         assert spatial.rotation_angle(H[:3, :3] @ truth[:3, :3].T) < math.radians(0.2)

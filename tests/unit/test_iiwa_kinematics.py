@@ -115,6 +115,6 @@ def test_pybullet_and_pinocchio_tool_frames_agree_within_0_1_mm(robot):
                 worst = max(worst, float(np.linalg.norm(pb[:3, 3] - pn[:3, 3])))
                 assert spatial.rotation_angle(pb[:3, :3] @ pn[:3, :3].T) < 1e-5
         assert worst < 1e-4, f"worst tool-frame disagreement {worst * 1e3:.4f} mm"
-        np.testing.assert_allclose(k.frame_pose(np.zeros(7), "camera_optical"), robot.params.H_bc(), atol=1e-12)
+        np.testing.assert_allclose(k.frame_pose(np.zeros(7), "camera_optical"), robot.params.T_body_camera(), atol=1e-12)
     finally:
         p.disconnect(client)

@@ -11,17 +11,9 @@ from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_tasks.core import pbvs
 from taskflow_tasks.core.impedance import ImpedanceProfile
 from taskflow_tasks.core.pid import PidProfile
-from taskflow_tasks.screw.pbvs_tasks import (
-    ADMITTANCE,
-    PID_B,
-    Q_NOM,
-    ArmHome,
-    ArmParams,
-    HomeParams,
-    PbvsArm,
-    PbvsPlatform,
-    PlatformParams,
-)
+from taskflow_tasks.screw.data import ADMITTANCE, PID_B, Q_NOM
+from taskflow_tasks.screw.home import ArmHome, HomeParams
+from taskflow_tasks.screw.mobile_pbvs import ArmParams, PbvsArm, PbvsPlatform, PlatformParams
 
 from taskflow import spatial
 from taskflow.api import Observation
@@ -43,7 +35,7 @@ def obs(t: float, H_co: np.ndarray, q: np.ndarray, force=(0.0, 0.0, 0.0)) -> Obs
 def marker_offset_along_base_x(H_co_star: np.ndarray, d: float) -> np.ndarray:
     """The marker seen ``d`` metres off its target along the platform's x: ``E_co = T(R_cb (d, 0, 0))``,
     so the camera error vector in the base frame (eqs. 25–32) is exactly ``[0, 0, 0, d, 0, 0]``."""
-    R_bc = ROBOT.params.H_bc()[:3, :3]
+    R_bc = ROBOT.params.T_body_camera()[:3, :3]
     H = H_co_star.copy()
     H[:3, 3] += R_bc.T @ np.array([d, 0.0, 0.0])
     return H
@@ -58,7 +50,7 @@ def test_platform_pid_integrates_the_control_period_at_40_hz():
     H_co = marker_offset_along_base_x(params.camera_target.matrix(), 0.01)
     q = np.array(ROBOT.params.q_home)
     np.testing.assert_allclose(pbvs.camera_error_vector(H_co @ spatial.inverse(params.camera_target.matrix()),
-                                                        ROBOT.params.H_bc()[:3, :3]), [0, 0, 0, 0.01, 0, 0], atol=1e-12)
+                                                        ROBOT.params.T_body_camera()[:3, :3]), [0, 0, 0, 0.01, 0, 0], atol=1e-12)
     for k in range(1, 4):
         r = task.step(obs(k * DT, H_co, q))
         # ∫e dt grows by e · 0.025 s per tick, from the first tick on (1 cm error → 0.25 mm·s per tick)
