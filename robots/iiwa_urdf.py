@@ -72,7 +72,7 @@ def _shape(link: ET.Element, tag: str, geom: str, xyz: tuple[float, float, float
            **attrs: str) -> None:
     el = ET.SubElement(link, tag)
     _origin(el, xyz, (0.0, 0.0, 0.0))
-    g = ET.SubElement(ET.SubElement(el, "geometry"), geom, **attrs)
+    g = ET.SubElement(ET.SubElement(el, "geometry"), geom, attrs)
     del g
     if rgba is not None and tag == "visual":
         mat = ET.SubElement(el, "material", name=f"{link.get('name')}_{geom}_{len(link)}")
@@ -188,16 +188,19 @@ class IiwaKinematics:
     def frame_pose(self, q: NDArray[np.float64], frame: str) -> NDArray[np.float64]:
         pin = self._pin
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=np.float64))
-        return self.data.oMf[self.model.getFrameId(frame)].homogeneous.copy()
+        T: NDArray[np.float64] = self.data.oMf[self.model.getFrameId(frame)].homogeneous.copy()
+        return T
 
     def fk(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         pin = self._pin
         pin.framesForwardKinematics(self.model, self.data, q)
-        return self.data.oMf[self.frame_id].homogeneous.copy()
+        T: NDArray[np.float64] = self.data.oMf[self.frame_id].homogeneous.copy()
+        return T
 
     def jacobian(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         J = self._pin.computeFrameJacobian(self.model, self.data, q, self.frame_id, self._lwa)
-        return J[self._swap]
+        J_swapped: NDArray[np.float64] = J[self._swap]
+        return J_swapped
 
     def fk_jacobian(self, q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         pin = self._pin

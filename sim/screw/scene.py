@@ -153,7 +153,7 @@ def _box(client: int, half: tuple[float, float, float], pos: tuple[float, float,
          collide: bool = True) -> int:
     col = p.createCollisionShape(p.GEOM_BOX, halfExtents=list(half), physicsClientId=client) if collide else -1
     vis = p.createVisualShape(p.GEOM_BOX, halfExtents=list(half), rgbaColor=list(rgba), physicsClientId=client)
-    return p.createMultiBody(0.0, col, vis, basePosition=list(pos), physicsClientId=client)
+    return int(p.createMultiBody(0.0, col, vis, basePosition=list(pos), physicsClientId=client))
 
 
 @dataclass

@@ -106,7 +106,7 @@ def summary_metrics(log: OperationLog, bolts_on_part: int, ground_truth: Mapping
         for name, arr, scale, unit in (("err_t", ts, 1e3, "mm"), ("err_r", rs, 180.0 / math.pi, "deg")):
             for stat, fn in (("min", np.min), ("max", np.max), ("mean", np.mean)):
                 out[f"{group}_{name}_{stat}_{unit}"] = float(fn(arr) * scale) if len(arr) else None
-    times = [ops[i].screwing_s for i in fastened]
+    times = [s for i in fastened if (s := ops[i].screwing_s) is not None]  # every fastened operation has one
     out["screwing_time_mean_s"] = float(np.mean(times)) if times else None
     if ground_truth is not None:
         out["final_base_speed_mps"] = ground_truth["base_speed"]

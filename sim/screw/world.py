@@ -66,7 +66,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel
 from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_sim.core.faults import IntervalFault
-from taskflow_sim.core.stepped import SteppedWorld, check_command
+from taskflow_sim.core.stepped import Scene, SteppedWorld, check_command
 from taskflow_sim.ground.ground_plane import connect
 from taskflow_sim.screw import scene as sc
 from taskflow_sim.screw import scoring
@@ -95,7 +95,7 @@ def nominal_platform(part: tuple[float, float, float]) -> tuple[float, float, fl
 
 
 @register_world("screw_conveyor")
-class ScrewConveyor(SteppedWorld):
+class ScrewConveyor(SteppedWorld[Scene]):  # the PyBullet client is self.client (self.scene stays None)
     """The mobile iiwa fastening the bolts of a part carried by a conveyor or a trolley."""
 
     Params: ClassVar[type[ScrewWorldParams]] = ScrewWorldParams

@@ -10,8 +10,9 @@ from pydantic import BaseModel, Field
 from taskflow_tasks.core.impedance import AdmittanceState
 from taskflow_tasks.screw.data import ADMITTANCE, Q_NOM, Q_REF, Q, control_period
 
-from taskflow.api import MemoryKey, Metric, Observation, Requires, StepResult, StrictModel, Task, TaskContext
+from taskflow.api import MemoryKey, Metric, Observation, StepResult, StrictModel, Task, TaskContext
 from taskflow.registry import register_task
+from taskflow.specs import Requires
 
 
 class HomeParams(StrictModel):

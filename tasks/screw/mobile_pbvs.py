@@ -63,7 +63,6 @@ from taskflow.api import (
     ROTATION_ANGLE,
     MemoryKey,
     Observation,
-    Requires,
     StepResult,
     StrictModel,
     Task,
@@ -71,6 +70,7 @@ from taskflow.api import (
 )
 from taskflow.registry import register_task
 from taskflow.spatial import inverse
+from taskflow.specs import Requires
 
 RELAX_TAU = 0.1  # s: a state without an impedance set lets the compliance offset decay with this time constant
 _ZERO3 = np.zeros(3)
