@@ -107,7 +107,7 @@ def law_costs(repeat: int = 7, number: int = 2000) -> dict[str, float]:
     """µs per call: eq. 19–26 + eq. 5 (visual tick, kinematic tick) and the whole task step."""
     robot = Racecar(Racecar.Params())
     rp = robot.params
-    T = rp.rear_camera.T_robot_camera()
+    T = rp.rear_camera.T_body_camera()
     K = (rp.rear_camera.focal_px(),) * 2 + (320.0, 179.0)
     kw = dict(intrinsics=K, T_robot_camera=T, lam=np.array([0.85, 1.05, 1.0, 1.0, 1.0]), k1=np.array([1.0, 2.0]), d=rp.wheelbase,
               wheelbase=rp.wheelbase, v_max=rp.v_max, psi_max=rp.psi_max)

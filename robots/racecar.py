@@ -43,13 +43,13 @@ class Mount(StrictModel):
                              f"got xyz {list(self.xyz)}, rpy {list(self.rpy)}")
         return self
 
-    def R_robot_mount(self) -> NDArray[np.float64]:
-        """Rotation robot ← sensor body frame."""
+    def R_body_mount(self) -> NDArray[np.float64]:
+        """``R_body_mount``: rotation robot body ← sensor body frame."""
         return rotation_from_rpy(*self.rpy)
 
-    def T_robot_mount(self) -> NDArray[np.float64]:
-        """4x4 homogeneous transform robot ← sensor body frame."""
-        return transform(self.R_robot_mount(), self.xyz)
+    def T_body_mount(self) -> NDArray[np.float64]:
+        """``T_body_mount``: 4x4 pose of the sensor body frame in the robot body frame."""
+        return transform(self.R_body_mount(), self.xyz)
 
 
 class CameraMount(Mount):
@@ -78,8 +78,9 @@ class CameraMount(Mount):
             raise ValueError(f"the far clip plane ({self.far} m) must lie beyond the near one ({self.near} m)")
         return self
 
-    def T_robot_camera(self) -> NDArray[np.float64]:
-        """4x4 transform robot ← camera optical frame (x right, y down, z along the view, OpenCV).
+    def T_body_camera(self) -> NDArray[np.float64]:
+        """``T_body_camera``: 4x4 pose of the camera optical frame (x right, y down, z along the view,
+        OpenCV) in the robot body frame — the camera mount's one name on every robot.
 
         This is the ``(^r R_c, ^r t_c)`` of the paper's eqs. (22)–(23).
         """

@@ -55,7 +55,7 @@ class CameraModel:
 
     def T_robot_camera(self) -> NDArray[np.float64]:
         """Robot ← optical frame (4x4)."""
-        return self.mount.T_robot_camera()
+        return self.mount.T_body_camera()
 
     def pose(self, T_world_robot: NDArray[np.float64]) -> NDArray[np.float64]:
         """World ← optical frame for a robot pose ``T_world_robot`` (4x4)."""

@@ -67,7 +67,7 @@ class LidarScanner:
             return
         self.next_scan = t + 1.0 / self.mount.rate_hz
         t0 = time.perf_counter()
-        T_world_lidar = T_world_robot @ self.mount.T_robot_mount()
+        T_world_lidar = T_world_robot @ self.mount.T_body_mount()
         R, o = T_world_lidar[:3, :3], T_world_lidar[:3, 3]
         rng = self.mount.max_range
         ends = o + (self._dirs @ R.T) * rng
@@ -92,7 +92,7 @@ class RenderedPerception:
         if lidar is not None:
             # numpy's general (LU) inverses here, not spatial.inverse: the closed form differs in the last bits
             # (kept so the rendered runs' records stay the same)
-            T_camera_lidar = np.linalg.inv(camera.T_robot_camera()) @ lidar.mount.T_robot_mount()
+            T_camera_lidar = np.linalg.inv(camera.T_robot_camera()) @ lidar.mount.T_body_mount()
             self._mask = blind_spot_mask(T_camera_lidar, camera.intrinsics, camera.width, camera.height,
                                          lidar_height=lidar.mount.xyz[2], lowest_beam=lidar.mount.v_fov[0])
         self.render_s = 0.0

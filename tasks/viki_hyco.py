@@ -217,7 +217,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         self.p = params
         self.camera = params.camera
         mount = rp.front_camera if params.camera == "front" else rp.rear_camera
-        self.T_robot_camera = mount.T_robot_camera()
+        self.T_robot_camera = mount.T_body_camera()
         # camera twist of a robot velocity [v, w] (eq. 20-22): V_c = T_r^c J_r V_r, for the figures
         self._cam_twist = twist_adjoint_inverse(self.T_robot_camera) @ car_jacobian_r()
         self.lam = np.asarray(gains.lam, dtype=float)

@@ -5,7 +5,7 @@ Pure numpy.  The control laws themselves live in :mod:`taskflow_tasks.car_visual
 (eq. 1–5); :func:`viki_velocity` chains them for one control tick.
 
 Frames: robot frame = rear-axle midpoint on the ground, x forward, y left, z up; camera frame = OpenCV
-optical frame; ``T_robot_camera`` (4x4) = robot ← camera (``CameraMount.T_robot_camera()``).  Odometry pose
+optical frame; ``T_robot_camera`` (4x4) = robot ← camera (``CameraMount.T_body_camera()``).  Odometry pose
 ``(x, y, theta)`` of the rear-axle midpoint.
 
 Where the desired features come from (as meant, not printed in the paper)

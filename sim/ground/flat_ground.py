@@ -19,9 +19,9 @@ from typing import Any, ClassVar, cast
 import numpy as np
 import pybullet as p
 from pydantic import BaseModel, Field, model_validator
-from taskflow_sim.ground.ground_plane import add_floor, connect
 from taskflow_sim.core.bodies import BodyOptions, GroundBody, make_body
 from taskflow_sim.core.stepped import SteppedWorld, check_command
+from taskflow_sim.ground.ground_plane import add_floor, connect
 
 from taskflow.api import Command, Marker, Observation, Robot, RobotNeeds, StrictModel
 from taskflow.registry import register_world

@@ -14,7 +14,7 @@ FLOOR_THICKNESS = 0.02
 
 def connect(gui: bool, physics_hz: float) -> int:
     """A new PyBullet client (DIRECT, or GUI) with gravity and a fixed time step ``1 / physics_hz``."""
-    client = p.connect(p.GUI if gui else p.DIRECT)
+    client: int = p.connect(p.GUI if gui else p.DIRECT)
     if client < 0:
         raise RuntimeError("pybullet.connect failed (a second GUI client is not allowed)")
     p.resetSimulation(physicsClientId=client)
@@ -36,7 +36,7 @@ def add_floor(
     half = [half_size, half_size, 0.5 * FLOOR_THICKNESS]
     col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=client)
     vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=list(rgba), physicsClientId=client)
-    floor = p.createMultiBody(
+    floor: int = p.createMultiBody(
         baseMass=0.0,
         baseCollisionShapeIndex=col,
         baseVisualShapeIndex=vis,

@@ -34,9 +34,9 @@ import pybullet_data
 from numpy.typing import NDArray
 from taskflow_robots.husky import Husky
 from taskflow_sim.core.bodies import BodyOptions, GroundBody
+from taskflow_sim.ground.base_frame import BaseFrame, Frame
 
 from taskflow.api import Command, Robot
-from taskflow.spatial import yaw_from_quaternion
 
 URDF = os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf")
 LEFT = ("front_left_wheel", "rear_left_wheel")
@@ -89,17 +89,14 @@ class HuskyBody(GroundBody):
             raise ValueError(f"{URDF}: joints {missing} not found; has {sorted(joints)}")
         self.joints = joints
         self.wheels = [joints[w] for w in LEFT + RIGHT]
-        dyn = p.getDynamicsInfo(self.uid, -1, physicsClientId=client)
-        self._inertial = (tuple(dyn[3]), tuple(dyn[4]))  # base frame → inertial frame
-        self._inertial_inv = p.invertTransform(*self._inertial)
+        self.base = BaseFrame(client, self.uid)
         for j in joints.values():
             p.setJointMotorControl2(self.uid, j, p.VELOCITY_CONTROL, targetVelocity=0.0, force=0.0,
                                     physicsClientId=client)
         for j in self.wheels:
             p.changeDynamics(self.uid, j, lateralFriction=self.options.friction, physicsClientId=client)
         x, y, yaw = (float(s) for s in pose)
-        pos, q = p.multiplyTransforms([x, y, 0.0], p.getQuaternionFromEuler([0.0, 0.0, yaw]), *self._inertial)
-        p.resetBasePositionAndOrientation(self.uid, pos, q, physicsClientId=client)
+        self.base.place(x, y, yaw)
         self._cmd = self._ramp = self._act = (0.0, 0.0)
         self._send()
 
@@ -131,21 +128,15 @@ class HuskyBody(GroundBody):
                                     forces=[rp.wheel_torque] * 4, physicsClientId=self.client)
 
     # --- ground truth --------------------------------------------------------------------------
-    def _base_frame(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        com_pos, com_q = p.getBasePositionAndOrientation(self.uid, physicsClientId=self.client)
-        return p.multiplyTransforms(com_pos, com_q, *self._inertial_inv)
-
     def pose(self) -> NDArray[np.float64]:
-        pos, q = self._base_frame()
-        return np.array([pos[0], pos[1], yaw_from_quaternion(q)])
+        return self.base.pose()
 
     def twist(self) -> NDArray[np.float64]:
-        lin, ang = p.getBaseVelocity(self.uid, physicsClientId=self.client)
-        com_pos, _ = p.getBasePositionAndOrientation(self.uid, physicsClientId=self.client)
-        pos, q = self._base_frame()
-        vel = np.asarray(lin) + np.cross(ang, np.subtract(pos, com_pos))
-        yaw = yaw_from_quaternion(q)
-        return np.array([float(vel[0] * math.cos(yaw) + vel[1] * math.sin(yaw)), float(ang[2])])
+        return np.array(self.base.twist())
+
+    def _base_frame(self) -> Frame:
+        """``(position, quaternion)`` of the base frame (the ViKi-HyCo scene mounts its sensors on it)."""
+        return self.base.frame()
 
     def proprioception(self) -> dict[str, Any]:
         v, w = self.twist()

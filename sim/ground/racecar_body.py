@@ -35,8 +35,7 @@ from taskflow_robots.racecar_kinematics import (
     bicycle_from_wheel_angles,
     differential_wheel_speeds,
 )
-
-from taskflow.spatial import yaw_from_quaternion
+from taskflow_sim.ground.base_frame import BaseFrame, Frame
 
 URDF = os.path.join(pybullet_data.getDataPath(), "racecar", "racecar.urdf")
 
@@ -109,9 +108,7 @@ class RacecarBody:
         missing = [n for n in REAR_WHEELS + HINGES + FRONT_WHEELS if n not in self.joints]
         if missing:
             raise ValueError(f"{URDF}: joints {missing} not found; has {sorted(self.joints)}")
-        dyn = p.getDynamicsInfo(self.body, -1, physicsClientId=client)
-        self._inertial = (tuple(dyn[3]), tuple(dyn[4]))  # base frame → inertial frame
-        self._inertial_inv = p.invertTransform(*self._inertial)
+        self.base = BaseFrame(client, self.body)
         self.geometry = self._read_geometry()
         for j in self.joints.values():
             p.setJointMotorControl2(
@@ -154,9 +151,7 @@ class RacecarBody:
 
     def set_pose(self, x: float, y: float, yaw: float) -> None:
         """Teleport the base frame (rear-axle midpoint on the ground) to ``(x, y, yaw)``, at rest."""
-        orn = p.getQuaternionFromEuler([0.0, 0.0, yaw])
-        pos, q = p.multiplyTransforms([x, y, 0.0], orn, *self._inertial)
-        p.resetBasePositionAndOrientation(self.body, pos, q, physicsClientId=self.client)
+        self.base.place(x, y, yaw)
         p.resetBaseVelocity(self.body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=self.client)
         for j in self.joints.values():
             p.resetJointState(self.body, j, 0.0, 0.0, physicsClientId=self.client)
@@ -206,23 +201,16 @@ class RacecarBody:
 
     # --- state (ground truth) ------------------------------------------------------------------
     def pose(self) -> NDArray[np.float64]:
-        """Ground-truth ``[x, y, yaw]`` of the base frame (rear-axle midpoint)."""
-        pos, q = self._base_frame()
-        return np.array([pos[0], pos[1], yaw_from_quaternion(q)])
+        """Ground-truth ``(x, y, yaw)`` of the base frame (rear-axle midpoint on the ground)."""
+        return self.base.pose()
 
-    def _base_frame(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        com_pos, com_q = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-        return p.multiplyTransforms(com_pos, com_q, *self._inertial_inv)
+    def _base_frame(self) -> Frame:
+        """``(position, quaternion)`` of the base frame (the ViKi-HyCo scene mounts its sensors on it)."""
+        return self.base.frame()
 
     def speed(self) -> float:
         """Ground-truth signed forward speed (m/s) of the base frame along its heading."""
-        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.client)
-        com_pos, _ = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-        pos, q = self._base_frame()
-        r = np.subtract(pos, com_pos)
-        vel = np.asarray(lin) + np.cross(ang, r)
-        yaw = yaw_from_quaternion(q)
-        return float(vel[0] * math.cos(yaw) + vel[1] * math.sin(yaw))
+        return self.base.twist()[0]
 
     def steering(self) -> float:
         """Measured bicycle-equivalent steering angle (rad) from the two hinge joint angles."""

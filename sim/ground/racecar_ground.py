@@ -27,7 +27,7 @@ class RacecarGround(GroundBody):
 
     def __init__(self, robot: Robot, options: BodyOptions) -> None:
         super().__init__(robot, options)
-        rp = robot.params
+        rp = self.robot.params
         self.actuation = Actuation(v_max=rp.v_max, psi_max=rp.psi_max, speed_tau=options.speed_tau,
                                    steer_tau=options.steer_tau)
 

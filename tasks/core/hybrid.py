@@ -45,9 +45,9 @@ def smooth_velocity(v_new: ArrayLike, v_prev: ArrayLike) -> NDArray[np.float64]:
     ``v_prev`` is the command applied on the previous tick (this function's previous output).
     Never amplifies (``|out| <= |v_new|``) and never flips a sign.
     """
-    a = np.asarray(v_new, dtype=float)
-    b = np.asarray(v_prev, dtype=float)
+    a = np.asarray(v_new, dtype=np.float64)
+    b = np.asarray(v_prev, dtype=np.float64)
     if a.shape != b.shape:
         raise ValueError(f"v_new and v_prev must have the same shape, got {a.shape} and {b.shape}")
-    factor = np.maximum(1.0 - np.abs(a - b), 0.0)  # <= 1 by construction
+    factor: NDArray[np.float64] = np.maximum(1.0 - np.abs(a - b), 0.0)  # <= 1 by construction
     return factor * a

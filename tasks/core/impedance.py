@@ -33,26 +33,11 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import ValidationInfo, field_validator
+from taskflow_tasks.core.gains import axis_gains
 
 from taskflow.api import StrictModel
 
-
-def _three(name: str, v: object, *, positive: bool, nonneg: bool) -> tuple[float, float, float]:
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        v = [v, v, v]
-    if not isinstance(v, (list, tuple)) or len(v) != 3:
-        n = len(v) if isinstance(v, (list, tuple)) else type(v).__name__
-        raise ValueError(f"{name} needs 3 values (tool x, y, z) or one number for all three, got {n}")
-    out = []
-    for x in v:
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(float(x)):
-            raise ValueError(f"{name} values must be finite numbers, got {x!r}")
-        if positive and float(x) <= 0.0:
-            raise ValueError(f"{name} must be > 0 on every axis, got {x!r}")
-        if nonneg and float(x) < 0.0:
-            raise ValueError(f"{name} must be >= 0 on every axis, got {x!r}")
-        out.append(float(x))
-    return (out[0], out[1], out[2])
+TOOL_AXES = ("x", "y", "z")
 
 
 class ImpedanceProfile(StrictModel):
@@ -77,7 +62,8 @@ class ImpedanceProfile(StrictModel):
     @classmethod
     def _xyz(cls, v: object, info: ValidationInfo) -> tuple[float, float, float]:
         name, positive, nonneg = cls._RULES[str(info.field_name)]
-        return _three(name, v, positive=positive, nonneg=nonneg)
+        x, y, z = axis_gains(name, v, TOOL_AXES, positive=positive, nonneg=nonneg, broadcast=True)
+        return (x, y, z)
 
     def arrays(self) -> ImpedanceGains:
         return ImpedanceGains(np.array(self.K), np.array(self.D), np.array(self.M), np.array(self.force))
@@ -85,6 +71,8 @@ class ImpedanceProfile(StrictModel):
 
 @dataclass(frozen=True)
 class ImpedanceGains:
+    """:class:`ImpedanceProfile` as arrays (tool x, y, z)."""
+
     K: NDArray[np.float64]
     D: NDArray[np.float64]
     M: NDArray[np.float64]

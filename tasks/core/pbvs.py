@@ -152,9 +152,11 @@ def dls_solve(J: Array, V: Array, damping: float) -> Array:
     A = J @ J.T
     if damping > 0.0:
         A = A + (damping * damping) * _EYE6
+    x: Array
     _, x, info = _dposv(A, V)  # Cholesky solve: J Jᵀ + λ² I is symmetric positive definite
     if info != 0:  # singular without damping: fall back to least squares
-        return J.T @ np.linalg.lstsq(A, V, rcond=None)[0]
+        y = np.linalg.lstsq(A, V, rcond=None)[0]
+        return J.T @ y.astype(np.float64, copy=False)  # already float64: no copy
     return J.T @ x
 
 

@@ -28,33 +28,13 @@ from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import field_validator
+from pydantic import ValidationInfo, field_validator
+from taskflow_tasks.core.gains import axis_gains
 
 from taskflow.api import StrictModel
 
 AXES = ("wx", "wy", "wz", "vx", "vy", "vz")
 N_AXES = 6
-
-
-def _six(name: str, value: object, *, positive: bool = False, allow_inf: bool = False) -> tuple[float, ...]:
-    """A per-axis gain vector: exactly six finite numbers ≥ 0 (> 0 with ``positive``)."""
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        raise ValueError(f"{name} needs 6 values, one per axis ({' '.join(AXES)}), got the single number {value}")
-    if not isinstance(value, (list, tuple)):
-        raise ValueError(f"{name} needs a list of 6 numbers ({' '.join(AXES)}), got {type(value).__name__}")
-    if len(value) != N_AXES:
-        raise ValueError(f"{name} needs 6 values, one per axis ({' '.join(AXES)}), got {len(value)}")
-    out = []
-    for v in value:
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ValueError(f"{name} values must be numbers, got {v!r}")
-        f = float(v)
-        if math.isnan(f) or (math.isinf(f) and not allow_inf):
-            raise ValueError(f"{name} values must be finite, got {v!r}")
-        if f < 0.0 or (positive and f == 0.0):
-            raise ValueError(f"{name} values must be {'> 0' if positive else '>= 0'}, got {v!r}")
-        out.append(f)
-    return tuple(out)
 
 
 class PidProfile(StrictModel):
@@ -77,18 +57,18 @@ class PidProfile(StrictModel):
 
     @field_validator("kp", "ki", "kd", mode="before")
     @classmethod
-    def _gains(cls, v: object, info) -> tuple[float, ...]:  # type: ignore[no-untyped-def]
-        return _six(info.field_name, v)
+    def _gains(cls, v: object, info: ValidationInfo) -> tuple[float, ...]:
+        return axis_gains(str(info.field_name), v, AXES)
 
     @field_validator("u_max", mode="before")
     @classmethod
     def _umax(cls, v: object) -> tuple[float, ...]:
-        return _six("u_max", v, positive=True, allow_inf=True)
+        return axis_gains("u_max", v, AXES, positive=True, allow_inf=True)
 
     @field_validator("i_limit", mode="before")
     @classmethod
     def _ilim(cls, v: object) -> tuple[float, ...]:
-        return _six("i_limit", v, allow_inf=True)
+        return axis_gains("i_limit", v, AXES, allow_inf=True)
 
     @field_validator("d_tau")
     @classmethod
@@ -125,7 +105,9 @@ class PidGains:
            u_max: float | list[float] = math.inf, i_limit: float | list[float] = math.inf,
            d_tau: float = 0.0) -> PidGains:
         """Convenience for tests and scripts: scalars broadcast to all six axes."""
-        f = lambda v: np.broadcast_to(np.asarray(v, dtype=np.float64), (N_AXES,)).copy()
+        def f(v: float | list[float]) -> NDArray[np.float64]:
+            return np.broadcast_to(np.asarray(v, dtype=np.float64), (N_AXES,)).copy()
+
         return PidGains(f(kp), f(ki), f(kd), f(u_max), f(i_limit), float(d_tau))
 
 

@@ -18,10 +18,12 @@ import math
 from typing import ClassVar
 
 from pydantic import BaseModel
+from taskflow_tasks.core.keys import MARKER, WRENCH
 
-from taskflow.api import AGE, FORCE, Observation, ObsSpec, StepResult, StrictModel, Task, TaskContext, message
+from taskflow.api import AGE, FORCE, Observation, StepResult, StrictModel, Task, TaskContext
 from taskflow.messages import MarkerPose, Wrench
 from taskflow.registry import register_task
+from taskflow.specs import Requires
 
 
 class MonitorParams(StrictModel):
@@ -42,18 +44,17 @@ def marker_age(t: float, marker: MarkerPose | None, since: float) -> float:
 
 
 @register_task("contact_monitor")
-class ContactMonitor(Task[MonitorParams, None]):
+class ContactMonitor(Task[MonitorParams, BaseModel]):  # no robot parameters (ctx.robot_params is None)
     """Watches the wrist F/T sensor and the marker; commands nothing (``command_interface`` empty)."""
 
     Params: ClassVar[type[BaseModel]] = MonitorParams
     metrics: ClassVar[dict[str, str]] = {"tool_force": FORCE, "marker_age": AGE}
-    requires: ClassVar[dict[str, ObsSpec]] = {"sensors.wrench": message(Wrench), "sensors.marker": message(MarkerPose)}
+    requires: ClassVar[Requires] = (WRENCH, MARKER)
 
-    def __init__(self, ctx: TaskContext[MonitorParams, None]) -> None:
+    def __init__(self, ctx: TaskContext[MonitorParams, BaseModel]) -> None:
         super().__init__(ctx)
         self.started = ctx.t
 
     def step(self, obs: Observation) -> StepResult:
-        sensors = obs.sensors
-        return StepResult({}, {"tool_force": force_magnitude(sensors.get("wrench")),
-                               "marker_age": marker_age(obs.t, sensors.get("marker"), self.started)})
+        return StepResult({}, {"tool_force": force_magnitude(WRENCH(obs)),
+                               "marker_age": marker_age(obs.t, MARKER(obs), self.started)})

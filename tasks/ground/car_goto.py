@@ -23,23 +23,18 @@ from typing import ClassVar, cast
 
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
-from taskflow_tasks.core.targets import PlanarTarget
+from taskflow_tasks.core.gains import positive_gains
+from taskflow_tasks.core.keys import POSE, SPEED
+from taskflow_tasks.core.targets import PlanarGoto, PlanarTarget
 from taskflow_tasks.ground.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 
 from taskflow.api import (
-    DISTANCE,
-    SPEED,
-    WRAPPED_ANGLE,
     ControlPoint,
     Observation,
-    ObsSpec,
     StepResult,
     StrictModel,
-    Task,
     TaskContext,
     TaskScene,
-    array,
-    scalar,
 )
 from taskflow.registry import register_task
 
@@ -54,8 +49,7 @@ class CarGains(StrictModel):
     @field_validator("k1")
     @classmethod
     def _positive(cls, k1: tuple[float, float]) -> tuple[float, float]:
-        if not all(math.isfinite(k) and k > 0.0 for k in k1):
-            raise ValueError(f"k1 gains must be finite and > 0, got {k1}")
+        positive_gains("k1", k1)
         return k1
 
 
@@ -79,27 +73,23 @@ class CarGotoParams(PlanarTarget):
 
 
 @register_task("car_goto")
-class CarGoto(Task[CarGotoParams, CarGeometry]):
+class CarGoto(PlanarGoto[CarGotoParams, CarGeometry]):
     """Kinematic controller of the ViKi-HyCo paper (eqs. 1–5) toward a fixed point."""
 
     Params: ClassVar[type[CarGotoParams]] = CarGotoParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": CarGains}
-    metrics: ClassVar[dict[str, str]] = {"pos_error": DISTANCE, "heading_error": WRAPPED_ANGLE, "speed": SPEED}
     command_interface: ClassVar[str] = "ackermann"
     robot_params: ClassVar[type[BaseModel]] = CarGeometry
-    requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}
 
     def __init__(self, ctx: TaskContext[CarGotoParams, CarGeometry]) -> None:
         super().__init__(ctx)
-        params, rp = ctx.params, ctx.robot_params
+        rp = ctx.robot_params
         gains = ctx.profile("gains", CarGains)
         self.wheelbase = rp.wheelbase
         self.v_max = rp.v_max
         self.psi_max = rp.psi_max
         self.k1 = np.asarray(gains.k1, dtype=np.float64)
         self.d = float(gains.d) if gains.d is not None else self.wheelbase
-        self.target_xy = np.asarray(params.target[:2], dtype=np.float64)
-        self.target_yaw = float(params.target[2]) if len(params.target) == 3 else None
         self.direction = 0.0  # sign of the last non-zero speed command (see car_command)
 
     @classmethod
@@ -109,7 +99,7 @@ class CarGoto(Task[CarGotoParams, CarGeometry]):
                          car_control_point(profiles.get("gains"), cast(CarGeometry, robot_params)))
 
     def step(self, obs: Observation) -> StepResult:
-        pose = np.asarray(obs.state["pose"], dtype=np.float64)
+        pose = np.asarray(POSE(obs), dtype=np.float64)
         v, w = kinematic_control(pose, self.target_xy, self.k1, self.d)
         v_cmd, psi = car_command(v, w, self.wheelbase, self.v_max, self.psi_max, self.direction)
         if v_cmd != 0.0:
@@ -124,5 +114,5 @@ class CarGoto(Task[CarGotoParams, CarGeometry]):
             heading = 0.0
         return StepResult(
             command={"v": np.array([v_cmd]), "steer": np.array([psi])},
-            metrics={"pos_error": dist, "heading_error": heading, "speed": abs(float(obs.state["v"]))},
+            metrics={"pos_error": dist, "heading_error": heading, "speed": abs(float(SPEED(obs)))},
         )

@@ -25,6 +25,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from taskflow_robots.racecar_kinematics import require_positive as _positive
 
+from taskflow.spatial import planar_apply
+
 FloatArray = NDArray[np.float64]
 
 # The vehicle's own model (Ackermann hinge angles, electronic differential) is the robot's: it lives in
@@ -49,9 +51,7 @@ def control_point(pose: ArrayLike, d: float) -> FloatArray:
     The point at distance ``d`` ahead of the rear-axle midpoint along the heading.  Its velocity under
     the unicycle model ``(x_dot, y_dot, theta_dot) = (v cos, v sin, w)`` is eq. (1): ``h_dot = J_b V``.
     """
-    x, y, th = _pose(pose)
-    d = _positive("d", d)
-    return np.array([x + d * math.cos(th), y + d * math.sin(th)])
+    return planar_apply(_pose(pose), (_positive("d", d), 0.0))  # h = T_world_body (d, 0)
 
 
 def car_jacobian_b(theta: float, d: float) -> FloatArray:
@@ -89,8 +89,9 @@ def kinematic_control(pose: ArrayLike, target_xy: ArrayLike, k1: ArrayLike, d: f
     if gains.shape != (2,) or not (math.isfinite(gains[0]) and math.isfinite(gains[1])) or min(gains) <= 0:
         raise ValueError(f"k1 must be a positive scalar or pair, got {k1!r}")
     c, s = math.cos(th), math.sin(th)
-    hx = float(gains[0]) * math.tanh(float(hd[0]) - (x + d * c))  # eq. (4): k1 tanh(h_d - h), eq. (1)
-    hy = float(gains[1]) * math.tanh(float(hd[1]) - (y + d * s))
+    h = control_point((x, y, th), d)  # eq. (1)
+    hx = float(gains[0]) * math.tanh(float(hd[0]) - float(h[0]))  # eq. (4): k1 tanh(h_d - h)
+    hy = float(gains[1]) * math.tanh(float(hd[1]) - float(h[1]))
     v = c * hx + s * hy  # J_b^-1 of eq. (2)
     w = (-s * hx + c * hy) / d
     return float(v), float(w)

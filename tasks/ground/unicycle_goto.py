@@ -32,21 +32,15 @@ from typing import ClassVar, cast
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
-from taskflow_tasks.core.targets import PlanarTarget
+from taskflow_tasks.core.keys import POSE, SPEED
+from taskflow_tasks.core.targets import PlanarGoto, PlanarTarget
 
 from taskflow.api import (
-    DISTANCE,
-    SPEED,
-    WRAPPED_ANGLE,
     Observation,
-    ObsSpec,
     StepResult,
     StrictModel,
-    Task,
     TaskContext,
     TaskScene,
-    array,
-    scalar,
 )
 from taskflow.registry import register_task
 from taskflow.spatial import wrap_angle
@@ -90,23 +84,19 @@ class UnicycleGotoParams(PlanarTarget):
 
 
 @register_task("unicycle_goto")
-class UnicycleGoto(Task[UnicycleGotoParams, UnicycleLimits]):
+class UnicycleGoto(PlanarGoto[UnicycleGotoParams, UnicycleLimits]):
     """Point regulation of a unicycle (Siciliano et al. 2009 §11.6.2; Aicardi et al. 1995)."""
 
     Params: ClassVar[type[UnicycleGotoParams]] = UnicycleGotoParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"gains": UnicycleGains}
-    metrics: ClassVar[dict[str, str]] = {"pos_error": DISTANCE, "heading_error": WRAPPED_ANGLE, "speed": SPEED}
     command_interface: ClassVar[str] = "unicycle"
-    requires: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar()}
     robot_params: ClassVar[type[BaseModel]] = UnicycleLimits
 
     def __init__(self, ctx: TaskContext[UnicycleGotoParams, UnicycleLimits]) -> None:
         super().__init__(ctx)
-        params, gains, rp = ctx.params, ctx.profile("gains", UnicycleGains), ctx.robot_params
+        gains, rp = ctx.profile("gains", UnicycleGains), ctx.robot_params
         self.v_max, self.w_max = float(rp.v_max), float(rp.w_max)
         self.k_rho, self.k_alpha = gains.k_rho, gains.k_alpha
-        self.target = np.asarray(params.target[:2], dtype=np.float64)
-        self.target_yaw = float(params.target[2]) if len(params.target) == 3 else None
 
     @classmethod
     def scene(cls, params: BaseModel, profiles: Mapping[str, BaseModel], robot_params: BaseModel | None) -> TaskScene:
@@ -114,9 +104,9 @@ class UnicycleGoto(Task[UnicycleGotoParams, UnicycleLimits]):
         return TaskScene((cast(UnicycleGotoParams, params).marker(),))
 
     def step(self, obs: Observation) -> StepResult:
-        pose = np.asarray(obs.state["pose"], dtype=np.float64)
-        v, w, rho, alpha = unicycle_point_law(pose, self.target, self.k_rho, self.k_alpha)
+        pose = np.asarray(POSE(obs), dtype=np.float64)
+        v, w, rho, alpha = unicycle_point_law(pose, self.target_xy, self.k_rho, self.k_alpha)
         v, w = saturate(v, w, self.v_max, self.w_max)
         heading = wrap_angle(self.target_yaw - float(pose[2])) if self.target_yaw is not None else alpha
         return StepResult(command={"v": np.array([v]), "w": np.array([w])},
-                          metrics={"pos_error": rho, "heading_error": heading, "speed": abs(float(obs.state["v"]))})
+                          metrics={"pos_error": rho, "heading_error": heading, "speed": abs(float(SPEED(obs)))})

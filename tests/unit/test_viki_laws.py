@@ -27,8 +27,8 @@ from taskflow_tasks.viki_laws import (
 
 RP = Racecar(Racecar.Params()).params
 K = (468.94, 468.94, 320.0, 179.0)
-T_REAR = RP.rear_camera.T_robot_camera()
-T_FRONT = RP.front_camera.T_robot_camera()
+T_REAR = RP.rear_camera.T_body_camera()
+T_FRONT = RP.front_camera.T_body_camera()
 LAM = np.array([0.85, 1.05, 1.0, 1.0, 1.0])
 KW = dict(intrinsics=K, T_robot_camera=T_REAR, lam=LAM, k1=np.array([1.0, 2.0]), d=RP.wheelbase, wheelbase=RP.wheelbase,
           v_max=RP.v_max, psi_max=RP.psi_max)

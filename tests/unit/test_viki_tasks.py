@@ -49,7 +49,7 @@ def test_a_detection_drives_eq24_toward_the_desired_box_and_selects_the_camera()
     assert r.sensors == ("rear_camera",) and set(r.command) == {"v", "steer"}
     assert r.metrics["detected"] == 1.0 and task.last.used_vs
     # desired centre: the object's measured base would be at the goal
-    T = RP.rear_camera.T_robot_camera()
+    T = RP.rear_camera.T_body_camera()
     _, rad, z_c = object_base(d.bbox, d.depth, K, T)
     c = desired_centre((-0.9, 0.0), rad, z_c, K, T)
     fd = task.last.f_d
@@ -224,7 +224,7 @@ def test_the_reported_camera_twist_is_the_derivative_of_the_camera_pose(camera):
     from taskflow import spatial
 
     task = make_task(camera=camera)
-    T_robot_camera = getattr(RP, f"{camera}_camera").T_robot_camera()
+    T_robot_camera = getattr(RP, f"{camera}_camera").T_body_camera()
     V = np.array([0.3, 0.8])
     h = 1e-6
 
@@ -266,7 +266,7 @@ def test_only_a_cut_box_still_gives_a_first_target():
 
 def test_goal_error_averages_the_whole_detections_near_the_current_view():
     task = make_task()
-    T = RP.rear_camera.T_robot_camera()
+    T = RP.rear_camera.T_body_camera()
     d1, d2 = det(0.0), det(0.05, bbox=(302.0, 110.0, 342.0, 190.0))
     B1, B2 = (object_base(d.bbox, d.depth, K, T)[0] for d in (d1, d2))
     r = task.step(obs(0.0, d1))
