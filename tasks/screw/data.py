@@ -5,7 +5,8 @@ Every :class:`~taskflow_tasks.screw.mobile_pbvs.MobilePbvs` task writes the PID,
 nominal-trajectory keys (each starts from what is there, or from zero), so a state change switches
 gains and set-points, not the controllers' memory (the platform keeps the integral that carries it
 along with the part); :class:`~taskflow_tasks.screw.home.ArmHome` writes the arm's.  The part-motion
-predictor's whole state is one object under :data:`PREDICTOR`.
+predictor's whole state is one object under :data:`PREDICTOR`.  The marker and wrench keys are the
+shared laws' (:mod:`taskflow_tasks.core.keys`); the mobile iiwa's own state keys are here.
 """
 
 from __future__ import annotations
@@ -20,7 +21,6 @@ from taskflow_tasks.core.pid import PidState
 from taskflow_tasks.screw.prediction import MotionPredictor
 
 from taskflow.api import MemoryKey, ObsKey, TaskContext, array, instance
-from taskflow.messages import MarkerPose, Wrench
 
 PID_B: MemoryKey[PidState] = MemoryKey("screw.pid_b", instance(PidState), output=False,
                                        doc="platform PID state (eqs. 25-33)")
@@ -37,8 +37,6 @@ PREDICTOR: MemoryKey[MotionPredictor] = MemoryKey(
 ODOM: ObsKey[NDArray[np.float64]] = ObsKey("state.odom", array(3))
 Q: ObsKey[NDArray[np.float64]] = ObsKey("state.q", array(7))
 Q_REF: ObsKey[NDArray[np.float64]] = ObsKey("state.q_ref", array(7))
-MARKER = ObsKey("sensors.marker", MarkerPose, optional=True)
-WRENCH = ObsKey("sensors.wrench", Wrench, optional=True)
 
 
 def control_period(ctx: TaskContext[Any, Any], name: str) -> float:

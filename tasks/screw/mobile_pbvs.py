@@ -41,17 +41,16 @@ from taskflow_robots.iiwa_urdf import IiwaKinematics
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
 from taskflow_tasks.core import pbvs
 from taskflow_tasks.core.impedance import AdmittanceState, ImpedanceProfile, admittance_step
+from taskflow_tasks.core.keys import MARKER, WRENCH
 from taskflow_tasks.core.pid import PidProfile, PidState, pid_step
 from taskflow_tasks.screw.data import (
     ADMITTANCE,
-    MARKER,
     ODOM,
     PID_A,
     PID_B,
     PREDICTOR,
     Q_NOM,
     Q_REF,
-    WRENCH,
     Q,
     control_period,
 )

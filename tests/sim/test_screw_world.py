@@ -335,3 +335,21 @@ def test_safe_stop_brings_the_platform_and_the_arm_to_rest_from_full_speed():
         assert w.ground_truth()["base_speed"] > 0.1
     finally:
         w.close()
+
+
+def test_the_sensors_are_declared_streams_and_observe_is_pure():
+    """The marker camera and the F/T sensor are the world's declared streams (sim/screw/sensors.py); two
+    observe() calls in a row return equal observations and change nothing (no capture, no noise draw)."""
+    w = make()
+    try:
+        assert set(w.streams) == {"marker", "wrench"}
+        run(w, 0.3)
+        a, b = w.observe(), w.observe()
+        assert a.t == b.t and a.events == b.events
+        assert a.sensors["marker"] is b.sensors["marker"] and a.sensors["marker"] is not None
+        np.testing.assert_array_equal(a.sensors["wrench"].force, b.sensors["wrench"].force)
+        for key in a.state:
+            np.testing.assert_array_equal(a.state[key], b.state[key])
+        assert w.marker.captured > 0 and w.wrench.delivered > 0
+    finally:
+        w.close()
