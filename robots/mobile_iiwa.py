@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import ConfigDict, Field, field_validator, model_validator
+from pydantic import ConfigDict, Field, ValidationInfo, field_validator, model_validator
 from taskflow_robots.camera import focal_px, tinyrenderer_K
 from taskflow_robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
 
@@ -88,16 +88,17 @@ class Pose(StrictModel):
 
     @field_validator("xyz", "rpy", mode="before")
     @classmethod
-    def _three(cls, v: object, info) -> Vec3:  # type: ignore[no-untyped-def]
-        return _finite3(info.field_name, v)
+    def _three(cls, v: object, info: ValidationInfo) -> Vec3:
+        return _finite3(str(info.field_name), v)
 
     def matrix(self) -> NDArray[np.float64]:
         """``T_parent_frame`` of this pose (4x4)."""
         return transform_from_xyz_rpy(self.xyz, self.rpy)
 
     @classmethod
-    def from_matrix(cls, H: NDArray[np.float64]) -> Pose:
-        return cls(xyz=tuple(float(x) for x in H[:3, 3]), rpy=rpy_from_rotation(H[:3, :3]))  # type: ignore[arg-type]
+    def from_matrix(cls, T: NDArray[np.float64]) -> Pose:
+        """The pose of a 4x4 ``T_parent_frame``."""
+        return cls(xyz=(float(T[0, 3]), float(T[1, 3]), float(T[2, 3])), rpy=rpy_from_rotation(T[:3, :3]))
 
 
 class CameraParams(StrictModel):
