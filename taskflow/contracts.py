@@ -90,7 +90,7 @@ def task_problem(task: type[Task], robot: type[Robot], world: type[World]) -> Pr
         return (f"task {task.name!r} commands the {task.command_interface!r} interface but robot {robot.name!r} "
                 f"takes {interface_label(robot)}",
                 f"tasks for {robot.command_interface!r}: {', '.join(drivers) or '(none)'}")
-    geometry = robot_params_problem(task, robot)
+    geometry = robot_params_problem(task, robot) or kinematics_problem(task, robot)
     if geometry is not None:
         return geometry
     have = provided(robot, world)
@@ -140,6 +140,17 @@ def robot_params_problem(task: type[Task], robot: type[Robot]) -> Problem | None
     fits = _names_where(ROBOTS, lambda r: not _robot_params_misfit(task, r))
     return (f"task {task.name!r} reads robot parameters {', '.join(model.model_fields)} ({model.__name__}); robot "
             f"{robot.name!r} {' and '.join(why)}", f"robots that have them: {', '.join(fits) or '(none)'}")
+
+
+def kinematics_problem(task: type[Task], robot: type[Robot]) -> Problem | None:
+    """Why ``robot`` cannot give ``task`` the kinematics it computes with (None: it can, or the task needs none)."""
+    need = task.kinematics
+    have = robot.kinematics_model
+    if need is None or (have is not None and issubclass(have, need)):
+        return None
+    fits = _names_where(ROBOTS, lambda r: r.kinematics_model is not None and issubclass(r.kinematics_model, need))
+    return (f"task {task.name!r} computes with {need.__name__} kinematics; robot {robot.name!r} provides "
+            f"{have.__name__ if have is not None else 'none'}", f"robots that provide them: {', '.join(fits) or '(none)'}")
 
 
 def _type_name(t: object) -> str:
