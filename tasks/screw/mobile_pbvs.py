@@ -102,14 +102,6 @@ class ArmParams(StrictModel):
     approach: Pose | None = None
 
 
-def robot_kinematics(ctx: TaskContext[Any, Any]) -> IiwaKinematics:
-    """The robot's Pinocchio kinematics (the mobile iiwa's; a ``TypeError`` names the robot otherwise)."""
-    kin = getattr(ctx.robot, "kinematics", None)
-    if not isinstance(kin, IiwaKinematics):
-        raise TypeError(f"robot {ctx.robot.name!r} has no IiwaKinematics (got {type(kin).__name__})")
-    return kin
-
-
 class MobilePbvs(Task[Any, MobileIiwaParams]):
     """Platform PBVS + arm PBVS + admittance; subclasses choose the set-points and the slots."""
 
@@ -120,6 +112,7 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
                                          "contact_force": FORCE}
     command_interface: ClassVar[str] = "base_arm"
     robot_params: ClassVar[type[BaseModel]] = MobileIiwaParams
+    kinematics: ClassVar[type | None] = IiwaKinematics
     requires: ClassVar[Requires] = (ODOM, Q, Q_REF, MARKER, WRENCH)
     writes: ClassVar[tuple[MemoryKey[Any], ...]] = (PID_B, PID_A, Q_NOM, ADMITTANCE, PREDICTOR)
 
@@ -127,7 +120,7 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
         super().__init__(ctx)
         rp = ctx.robot_params
         self.dt = control_period(ctx, self.name or type(self).__name__)
-        self.kin = robot_kinematics(ctx)
+        self.kin = ctx.kinematics(IiwaKinematics)
         self.T_body_camera = rp.T_body_camera()
         self.R_body_camera = self.T_body_camera[:3, :3].copy()
         self.v_max, self.w_max, self.qd_max = rp.v_max, rp.w_max, rp.qd_max
@@ -136,7 +129,7 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
         self.g_a = ctx.profile("arm", PidProfile).arrays()
         imp = ctx.optional_profile("impedance", ImpedanceProfile)
         self.g_i = imp.arrays() if imp is not None else None
-        self.pred = ctx.optional_profile("prediction", Prediction) or Prediction()
+        self.pred = ctx.profile("prediction", Prediction)  # the loader binds its defaults (off) when a mission binds none
         params: PlatformParams | ArmParams = ctx.params
         self.T_camera_object_star = params.camera_target.matrix()
         self.T_object_camera_star = inverse(self.T_camera_object_star)
