@@ -51,6 +51,17 @@ def part_top_height() -> float:
     return CONVEYOR_TOP + PART_SIZE[2]
 
 
+NOMINAL_DISTANCE = 0.80  # platform origin → part frame, across the conveyor (m)
+
+
+def nominal_platform(part: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The platform pose beside the part where the mission's ``H*_co`` was designed: facing the
+    conveyor (yaw = part yaw + 90°), ``NOMINAL_DISTANCE`` from the part frame."""
+    x, y, yaw = part
+    th = yaw + 0.5 * math.pi
+    return (x - NOMINAL_DISTANCE * math.cos(th), y - NOMINAL_DISTANCE * math.sin(th), th)
+
+
 BoltLayout = tuple[tuple[float, float], ...]
 """Bolt centres ``(x, y)`` in the part frame ``P`` (m), one per bolt, in the world's bolt order."""
 

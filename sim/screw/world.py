@@ -83,17 +83,6 @@ from taskflow.registry import register_world
 from taskflow.spatial import T_from_planar, planar_apply, planar_between
 
 _NO_WRENCH = np.zeros(6)
-NOMINAL_DISTANCE = 0.80  # platform origin → part frame, across the conveyor (m)
-
-
-def nominal_platform(part: tuple[float, float, float]) -> tuple[float, float, float]:
-    """The platform pose beside the part where the mission's ``H*_co`` was designed: facing the
-    conveyor (yaw = part yaw + 90°), ``NOMINAL_DISTANCE`` from the part frame."""
-    x, y, yaw = part
-    th = yaw + 0.5 * math.pi
-    return (x - NOMINAL_DISTANCE * math.cos(th), y - NOMINAL_DISTANCE * math.sin(th), th)
-
-
 @register_world("screw_conveyor")
 class ScrewConveyor(SteppedWorld[Scene]):  # the PyBullet client is self.client (self.scene stays None)
     """The mobile iiwa fastening the bolts of a part carried by a conveyor or a trolley."""
@@ -180,7 +169,7 @@ class ScrewConveyor(SteppedWorld[Scene]):  # the PyBullet client is self.client 
         self.motion = PartMotion(wp.motion, x0, y0, yaw0, wp.speed, wp.direction, r_motion,
                                  wp.trolley_speed_sigma, wp.trolley_heading_sigma, wp.trolley_tau, wp.trolley_yaw_gain)
         sc.set_part_planar(c, self.part, self.motion.x, self.motion.y, self.motion.yaw)
-        bx, by, byaw = nominal_platform(wp.part_start)
+        bx, by, byaw = sc.nominal_platform(wp.part_start)
         ox, oy, oyaw = wp.robot_offset
         # offsets along the conveyor (part x) and away from it (platform −x)
         cp, spn = math.cos(yaw0), math.sin(yaw0)
