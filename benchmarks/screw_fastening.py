@@ -4,7 +4,7 @@ Runs ``missions/screw_fastening.yaml`` (conveyor, 50 mm/s) and ``missions/screw_
 (irregular trolley) for N sequences of four screws each (seeds 0..N-1), in the pose perception mode,
 without and with the velocity feed-forward (the ``prediction`` profile), under each world fidelity
 level asked (``ideal``: the world's defaults; ``paper``: ``world.params.fidelity=paper``, the paper's
-latency and platform delay, :class:`taskflow_sim.screw_world.ScrewWorldParams`); then R sequences in the
+latency and platform delay, :class:`taskflow_sim.screw.world.ScrewWorldParams`); then R sequences in the
 rendered mode (pixels → ArUco → solvePnP) on the conveyor.  Everything is measured from the simulator's
 ground truth.
 
@@ -63,8 +63,9 @@ TARGETS = {"conveyor": (97.5, 1.0), "trolley": (90.0, 2.0)}  # success %, mean t
 
 def _register() -> None:
     import taskflow_robots.mobile_iiwa  # noqa: F401
-    import taskflow_sim.screw_world  # noqa: F401
-    import taskflow_tasks.screw_tasks  # noqa: F401
+    import taskflow_sim.screw.world  # noqa: F401
+    import taskflow_tasks.screw.home
+    import taskflow_tasks.screw.mobile_pbvs  # noqa: F401
 
 
 def run_one(job: tuple[str, int, bool, str, str]) -> dict[str, Any]:
@@ -155,7 +156,8 @@ def control_tick_us(n: int = 3100, feedforward: bool = True) -> float:
     from taskflow_robots.mobile_iiwa import MobileIiwa
     from taskflow_tasks.core.impedance import ImpedanceProfile
     from taskflow_tasks.core.pid import PidProfile
-    from taskflow_tasks.screw_tasks import ArmParams, PbvsArm, Prediction
+    from taskflow_tasks.screw.mobile_pbvs import ArmParams, PbvsArm
+    from taskflow_tasks.screw.prediction import Prediction
 
     from taskflow.api import Observation
     from taskflow.messages import MarkerPose, Wrench

@@ -6,11 +6,11 @@ PyBullet (in ``sim/``) and Pinocchio (here, for the tasks) load **one and the sa
   path made absolute (PyBullet does not resolve relative paths against a temporary file);
 * a root link ``platform`` (the omnidirectional platform's base frame ``b``: centre of its footprint
   on the ground, x forward, z up) joined to ``lbr_iiwa_link_0`` by the fixed joint ``arm_mount``
-  (``H_ba``);
+  (``T_body_arm``);
 * the screwdriver: link ``screwdriver`` on the fixed joint ``tool_joint`` at the flange (0.045 m
   beyond ``lbr_iiwa_link_7`` along its z), and the massless frame ``tool_tip`` (``e``) at the end of
   the bit, z along the tool axis;
-* the camera: link ``camera_optical`` on the fixed joint ``camera_mount`` (``H_bc``), OpenCV optical
+* the camera: link ``camera_optical`` on the fixed joint ``camera_mount`` (``T_body_camera``), OpenCV optical
   axes (x right, y down, z along the view).
 
 The installed file is located without importing ``pybullet_data`` (``importlib.util.find_spec``
@@ -72,7 +72,7 @@ def _shape(link: ET.Element, tag: str, geom: str, xyz: tuple[float, float, float
            **attrs: str) -> None:
     el = ET.SubElement(link, tag)
     _origin(el, xyz, (0.0, 0.0, 0.0))
-    g = ET.SubElement(ET.SubElement(el, "geometry"), geom, **attrs)
+    g = ET.SubElement(ET.SubElement(el, "geometry"), geom, attrs)
     del g
     if rgba is not None and tag == "visual":
         mat = ET.SubElement(el, "material", name=f"{link.get('name')}_{geom}_{len(link)}")
@@ -161,7 +161,7 @@ def write_urdf(text: str) -> Path:
 class IiwaKinematics:
     """Pinocchio model of the arm on the platform (root = platform frame ``b``, 7 revolute joints).
 
-    ``fk(q)`` → ``H_be`` (4x4, tool tip in the base frame); ``jacobian(q)`` → 6x7 in the paper's
+    ``fk(q)`` → ``T_body_tip`` (4x4, tool tip in the base frame); ``jacobian(q)`` → 6x7 in the paper's
     ``[ω; v]`` order, expressed in the base frame at the tool tip (Pinocchio's
     ``LOCAL_WORLD_ALIGNED``, rows swapped from its ``[v; ω]``); ``fk_jacobian`` gives both with one
     kinematics pass.
@@ -188,16 +188,19 @@ class IiwaKinematics:
     def frame_pose(self, q: NDArray[np.float64], frame: str) -> NDArray[np.float64]:
         pin = self._pin
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=np.float64))
-        return self.data.oMf[self.model.getFrameId(frame)].homogeneous.copy()
+        T: NDArray[np.float64] = self.data.oMf[self.model.getFrameId(frame)].homogeneous.copy()
+        return T
 
     def fk(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         pin = self._pin
         pin.framesForwardKinematics(self.model, self.data, q)
-        return self.data.oMf[self.frame_id].homogeneous.copy()
+        T: NDArray[np.float64] = self.data.oMf[self.frame_id].homogeneous.copy()
+        return T
 
     def jacobian(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         J = self._pin.computeFrameJacobian(self.model, self.data, q, self.frame_id, self._lwa)
-        return J[self._swap]
+        J_swapped: NDArray[np.float64] = J[self._swap]
+        return J_swapped
 
     def fk_jacobian(self, q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         pin = self._pin

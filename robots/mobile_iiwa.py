@@ -5,8 +5,9 @@ Pure description (no simulator): parameters, limits, command layout, the run-tim
 PyBullet and Pinocchio (:mod:`taskflow_robots.iiwa_urdf`) and the Pinocchio kinematics the tasks use.
 
 Frames: ``b`` platform base (centre of the footprint on the ground, x forward, y left, z up),
-``a`` arm base (``H_ba`` = ``arm_mount``), ``c`` camera optical frame (``H_bc`` = ``camera.mount``;
-x right, y down, z along the view), ``e`` screwdriver tip (``tool_tip``; z along the tool).
+``a`` arm base (``T_body_arm`` = ``arm_mount``), ``c`` camera optical frame (``T_body_camera`` =
+``camera.mount``; x right, y down, z along the view), ``e`` screwdriver tip (``tool_tip``; z along the
+tool).  ``T_a_b`` is the pose of frame ``b`` in frame ``a`` (the paper writes it ``H_ab``).
 
 Commands (``command_keys``):
 
@@ -25,7 +26,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import ConfigDict, Field, field_validator, model_validator
+from pydantic import ConfigDict, Field, ValidationInfo, field_validator, model_validator
 from taskflow_robots.camera import focal_px, tinyrenderer_K
 from taskflow_robots.iiwa_urdf import IiwaKinematics, UrdfSpec, build_urdf_text, kinematics_for
 
@@ -87,20 +88,21 @@ class Pose(StrictModel):
 
     @field_validator("xyz", "rpy", mode="before")
     @classmethod
-    def _three(cls, v: object, info) -> Vec3:  # type: ignore[no-untyped-def]
-        return _finite3(info.field_name, v)
+    def _three(cls, v: object, info: ValidationInfo) -> Vec3:
+        return _finite3(str(info.field_name), v)
 
     def matrix(self) -> NDArray[np.float64]:
         """``T_parent_frame`` of this pose (4x4)."""
         return transform_from_xyz_rpy(self.xyz, self.rpy)
 
     @classmethod
-    def from_matrix(cls, H: NDArray[np.float64]) -> Pose:
-        return cls(xyz=tuple(float(x) for x in H[:3, 3]), rpy=rpy_from_rotation(H[:3, :3]))  # type: ignore[arg-type]
+    def from_matrix(cls, T: NDArray[np.float64]) -> Pose:
+        """The pose of a 4x4 ``T_parent_frame``."""
+        return cls(xyz=(float(T[0, 3]), float(T[1, 3]), float(T[2, 3])), rpy=rpy_from_rotation(T[:3, :3]))
 
 
 class CameraParams(StrictModel):
-    """The eye-to-hand camera: mount ``H_bc`` (optical frame), image size, vertical FOV (rad), rate.
+    """The eye-to-hand camera: mount ``T_body_camera`` (optical frame), image size, vertical FOV (rad), rate.
 
     Default: 640x480 at 40 Hz (the paper's marker rate), a narrow 32° vertical field of view so the
     10 cm marker spans ~120 px at 0.65 m; mounted on a mast at the platform's front-left corner,
@@ -110,7 +112,7 @@ class CameraParams(StrictModel):
     model_config = ConfigDict(allow_inf_nan=False)  # every number finite
 
     mount: Pose = Field(default=Pose(xyz=(0.45, 0.40, 1.35), rpy=(-2.41075, 0.0, -2.24554)),
-                        description="H_bc: the optical frame in the platform frame b")
+                        description="T_body_camera: the optical frame in the platform frame b")
     width: int = Field(default=640, ge=16, le=4096, description="px: 16 (the marker needs pixels) to 4096 "
                        "(TinyRenderer's largest image)")
     height: int = Field(default=480, ge=16, le=4096, description="px, as width")
@@ -180,7 +182,7 @@ _Q_HOME = (0.0, -0.35, 0.0, -1.74, 0.0, 1.75, 0.0)  # tool tip at b (0.55, 0, 1.
 
 
 class MobileIiwaParams(StrictModel):
-    """Platform limits, arm mount ``H_ba``, camera ``H_bc``, tool, home configuration and DLS damping."""
+    """Platform limits, arm mount ``T_body_arm``, camera ``T_body_camera``, tool, home configuration and DLS damping."""
 
     model_config = ConfigDict(allow_inf_nan=False)  # every number finite
 
@@ -194,7 +196,7 @@ class MobileIiwaParams(StrictModel):
                                "rest within v_max / brake_decel s; at most the wheels' grip mu g = 9.8 m/s²")
     platform_size: Vec3 = Field(default=(1.0, 0.7, 0.55), description="length, width, height of the platform box "
                                 "(m): each 0.1-3 m")
-    arm_mount: Pose = Field(default=Pose(xyz=(0.30, 0.0, 0.55)), description="H_ba: the arm's base in the platform frame b")
+    arm_mount: Pose = Field(default=Pose(xyz=(0.30, 0.0, 0.55)), description="T_body_arm: the arm's base in the platform frame b")
     camera: CameraParams = Field(default=CameraParams(), description="the eye-to-hand camera")
     tool: ToolParams = Field(default=ToolParams(), description="the screwdriver")
     q_home: tuple[float, ...] = Field(default=_Q_HOME, description="the arm's home configuration (rad): 7 joint "
@@ -227,10 +229,12 @@ class MobileIiwaParams(StrictModel):
                         camera_rpy=self.camera.mount.rpy, platform_size=self.platform_size, tool_length=t.length,
                         tool_radius=t.radius, bit_radius=t.bit_radius, bit_length=t.bit_length, tool_mass=t.mass)
 
-    def H_ba(self) -> NDArray[np.float64]:
+    def T_body_arm(self) -> NDArray[np.float64]:
+        """The arm's base in the platform frame (``arm_mount``)."""
         return self.arm_mount.matrix()
 
-    def H_bc(self) -> NDArray[np.float64]:
+    def T_body_camera(self) -> NDArray[np.float64]:
+        """The camera's optical frame in the platform frame (``camera.mount``)."""
         return self.camera.mount.matrix()
 
 

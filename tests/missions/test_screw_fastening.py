@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
-import taskflow_tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
-from taskflow_sim.screw_world import ScrewConveyor
+import taskflow_tasks.screw.mobile_pbvs  # noqa: F401 - registers the pbvs tasks
+from taskflow_sim.screw.world import ScrewConveyor
 
 from taskflow.errors import MissionError
 from taskflow.execution.runtime import run_mission

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
-import taskflow_sim.screw_world  # noqa: F401 - registers screw_conveyor
-import taskflow_tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
+import taskflow_sim.screw.world  # noqa: F401 - registers screw_conveyor
+import taskflow_tasks.screw.mobile_pbvs  # noqa: F401 - registers the pbvs tasks
 
 from taskflow.errors import MissionError
 from taskflow.mission.loader import load_mission

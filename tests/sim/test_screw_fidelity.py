@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
 from taskflow_robots.mobile_iiwa import MobileIiwa
-from taskflow_sim.screw_world import ScrewConveyor
+from taskflow_sim.screw.world import ScrewConveyor
 
 
 def test_the_paper_level_sets_the_latency_and_the_platform_delay_unless_the_mission_does():

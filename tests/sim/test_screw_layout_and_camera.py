@@ -11,11 +11,11 @@ import numpy as np
 import pybullet as p
 import pytest
 import taskflow_robots.mobile_iiwa  # noqa: F401 - registers mobile_iiwa
-import taskflow_tasks.screw_tasks  # noqa: F401 - registers the pbvs tasks
+import taskflow_tasks.screw.mobile_pbvs  # noqa: F401 - registers the pbvs tasks
 from pydantic import ValidationError
 from taskflow_robots.mobile_iiwa import CameraParams, MobileIiwa
-from taskflow_sim import screw_scene as sc
-from taskflow_sim.screw_world import ScrewConveyor
+from taskflow_sim.screw import scene as sc
+from taskflow_sim.screw.world import ScrewConveyor
 
 from taskflow.errors import MissionError
 from taskflow.mission.loader import load_mission

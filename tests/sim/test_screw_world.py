@@ -9,7 +9,7 @@ import numpy as np
 import pybullet as p
 import pytest
 from taskflow_robots.mobile_iiwa import MobileIiwa
-from taskflow_sim.screw_world import ScrewConveyor, ScrewdriverParams
+from taskflow_sim.screw.world import ScrewConveyor, ScrewdriverParams
 from taskflow_tasks.core import pbvs
 
 from taskflow import spatial
@@ -90,7 +90,7 @@ def test_pose_mode_marker_latency_noise_and_lost_found_events():
         o = w.observe()
         m = o.sensors["marker"]
         assert o.t - m.stamp >= lat - 1e-9 and m.frame == "camera"
-        err = spatial.inverse(m.T_camera_object) @ w.true_H_co()
+        err = spatial.inverse(m.T_camera_object) @ w.true_T_camera_object()
         # the measurement is stale by its age: the part moved 50 mm/s x age relative to the camera
         assert np.linalg.norm(err[:3, 3]) < 0.05 * (o.t - m.stamp) + 0.002
     finally:
@@ -103,7 +103,7 @@ def test_rendered_mode_finds_the_marker_to_a_fraction_of_a_millimetre():
         run(w, 0.1)
         m = w.observe().sensors["marker"]
         assert m is not None
-        truth = w.true_H_co()  # nothing moves: the truth at capture is the truth now
+        truth = w.true_T_camera_object()  # nothing moves: the truth at capture is the truth now
         H = m.T_camera_object
         assert np.linalg.norm(truth[:3, 3] - H[:3, 3]) < 0.001
         assert spatial.rotation_angle(H[:3, :3] @ truth[:3, :3].T) < math.radians(0.2)
@@ -333,5 +333,23 @@ def test_safe_stop_brings_the_platform_and_the_arm_to_rest_from_full_speed():
             w.apply({"base_twist": np.array([0.2, 0.0, 0.0]), "arm_dq": np.zeros(7)})
             w.advance(DT)
         assert w.ground_truth()["base_speed"] > 0.1
+    finally:
+        w.close()
+
+
+def test_the_sensors_are_declared_streams_and_observe_is_pure():
+    """The marker camera and the F/T sensor are the world's declared streams (sim/screw/sensors.py); two
+    observe() calls in a row return equal observations and change nothing (no capture, no noise draw)."""
+    w = make()
+    try:
+        assert set(w.streams) == {"marker", "wrench"}
+        run(w, 0.3)
+        a, b = w.observe(), w.observe()
+        assert a.t == b.t and a.events == b.events
+        assert a.sensors["marker"] is b.sensors["marker"] and a.sensors["marker"] is not None
+        np.testing.assert_array_equal(a.sensors["wrench"].force, b.sensors["wrench"].force)
+        for key in a.state:
+            np.testing.assert_array_equal(a.state[key], b.state[key])
+        assert w.marker.captured > 0 and w.wrench.delivered > 0
     finally:
         w.close()

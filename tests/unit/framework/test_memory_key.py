@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from taskflow_tasks.screw_tasks import PID_B, Q_NOM
+from taskflow_tasks.screw.data import PID_B, Q_NOM
 from taskflow_tasks.viki.hyco import MEM_OBJECT
 
 from taskflow.api import MemoryKey, sequence

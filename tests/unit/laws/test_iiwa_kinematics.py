@@ -93,7 +93,7 @@ def test_robot_params_reject_bad_values():
 @pytest.mark.sim
 def test_pybullet_and_pinocchio_tool_frames_agree_within_0_1_mm(robot):
     import pybullet as p
-    from taskflow_sim.screw_robot import MobileIiwaBody
+    from taskflow_sim.screw.body import MobileIiwaBody
 
     client = p.connect(p.DIRECT)
     try:
@@ -116,6 +116,6 @@ def test_pybullet_and_pinocchio_tool_frames_agree_within_0_1_mm(robot):
                 worst = max(worst, float(np.linalg.norm(pb[:3, 3] - pn[:3, 3])))
                 assert spatial.rotation_angle(pb[:3, :3] @ pn[:3, :3].T) < 1e-5
         assert worst < 1e-4, f"worst tool-frame disagreement {worst * 1e3:.4f} mm"
-        np.testing.assert_allclose(k.frame_pose(np.zeros(7), "camera_optical"), robot.params.H_bc(), atol=1e-12)
+        np.testing.assert_allclose(k.frame_pose(np.zeros(7), "camera_optical"), robot.params.T_body_camera(), atol=1e-12)
     finally:
         p.disconnect(client)

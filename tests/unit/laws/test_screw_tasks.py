@@ -11,20 +11,13 @@ from taskflow_robots.mobile_iiwa import MobileIiwa
 from taskflow_tasks.core import pbvs
 from taskflow_tasks.core.impedance import ImpedanceProfile
 from taskflow_tasks.core.pid import PidProfile
-from taskflow_tasks.screw_tasks import (
-    ADMITTANCE,
-    PID_B,
-    Q_NOM,
-    ArmHome,
-    ArmParams,
-    HomeParams,
-    PbvsArm,
-    PbvsPlatform,
-    PlatformParams,
-)
+from taskflow_tasks.screw.data import ADMITTANCE, PID_B, PREDICTOR, Q_NOM
+from taskflow_tasks.screw.home import ArmHome, HomeParams
+from taskflow_tasks.screw.mobile_pbvs import ArmParams, PbvsArm, PbvsPlatform, PlatformParams
+from taskflow_tasks.screw.prediction import MotionPredictor, Prediction
 
 from taskflow import spatial
-from taskflow.api import Observation
+from taskflow.api import MissingObservation, Observation
 from taskflow.messages import MarkerPose, Wrench
 from taskflow.testing import task_context
 
@@ -43,7 +36,7 @@ def obs(t: float, H_co: np.ndarray, q: np.ndarray, force=(0.0, 0.0, 0.0)) -> Obs
 def marker_offset_along_base_x(H_co_star: np.ndarray, d: float) -> np.ndarray:
     """The marker seen ``d`` metres off its target along the platform's x: ``E_co = T(R_cb (d, 0, 0))``,
     so the camera error vector in the base frame (eqs. 25–32) is exactly ``[0, 0, 0, d, 0, 0]``."""
-    R_bc = ROBOT.params.H_bc()[:3, :3]
+    R_bc = ROBOT.params.T_body_camera()[:3, :3]
     H = H_co_star.copy()
     H[:3, 3] += R_bc.T @ np.array([d, 0.0, 0.0])
     return H
@@ -58,7 +51,7 @@ def test_platform_pid_integrates_the_control_period_at_40_hz():
     H_co = marker_offset_along_base_x(params.camera_target.matrix(), 0.01)
     q = np.array(ROBOT.params.q_home)
     np.testing.assert_allclose(pbvs.camera_error_vector(H_co @ spatial.inverse(params.camera_target.matrix()),
-                                                        ROBOT.params.H_bc()[:3, :3]), [0, 0, 0, 0.01, 0, 0], atol=1e-12)
+                                                        ROBOT.params.T_body_camera()[:3, :3]), [0, 0, 0, 0.01, 0, 0], atol=1e-12)
     for k in range(1, 4):
         r = task.step(obs(k * DT, H_co, q))
         # ∫e dt grows by e · 0.025 s per tick, from the first tick on (1 cm error → 0.25 mm·s per tick)
@@ -124,3 +117,33 @@ def test_a_task_without_a_control_period_is_refused(cls, params):
     profiles = {"platform": PidProfile(kp=[1.0] * 6), "arm": PidProfile(kp=[0] * 6)} if cls is PbvsPlatform else {}
     with pytest.raises(ValueError, match="TaskContext.dt"):
         cls(task_context(cls, params, ROBOT, profiles))
+
+
+def test_the_motion_predictor_keeps_its_whole_state_under_one_key():
+    """With prediction on, the part's fitted motion lives in one MotionPredictor under ``screw.predictor``
+    (the only screw.* key beside the controllers' and q*), and a moving marker's velocity is fitted."""
+    pid = PidProfile(kp=[0, 0, 0, 2.0, 0, 0], **NO_LIMITS)
+    params = PlatformParams.model_validate({"camera_target": CAMERA_TARGET})
+    memory: dict = {}
+    task = PbvsPlatform(task_context(PbvsPlatform, params, ROBOT, {"platform": pid, "arm": PidProfile(kp=[0] * 6),
+                                                                    "prediction": Prediction(enabled=True)},
+                                     memory=memory, dt=DT))
+    q = np.array(ROBOT.params.q_home)
+    T = params.camera_target.matrix()
+    for k in range(12):  # the part moves 1 mm per tick along the platform's x
+        t = k * DT
+        T_k = marker_offset_along_base_x(T, 0.001 * k)
+        task.step(Observation(t, state={"q": q, "qd": np.zeros(7), "q_ref": q, "odom": np.zeros(3),
+                                        "base_twist": np.zeros(3)},
+                              sensors={"marker": MarkerPose(stamp=t, frame="camera", T_camera_object=T_k, seq=k + 1),
+                                       "wrench": None}))
+    assert sorted(memory) == ["screw.adm", "screw.pid_b", "screw.predictor", "screw.q_nom"]
+    predictor = PREDICTOR(memory)
+    assert isinstance(predictor, MotionPredictor) and predictor.seq == 12 and predictor.fit is not None
+    np.testing.assert_allclose(predictor.fit.slope[:2], [0.001 / DT, 0.0], atol=1e-9)  # 1 mm per tick along x
+
+
+def test_a_required_observation_that_is_absent_is_an_error_not_a_default():
+    task = ArmHome(task_context(ArmHome, HomeParams(), ROBOT, memory={}, dt=DT))
+    with pytest.raises(MissingObservation, match="state.q_ref"):
+        task.step(Observation(0.0, state={"q": np.array(ROBOT.params.q_home)}))

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from taskflow_sim.screw_motion import PartMotion
+from taskflow_sim.screw.motion import PartMotion
 
 
 def simulate(kind: str, seed: int, seconds: float, **kw) -> np.ndarray:

@@ -1,10 +1,10 @@
-"""The screwdriver state machine (sim/screwdriver.py) on its own: phases, events, operation records."""
+"""The screwdriver state machine (sim/screw/screwdriver.py) on its own: phases, events, operation records."""
 
 from __future__ import annotations
 
 import pytest
 from taskflow_robots.mobile_iiwa import ToolParams
-from taskflow_sim.screwdriver import BitErrors, Phase, Screwdriver
+from taskflow_sim.screw.screwdriver import BitErrors, Phase, Screwdriver
 
 TOOL = ToolParams()  # tol_t 3 mm, tol_axial 3 mm, tol_r 3 deg, slip_t 5 mm
 ON = BitErrors(translation=0.001, rotation=0.01, lateral=0.001, axial=0.0005, tilt=0.01)

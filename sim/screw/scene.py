@@ -8,7 +8,7 @@ origin at the marker's centre, x to the marker's right, y up in the marker image
 marker), which lies on the top face at ``MARKER_IN_P`` with the same axes as ``P``.  Bolt ``i``'s
 operation frame ``t_i`` sits on the centre of its head's top, z pointing down into the part (the
 screwdriver's approach direction) and x along −y_P, so the tool reaches it without turning its wrist
-(``R_Pt = Rz(−90°) Rx(180°)``).
+(``R_part_bolt = Rz(−90°) Rx(180°)``).
 
 The marker is a textured OBJ quad with explicit UVs (a texture on a ``GEOM_BOX`` is not detected,
 SIMULATOR_NOTES.md); the floor is a thin box (``plane.urdf`` makes TinyRenderer up to 5x slower).
@@ -44,11 +44,22 @@ MARKER_IN_P = (-0.12, 0.0, 0.0005)
 MARKER_ID = 7
 MARKER_DICT = "DICT_4X4_50"
 
-R_PT = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # Rz(-90°) Rx(180°)
+R_PART_BOLT = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # Rz(-90°) Rx(180°)
 
 
 def part_top_height() -> float:
     return CONVEYOR_TOP + PART_SIZE[2]
+
+
+NOMINAL_DISTANCE = 0.80  # platform origin → part frame, across the conveyor (m)
+
+
+def nominal_platform(part: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The platform pose beside the part where the mission's ``H*_co`` was designed: facing the
+    conveyor (yaw = part yaw + 90°), ``NOMINAL_DISTANCE`` from the part frame."""
+    x, y, yaw = part
+    th = yaw + 0.5 * math.pi
+    return (x - NOMINAL_DISTANCE * math.cos(th), y - NOMINAL_DISTANCE * math.sin(th), th)
 
 
 BoltLayout = tuple[tuple[float, float], ...]
@@ -84,23 +95,22 @@ def bolt_layout_problem(bolts: BoltLayout) -> str | None:
     return None
 
 
-def bolt_frames_in_P(bolts: BoltLayout = BOLTS_XY) -> list[NDArray[np.float64]]:
-    """Bolt operation frames ``H_Pt_i`` (head top centre, z into the part) of the layout ``bolts``."""
-    out = []
-    for x, y in bolts:
-        out.append(transform(R_PT, (x, y, BOLT_HEIGHT)))
-    return out
+def T_part_bolts(bolts: BoltLayout = BOLTS_XY) -> list[NDArray[np.float64]]:
+    """``T_part_bolt`` of every bolt of the layout ``bolts``: its operation frame (head top centre, z
+    into the part)."""
+    return [transform(R_PART_BOLT, (x, y, BOLT_HEIGHT)) for x, y in bolts]
 
 
-def marker_in_P() -> NDArray[np.float64]:
-    """``H_Pm``: the marker frame in the part frame (a translation)."""
+def T_part_marker() -> NDArray[np.float64]:
+    """``T_part_marker``: the marker frame in the part frame (a translation)."""
     return transform(np.eye(3), MARKER_IN_P)
 
 
-def screw_poses_in_marker(bolts: BoltLayout = BOLTS_XY) -> list[NDArray[np.float64]]:
-    """The true ``H_ot_i`` of the layout ``bolts`` (what a mission's ``screws`` parameter should hold)."""
-    H_mP = inverse(marker_in_P())
-    return [H_mP @ H for H in bolt_frames_in_P(bolts)]
+def T_marker_bolts(bolts: BoltLayout = BOLTS_XY) -> list[NDArray[np.float64]]:
+    """The true ``T_marker_bolt`` (the paper's ``H_ot_i``) of the layout ``bolts``: what a mission's
+    ``screws`` parameter should hold."""
+    T_marker_part = inverse(T_part_marker())
+    return [T_marker_part @ T for T in T_part_bolts(bolts)]
 
 
 TEXTURE_PX_PER_CELL = 64
@@ -154,7 +164,7 @@ def _box(client: int, half: tuple[float, float, float], pos: tuple[float, float,
          collide: bool = True) -> int:
     col = p.createCollisionShape(p.GEOM_BOX, halfExtents=list(half), physicsClientId=client) if collide else -1
     vis = p.createVisualShape(p.GEOM_BOX, halfExtents=list(half), rgbaColor=list(rgba), physicsClientId=client)
-    return p.createMultiBody(0.0, col, vis, basePosition=list(pos), physicsClientId=client)
+    return int(p.createMultiBody(0.0, col, vis, basePosition=list(pos), physicsClientId=client))
 
 
 @dataclass

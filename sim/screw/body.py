@@ -141,7 +141,7 @@ class MobileIiwaBody:
     def _step_platform(self, h: float, t: float) -> None:
         tw = self._tw
         if self._delay is not None and not self._braking:
-            self._cmd = self._delay.at(t)  # type: ignore[assignment]
+            self._cmd = self._delay.at(t)
         if self._braking:
             new = self._brake_twist(h)
         else:

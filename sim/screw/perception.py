@@ -19,7 +19,7 @@
 
 Both modes report a :class:`MarkerDetection` with the capture time; it becomes visible to the robot
 ``latency`` seconds later (image transfer + processing, as on the real system).  The world's
-``dropout`` (a frame that misses the marker) acts in both modes (:mod:`taskflow_sim.screw_world`).
+``dropout`` (a frame that misses the marker) acts in both modes (:mod:`taskflow_sim.screw.world`).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ import pybullet as p
 from numpy.typing import NDArray
 from taskflow_robots.camera import tinyrenderer_intrinsics
 from taskflow_robots.mobile_iiwa import CameraParams
-from taskflow_sim.screw_scene import MARKER_DICT, MARKER_ID, MARKER_SIZE
+from taskflow_sim.screw.scene import MARKER_DICT, MARKER_ID, MARKER_SIZE
 
 from taskflow.spatial import rotation_angle, transform
 
@@ -52,7 +52,8 @@ def project(K: NDArray[np.float64], H_co: NDArray[np.float64], pts: NDArray[np.f
     """Pinhole projection of object points (rows) seen at ``H_co``."""
     pc = pts @ H_co[:3, :3].T + H_co[:3, 3]
     uv = pc[:, :2] / pc[:, 2:3]
-    return uv * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
+    out: NDArray[np.float64] = uv * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
+    return out
 
 
 def marker_corners(size: float = MARKER_SIZE) -> NDArray[np.float64]:
@@ -93,7 +94,8 @@ def _rotvec_matrix(w: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.eye(3)
     k = w / th
     K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * (K @ K)
+    R: NDArray[np.float64] = np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * (K @ K)
+    return R
 
 
 class PoseNoise:
@@ -104,7 +106,7 @@ class PoseNoise:
         self.rng = rng
         self.sig = np.array([sigma_xy, sigma_xy, sigma_z, sigma_r, sigma_r, sigma_r])
         self.tau = tau
-        self.state = rng.normal(0.0, 1.0, 6) * self.sig
+        self.state: NDArray[np.float64] = rng.normal(0.0, 1.0, 6) * self.sig
         self.t: float | None = None
 
     def sample(self, t: float) -> NDArray[np.float64]:
@@ -198,7 +200,7 @@ class RenderedDetector:
         img = p.getCameraImage(w, h, view, proj, renderer=p.ER_TINY_RENDERER, shadow=0,
                                flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=self.client)
         rgb = np.reshape(np.asarray(img[2], dtype=np.uint8), (h, w, 4))[:, :, :3]
-        gray = self.cv2.cvtColor(rgb, self.cv2.COLOR_RGB2GRAY)
+        gray = np.asarray(self.cv2.cvtColor(rgb, self.cv2.COLOR_RGB2GRAY), dtype=np.uint8)
         return gray if self.noise is None else self.noise.apply(gray)
 
     def render_full(self, H_wc: NDArray[np.float64], scale: float = 1.0) -> NDArray[np.uint8]:

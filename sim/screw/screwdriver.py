@@ -13,7 +13,7 @@ Every activation, and every fastening with nothing coupled, opens an :class:`Ope
 :class:`OperationLog`; a fastening of the coupled bolt continues the operation that coupled it.  The
 machine sees the world only through numbers handed in (simulation time, the bit's errors to a bolt):
 no simulator, so it is tested on its own (``tests/unit/sim/test_screwdriver.py``).  Outcome and failure
-names are those of the summary's ``operation_log`` (module docstring of :mod:`taskflow_sim.screw_world`).
+names are those of the summary's ``operation_log`` (module docstring of :mod:`taskflow_sim.screw.world`).
 """
 
 from __future__ import annotations
