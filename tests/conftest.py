@@ -18,7 +18,7 @@ _FOLDER_TIER = {"unit": "unit", "machine": "machine", "sim": "sim", "missions": 
 """A test under ``tests/<folder>/`` (at any depth) has this tier."""
 
 _FILE_TIER = {
-    "test_lock.py": "unit", "test_registry.py": "unit", "test_testing_api.py": "unit", "test_yaml_fast_path.py": "unit",
+    "test_plugin_outside.py": "mission", "test_lock.py": "unit", "test_registry.py": "unit", "test_testing_api.py": "unit", "test_yaml_fast_path.py": "unit",
     "test_batch_progress.py": "machine", "test_broken_missions.py": "machine", "test_campaign.py": "machine",
     "test_campaign_plots.py": "machine", "test_catalogue.py": "machine", "test_cli.py": "machine",
     "test_cli_bad_input.py": "machine", "test_compare_run_numbers.py": "machine", "test_control.py": "machine",
