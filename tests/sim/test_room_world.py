@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import taskflow_tasks.visual_path  # noqa: F401 - registers the tasks the missions use
+import taskflow_tasks.quad.visual_path  # noqa: F401 - registers the tasks the missions use
 from pydantic import ValidationError
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
-from taskflow_sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir
+from taskflow_sim.quad.world import QuadRoom, QuadRoomParams, load_keyframe_dir
 
 from taskflow.cli import main as cli_main
 from taskflow.errors import MissionError
@@ -162,7 +162,7 @@ def geo_world():
 def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, pose):
     """Every landmark the geometric camera reports is on the surface PyBullet renders at its pixel
     (rendered depth = landmark depth): projection, intrinsics and column occlusion agree."""
-    from taskflow_sim.room_landmarks import project
+    from taskflow_sim.quad.landmarks import project
 
     cam = geo_world.robot.params.camera
     geo_world.pose[:] = pose
@@ -179,7 +179,7 @@ def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, p
 
 
 def test_geometric_column_silhouette_matches_the_segmented_image(geo_world):
-    from taskflow_tasks.visual_path_perception import obstacle_edges
+    from taskflow_tasks.quad.perception import obstacle_edges
 
     for pose in [(0.0, 0.0, 1.0, 0.0), (0.6, 0.2, 1.0, 0.15), (0.8, -0.3, 1.0, -0.25)]:
         rgb = geo_world._require_scene().render(pose)

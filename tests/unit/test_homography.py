@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from taskflow_tasks.homography import (
+from taskflow_tasks.quad.homography import (
     HomographyGains,
     adaptive_gain,
     axis_rotation,

@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
-from taskflow_sim.quad_scene import generate_texture
-from taskflow_tasks.homography import (
+from taskflow_sim.quad.scene import generate_texture
+from taskflow_tasks.quad.homography import (
     intrinsic_matrix,
     largest_triangle,
     normalize_homography,
     normalize_pixels,
     task_error,
 )
-from taskflow_tasks.visual_path import (
+from taskflow_tasks.quad.visual_path import (
     HierarchyGains,
     KeyframeRef,
     PathGains,
@@ -30,7 +30,7 @@ from taskflow_tasks.visual_path import (
     segment_velocities,
     segment_velocities_from_points,
 )
-from taskflow_tasks.visual_path_perception import (
+from taskflow_tasks.quad.perception import (
     PointTracker,
     detect,
     estimate_homography,

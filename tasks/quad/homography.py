@@ -118,7 +118,7 @@ def normalize_homography(G: ArrayLike, K: ArrayLike, m: ArrayLike | None = None,
 def euclidean_homography(current_px: ArrayLike, keyframe_px: ArrayLike, K: ArrayLike) -> Array:
     """``H`` with ``m* ∝ H m`` from ≥ 4 exact or least-squares correspondences (DLT, eq. 2).
 
-    For noisy, outlier-laden matches use OpenCV's RANSAC (:mod:`taskflow_tasks.visual_path_perception`) and
+    For noisy, outlier-laden matches use OpenCV's RANSAC (:mod:`taskflow_tasks.quad.perception`) and
     :func:`normalize_homography`; this plain DLT is the reference used by tests and the feed-forward.
     """
     m = normalize_pixels(current_px, K)

@@ -4,7 +4,7 @@ as silhouettes, projected exactly and perturbed with pixel noise — no renderin
 What the rendered pipeline gets from pixels (ORB keypoints matched to a keyframe, the green blob of a
 column), this module gets from geometry: every landmark has an id, so correspondences between a view
 and a keyframe are the ids both see; a column's silhouette gives the same edge points ``p1``, ``p2``
-at the image's middle row that :func:`taskflow_tasks.visual_path_perception.obstacle_edges` measures.
+at the image's middle row that :func:`taskflow_tasks.quad.perception.obstacle_edges` measures.
 
 * Landmarks are drawn uniformly on the walls, floor and ceiling (``density`` per m², seeded): the
   rendered room's textures are feature-rich everywhere, the columns plain.
@@ -21,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from taskflow_sim.quad_scene import Column, Room
+from taskflow_sim.quad.scene import Column, Room
 
 Array = NDArray[np.float64]
 

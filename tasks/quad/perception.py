@@ -3,7 +3,7 @@
 * ``matchingKeyPoints``: ORB (default) or SIFT keypoints and descriptors, brute-force matching with
   Lowe's ratio test, RANSAC on a homography (planar / small-parallax scenes) or on the fundamental
   matrix (general scenes) to keep the inliers — :func:`match_keyframe`.
-* ``sortPoints``: the three points of the largest triangle first (:func:`taskflow_tasks.homography.sort_points`).
+* ``sortPoints``: the three points of the largest triangle first (:func:`taskflow_tasks.quad.homography.sort_points`).
 * ``tracking``: pyramidal Lucas–Kanade with a forward–backward check, each point re-anchored on its
   keyframe patch through the homography of the tracked plane, so frame-to-frame drift does not add
   up — :class:`PointTracker`.
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from taskflow_tasks.homography import (
+from taskflow_tasks.quad.homography import (
     normalize_homography,
     normalize_pixels,
     sort_points,
@@ -82,7 +82,7 @@ def detect(detector: cv2.Feature2D, grey: NDArray[np.uint8], kind: str) -> Featu
 def match_keyframe(kf: Features, cur: Features, ratio: float = 0.8, ransac_px: float = 2.0,
                    model: str = "homography") -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """``matchingKeyPoints`` of Alg. 1: ratio-test matches filtered by RANSAC; returns the matched
-    ``(current_px, keyframe_px)`` inliers, ordered by :func:`taskflow_tasks.homography.sort_points`.
+    ``(current_px, keyframe_px)`` inliers, ordered by :func:`taskflow_tasks.quad.homography.sort_points`.
 
     ``model`` is the RANSAC model: ``homography`` (scene seen as one plane: right for small parallax or
     a dominant wall) or ``fundamental`` (any rigid scene; needs ≥ 8 matches).

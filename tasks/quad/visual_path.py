@@ -44,7 +44,7 @@ Choices where the paper is silent or its reading would not work (each marked in 
   camera loses a column 0.4–0.6 m before the drone reaches it, and the visual task pulls the drone back
   into it.  By default (``memory: true``) the task remembers the obstacle in the body frame, carries it
   along with the measured body velocity (``state.nu``: odometry, the only non-image input) and acts on
-  it until it is behind the drone (:mod:`~taskflow_tasks.obstacle_memory`: eq. 8 seen from the body's
+  it until it is behind the drone (:mod:`~taskflow_tasks.quad.obstacle_memory`: eq. 8 seen from the body's
   centre, a keep-out distance ``keep_out_m``); the memory lasts across the keyframes of a run
   (mission data ``visual_path.obstacle``, not in the summary).
 * **Symmetric block.**  With the obstacle dead ahead eq. (9) has no yaw term and the task only holds
@@ -85,8 +85,8 @@ Choices where the paper is silent or its reading would not work (each marked in 
   rotation as well as the translation, so law (3) answers a keyframe's yaw step with a sideways
   slide; on a curve ε (7) then passes ``T_ε`` with a sideways offset the yaw hides, and the offsets
   add up over the keyframes (the shipped oval was cut by 45–55 cm).  With it on, the yaw is estimated
-  from H (:func:`~taskflow_tasks.homography.homography_yaw`) and the translation and the yaw are driven
-  separately (:func:`~taskflow_tasks.homography.yaw_decoupled_error`), in the feedback and in ``nu_p``.
+  from H (:func:`~taskflow_tasks.quad.homography.homography_yaw`) and the translation and the yaw are driven
+  separately (:func:`~taskflow_tasks.quad.homography.yaw_decoupled_error`), in the feedback and in ``nu_p``.
 * **Feed-forward segment** (``PathGains.segment``).  Alg. 2 applies ``nu_p`` of segment ``k → k+1``
   while servoing to keyframe ``k`` (``next``), so the drone turns one keyframe early on a curve;
   ``current`` applies the segment being flown, ``k−1 → k`` (keyframe 0: ``0 → 1``).
@@ -104,7 +104,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
 from taskflow_robots.quadcopter import QuadCamera
-from taskflow_tasks.hierarchy import (
+from taskflow_tasks.quad.hierarchy import (
     Activation,
     collision_error,
     collision_jacobian,
@@ -114,7 +114,7 @@ from taskflow_tasks.hierarchy import (
     visibility_error,
     visibility_jacobian,
 )
-from taskflow_tasks.homography import (
+from taskflow_tasks.quad.homography import (
     HomographyGains,
     adaptive_gain,
     feedforward_blend,
@@ -128,7 +128,7 @@ from taskflow_tasks.homography import (
     task_error,
     yaw_decoupled_error,
 )
-from taskflow_tasks.obstacle_memory import (
+from taskflow_tasks.quad.obstacle_memory import (
     LEFT,
     RIGHT,
     ObstacleMemory,
@@ -142,7 +142,7 @@ from taskflow_tasks.obstacle_memory import (
     propagate,
     remembered_collision,
 )
-from taskflow_tasks.visual_path_perception import (
+from taskflow_tasks.quad.perception import (
     Features,
     ObstacleDetection,
     PointTracker,
@@ -615,15 +615,15 @@ class ServoLaw:
 
     def _collision(self, t: float, obstacle: ObstacleDetection | None,
                    nu_body: NDArray[np.float64]) -> tuple[float, NDArray[np.float64], bool]:
-        """``(e_a, J_a, active)`` with the obstacle memory (:mod:`~taskflow_tasks.obstacle_memory`).
+        """``(e_a, J_a, active)`` with the obstacle memory (:mod:`~taskflow_tasks.quad.obstacle_memory`).
 
         Every remembered obstacle is carried along with ``nu_body`` and forgotten once behind the body.
         A whole obstacle in view is placed in the body frame and replaces the remembered one it
         matches (centres within ``0.5 m``), keeping that one's escape side, or is added once the task
         activates for it (``e_a > 0``).  The task acts on a remembered obstacle out of view that the
         drone is inside of, or would reach within the activation time, the keep-out disc of
-        (:func:`~taskflow_tasks.obstacle_memory.closing_in`; the nearest by
-        :func:`~taskflow_tasks.obstacle_memory.remembered_collision`), and is then active, so that
+        (:func:`~taskflow_tasks.quad.obstacle_memory.closing_in`; the nearest by
+        :func:`~taskflow_tasks.quad.obstacle_memory.remembered_collision`), and is then active, so that
         ``h_a`` (eq. 20) is up when the drone gets there; otherwise on the one in view: eq. (8), and
         eq. (9) at the edges moved to the committed escape side (chosen when the task first activates
         for it), active when ``e_a > 0``; otherwise, inactive, on the nearest remembered one."""

@@ -8,7 +8,7 @@ keyframe images of the visual path; no pose ever enters an observation.
   through a first-order lag (robot ``tau``), integrated at ``physics_hz`` and moved kinematically
   (``resetBasePositionAndOrientation``); no rigid-body dynamics, no gravity.  ``command_response:
   relative_move`` executes each command as the Bebop 2 under ViSP does, a relative move of ``nu·Δt``
-  (:mod:`taskflow_sim.quad_response`); ``command_delay_s`` and ``frame_latency_s`` make commands and
+  (:mod:`taskflow_sim.quad.response`); ``command_delay_s`` and ``frame_latency_s`` make commands and
   frames late; ``fidelity: paper`` sets these from the paper and ViSP (``docs/missions.md``).
 * **Keyframes (teach-by-showing).**  ``keyframes`` lists the taught poses ``{id, pose: [x, y, z,
   yaw]}``; on :meth:`reset` the world renders the camera image at each pose, or loads the images
@@ -25,7 +25,7 @@ keyframe images of the visual path; no pose ever enters an observation.
   frame in ``obs.sensors["image"]`` (an :class:`taskflow.messages.Image`) and the keyframe images in
   ``obs.sensors["keyframes"]`` (a tuple of them).  ``perception: geometric`` (fast, for tests and
   batches) renders nothing: landmarks on the room's surfaces are projected exactly
-  (:mod:`taskflow_sim.room_landmarks`) with ``pixel_noise``, so ``obs.sensors["points"]`` and
+  (:mod:`taskflow_sim.quad.landmarks`) with ``pixel_noise``, so ``obs.sensors["points"]`` and
   ``obs.sensors["keyframe_points"]`` hold :class:`taskflow.messages.FeatureView`s (landmark ids and
   pixels) and ``obs.sensors["obstacle"]`` the widest column's :class:`taskflow.messages.Silhouette`
   at the middle row, or ``None``.  Current-frame messages are in the frame ``camera`` stamped with
@@ -47,9 +47,9 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.command_delay import CommandDelay
 from taskflow_sim.faults import FaultIntervals, IntervalFault
-from taskflow_sim.quad_response import move_target, relative_move_step
-from taskflow_sim.quad_scene import Column, QuadScene, Room
-from taskflow_sim.room_landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
+from taskflow_sim.quad.response import move_target, relative_move_step
+from taskflow_sim.quad.scene import Column, QuadScene, Room
+from taskflow_sim.quad.landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
 from taskflow_sim.stepped import SensorSchedule, SteppedWorld, check_command
 
 from taskflow.api import (
