@@ -233,3 +233,71 @@ def test_wrap_angle_keeps_the_angle_modulo_a_turn_within_pi():
         assert -math.pi <= w <= math.pi and math.isclose(math.cos(w), math.cos(a), abs_tol=1e-12) \
             and math.isclose(math.sin(w), math.sin(a), abs_tol=1e-9)
     assert sp.wrap_angle(2.0 * math.pi + 0.5) == pytest.approx(0.5)
+
+
+# -- planar transforms -----------------------------------------------------------------------------------
+
+
+def test_planar_hand_values():
+    T_a_b = np.array([1.0, 2.0, math.pi / 2])
+    np.testing.assert_allclose(sp.planar_apply(T_a_b, [1.0, 0.0]), [1.0, 3.0], atol=1e-15)
+    np.testing.assert_allclose(sp.planar_apply(T_a_b, [[1.0, 0.0], [0.0, 1.0]]), [[1.0, 3.0], [0.0, 2.0]], atol=1e-15)
+    np.testing.assert_allclose(sp.planar_apply_inverse(T_a_b, [1.0, 3.0]), [1.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(sp.planar_inverse(T_a_b), [-2.0, 1.0, -math.pi / 2], atol=1e-15)
+    np.testing.assert_allclose(sp.planar_compose(T_a_b, [1.0, 0.0, math.pi / 2]), [1.0, 3.0, math.pi], atol=1e-15)
+    np.testing.assert_allclose(sp.planar_between([1.0, 2.0, math.pi / 2], [1.0, 3.0, math.pi]), [1.0, 0.0, math.pi / 2],
+                               atol=1e-15)
+    # yaw wrapped by IEEE remainder, unless asked not to
+    assert sp.planar_compose([0.0, 0.0, 3.0], [0.0, 0.0, 1.0])[2] == math.remainder(4.0, 2 * math.pi)
+    assert sp.planar_compose([0.0, 0.0, 3.0], [0.0, 0.0, 1.0], wrap=False)[2] == 4.0
+    T = sp.T_from_planar(T_a_b, z=0.5)
+    np.testing.assert_allclose(T @ [1.0, 0.0, 0.0, 1.0], [1.0, 3.0, 0.5, 1.0], atol=1e-15)
+
+
+def test_planar_round_trips_and_agree_with_the_4x4_forms():
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        A, B = rng.uniform(-3, 3, 3), rng.uniform(-3, 3, 3)
+        pts = rng.normal(0.0, 2.0, (7, 2))
+        np.testing.assert_allclose(sp.planar_compose(A, sp.planar_inverse(A))[:2], 0.0, atol=1e-12)
+        assert abs(sp.planar_compose(A, sp.planar_inverse(A))[2]) < 1e-12
+        np.testing.assert_allclose(sp.planar_apply_inverse(A, sp.planar_apply(A, pts)), pts, atol=1e-12)
+        np.testing.assert_allclose(sp.planar_between(A, B), sp.planar_compose(sp.planar_inverse(A), B), atol=1e-12)
+        AB = sp.planar_compose(A, B)
+        np.testing.assert_allclose(sp.T_from_planar(AB), sp.T_from_planar(A) @ sp.T_from_planar(B), atol=1e-12)
+        np.testing.assert_allclose(sp.planar_from_T(sp.T_from_planar(AB)), AB, atol=1e-12)
+        np.testing.assert_allclose(sp.planar_apply(A, pts), (sp.T_from_planar(A) @ np.c_[pts, np.zeros(7), np.ones(7)].T)[:2].T,
+                                   atol=1e-12)
+        np.testing.assert_allclose(sp.inverse(sp.T_from_planar(A)), sp.T_from_planar(sp.planar_inverse(A)), atol=1e-12)
+
+
+def test_planar_functions_are_the_inline_forms_to_the_bit():
+    """The expressions the paper code wrote inline (tasks/viki_hyco.py, tasks/viki_evidence.py, sim/viki_world.py,
+    tasks/screw_tasks.py): the same operations in the same order, so a site switching keeps its records."""
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        x, y, th = (float(v) for v in rng.uniform(-4, 4, 3))
+        px, py = (float(v) for v in rng.normal(0.0, 3.0, 2))
+        c, s = math.cos(th), math.sin(th)
+        assert sp.planar_apply((x, y, th), (px, py)).tolist() == [x + c * px - s * py, y + s * px + c * py]
+        dx, dy = px - x, py - y
+        assert sp.planar_apply_inverse((x, y, th), (px, py)).tolist() == [c * dx + s * dy, -s * dx + c * dy]
+        assert sp.planar_inverse((x, y, th))[:2].tolist() == [-c * x - s * y, s * x - c * y]
+        u, v, ph = (float(w) for w in rng.uniform(-4, 4, 3))
+        du, dv = u - x, v - y
+        assert sp.planar_between((x, y, th), (u, v, ph)).tolist() == [c * du + s * dv, -s * du + c * dv,
+                                                                      math.remainder(ph - th, 2 * math.pi)]
+    P = rng.uniform(-4, 4, (9, 3))
+    g = rng.normal(0.0, 1.0, 2)
+    cv, sv = np.cos(P[:, 2]), np.sin(P[:, 2])
+    inline = np.stack([P[:, 0] + cv * g[0] - sv * g[1], P[:, 1] + sv * g[0] + cv * g[1]], axis=1)
+    assert np.array_equal(sp.planar_apply(P, g), inline)
+
+
+def test_planar_shapes_are_checked():
+    with pytest.raises(ValueError):
+        sp.planar_compose([0.0, 0.0], [0.0, 0.0, 0.0])
+    with pytest.raises(ValueError):
+        sp.planar_apply([0.0, 0.0, 0.0], [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError):
+        sp.planar_from_T(np.eye(3))
