@@ -18,18 +18,12 @@ from taskflow_tasks.quad.homography import (
     normalize_pixels,
     task_error,
 )
-from taskflow_tasks.quad.visual_path import (
-    HierarchyGains,
-    KeyframeRef,
-    PathGains,
-    RematchParams,
-    ServoLaw,
-    VisualGains,
-    VisualPathParams,
-    match_with_retry,
-    segment_velocities,
-    segment_velocities_from_points,
-)
+from taskflow_tasks.quad.correspondences import landmark_pairs
+from taskflow_tasks.quad.feedforward import segment_velocities
+from taskflow_tasks.quad.gains import HierarchyGains, PathGains, VisualGains
+from taskflow_tasks.quad.law import ServoLaw
+from taskflow_tasks.quad.params import KeyframeRef, RematchParams, VisualPathParams
+from taskflow_tasks.quad.tracking import image_pairs, match_with_retry
 from taskflow_tasks.quad.perception import (
     PointTracker,
     detect,
@@ -186,7 +180,7 @@ def test_segment_velocities_match_the_scaled_law(texture):
     displacement between the two views."""
     rob = Quadcopter(QuadcopterParams())
     imgs = tuple(view(texture, plane_map(0.0, 0.1 * k, 0.25 * k)) for k in range(3))
-    nus = segment_velocities(imgs, K, twist_adjoint(rob.T_body_camera()), VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
+    nus = segment_velocities(image_pairs(imgs), K, twist_adjoint(rob.T_body_camera()), VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
     assert len(nus) == 2
     for nu in nus:
         assert nu[0] > 0.0 and nu[1] < 0.0  # forward, and to the right (body y is left)
@@ -299,14 +293,14 @@ def test_segment_velocities_from_landmark_views_point_along_the_path():
         ok = np.flatnonzero((uv[:, 0] > 0) & (uv[:, 0] < 319) & (uv[:, 1] > 0) & (uv[:, 1] < 239))
         return SimpleNamespace(ids=ok, uv=uv[ok])
 
-    nus = segment_velocities_from_points((view(0.0, 0.0), view(0.3, 0.0), view(0.3, 0.25)), Kc, twist_adjoint(rob.T_body_camera()),
-                                         VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
+    nus = segment_velocities(landmark_pairs((view(0.0, 0.0), view(0.3, 0.0), view(0.3, 0.25))), Kc, twist_adjoint(rob.T_body_camera()),
+                             VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
     assert nus[0][0] > 0.02 and abs(nus[0][1]) < 0.2 * nus[0][0] and abs(nus[0][3]) < 0.01
     assert nus[1][3] > 0.02  # yaw left (+z)
     # the yawed segment under the paper's law (3) also slides sideways (e_v holds the rotation); with the
     # yaw decoupled (homography.yaw_decoupled_error) it turns in place, as the taught segment does
-    decoupled = segment_velocities_from_points((view(0.3, 0.0), view(0.3, 0.25)), Kc, twist_adjoint(rob.T_body_camera()),
-                                               VisualGains(lambda_0=1.5, lambda_inf=0.8, yaw_decoupling=True), 0.75)
+    decoupled = segment_velocities(landmark_pairs((view(0.3, 0.0), view(0.3, 0.25))), Kc, twist_adjoint(rob.T_body_camera()),
+                                 VisualGains(lambda_0=1.5, lambda_inf=0.8, yaw_decoupling=True), 0.75)
     # (what is left sideways is the camera's own swing: it sits 0.17 m ahead of the yaw axis)
     assert nus[1][1] > 0.1 and decoupled[0][3] > 0.02
     assert abs(decoupled[0][1]) < 0.25 * nus[1][1] and abs(decoupled[0][0]) < 0.01
