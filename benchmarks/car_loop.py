@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pybullet as p
 from taskflow_robots.racecar import Racecar
-from taskflow_sim.flat_ground import FlatGround
+from taskflow_sim.ground.flat_ground import FlatGround
 from taskflow_tasks.car_goto import CarGains, CarGoto
 
 from taskflow.api import TaskContext

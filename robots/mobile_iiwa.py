@@ -247,6 +247,7 @@ class MobileIiwa(Robot):
     observations: ClassVar[dict[str, ObsSpec]] = {"state.q": array(7), "state.qd": array(7), "state.q_ref": array(7),
                                                   "state.base_twist": array(3), "state.odom": array(3)}
     sensors: ClassVar[dict[str, str]] = {"camera": "rgb_camera"}
+    kinematics_model: ClassVar[type | None] = IiwaKinematics
 
     params: MobileIiwaParams
 

@@ -1,7 +1,7 @@
 """Building blocks shared by the worlds: a PyBullet client and a box floor.
 
 ``flat_ground`` is a floor and a robot body; a ViKi-HyCo world adds the object, cameras and LiDAR on top
-of it (subclass :class:`taskflow_sim.flat_ground.FlatGround` and override its ``_populate`` hook);
+of it (subclass :class:`taskflow_sim.ground.flat_ground.FlatGround` and override its ``_populate`` hook);
 ``screw_conveyor`` uses the client (:func:`connect`) with its own conveyor scene.
 """
 

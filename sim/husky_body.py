@@ -33,7 +33,7 @@ import pybullet as p
 import pybullet_data
 from numpy.typing import NDArray
 from taskflow_robots.husky import Husky
-from taskflow_sim.bodies import BodyOptions, GroundBody
+from taskflow_sim.core.bodies import BodyOptions, GroundBody
 
 from taskflow.api import Command, Robot
 from taskflow.spatial import yaw_from_quaternion

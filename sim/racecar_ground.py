@@ -1,4 +1,4 @@
-"""The racecar as a :class:`~taskflow_sim.bodies.GroundBody`: an adapter over
+"""The racecar as a :class:`~taskflow_sim.core.bodies.GroundBody`: an adapter over
 :class:`~taskflow_sim.racecar_body.RacecarBody` (no behaviour of its own).
 
 Attributes it does not define are the wrapped car's (``body``, ``joints``, ``_base_frame`` ...), so code
@@ -13,7 +13,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 from taskflow_robots.racecar import Racecar
-from taskflow_sim.bodies import BodyOptions, GroundBody
+from taskflow_sim.core.bodies import BodyOptions, GroundBody
 from taskflow_sim.racecar_body import Actuation, RacecarBody
 
 from taskflow.api import Command, Robot

@@ -25,7 +25,7 @@ import pybullet as p
 from numpy.typing import NDArray
 from taskflow_robots.iiwa_urdf import ARM_JOINTS, CAMERA_LINK, TOOL_JOINT, TOOL_TIP, write_urdf
 from taskflow_robots.mobile_iiwa import MobileIiwa
-from taskflow_sim.command_delay import CommandDelay
+from taskflow_sim.core.command_delay import CommandDelay
 
 from taskflow.spatial import quaternion_from_yaw, rotation_from_quaternion, transform_from_pose, transform_xyz_yaw
 

@@ -90,12 +90,12 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from taskflow_robots.mobile_iiwa import MobileIiwa, ToolParams
 from taskflow_sim import screw_scene as sc
 from taskflow_sim.car_scene import connect
-from taskflow_sim.faults import FaultIntervals, IntervalFault
+from taskflow_sim.core.faults import FaultIntervals, IntervalFault
+from taskflow_sim.core.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
 from taskflow_sim.screw_motion import PartMotion
 from taskflow_sim.screw_perception import ImageNoise, MarkerDetection, PoseNoise, RenderedDetector, visible
 from taskflow_sim.screw_robot import MobileIiwaBody
 from taskflow_sim.screwdriver import BitErrors, Screwdriver
-from taskflow_sim.stepped import EPS_T, SensorSchedule, SteppedWorld, check_command
 
 from taskflow.api import Command, Marker, Observation, ObsSpec, Robot, RobotNeeds, StrictModel, message
 from taskflow.fidelity import Fidelity, Level, Sourced

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pybullet as p
-from taskflow_sim.bodies import GroundBody
+from taskflow_sim.core.bodies import GroundBody
 from taskflow_sim.viki_objects import PlacedObject
 
 

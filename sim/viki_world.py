@@ -1,6 +1,6 @@
 """``viki_ground``: the racecar, a floor and one waste-like object — the world of the ViKi-HyCo missions.
 
-Scene: :class:`taskflow_sim.flat_ground.FlatGround` (racecar on a thin box floor, odometry with optional noise)
+Scene: :class:`taskflow_sim.ground.flat_ground.FlatGround` (racecar on a thin box floor, odometry with optional noise)
 plus one static object (:mod:`taskflow_sim.viki_objects`: ``can``, ``bottle`` or ``carton``) placed relative to the
 start pose (``object_distance`` / ``object_bearing`` from the rear-axle midpoint, heading-relative) or at
 world ``object_xy``.  Missions draw these from distributions (``{uniform: [...]}``, ``{choice: [...]}``),
@@ -52,13 +52,13 @@ import numpy as np
 import pybullet as p
 from pydantic import BaseModel, Field, model_validator
 from taskflow_robots.racecar import CameraMount
-from taskflow_sim.bodies import BodyOptions, make_body
-from taskflow_sim.flat_ground import FlatGround, FlatGroundParams
-from taskflow_sim.odometry_slip import SlipOdometry
+from taskflow_sim.core.bodies import BodyOptions, make_body
+from taskflow_sim.core.odometry_slip import SlipOdometry
+from taskflow_sim.core.stepped import SensorSchedule
+from taskflow_sim.ground.flat_ground import FlatGround, FlatGroundParams
 from taskflow_sim.perception_common import CameraModel, DropoutModel
 from taskflow_sim.perception_geometric import GeometricPerception
 from taskflow_sim.perception_rendered import LidarScanner, RenderedPerception
-from taskflow_sim.stepped import SensorSchedule
 from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
 from taskflow_sim.viki_objects import SHAPES, PlacedObject, create_body
 

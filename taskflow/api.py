@@ -19,7 +19,6 @@ whose threshold lies outside it can never hold, and the loader refuses it.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,14 +26,41 @@ from typing import Any, ClassVar, Generic, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from .markers import ControlPoint, Marker, TaskScene
-from .specs import ObsSpec, RobotNeeds, array, flag, instance, mapping, message, scalar, sequence, text
+from .specs import (
+    AGE,
+    COUNT,
+    DISTANCE,
+    FLAG,
+    FORCE,
+    NO_DEFAULT,
+    ROTATION_ANGLE,
+    SPEED,
+    WEIGHT,
+    WRAPPED_ANGLE,
+    MemoryKey,
+    Metric,
+    MissingObservation,
+    ObsKey,
+    ObsSpec,
+    Requires,
+    RobotNeeds,
+    array,
+    flag,
+    instance,
+    mapping,
+    message,
+    required_specs,
+    scalar,
+    sequence,
+    text,
+)
 
-__all__ = ["AGE", "COUNT", "DISTANCE", "FLAG", "FORCE", "ROTATION_ANGLE", "SPEED", "WEIGHT", "WRAPPED_ANGLE", "Command", "ControlPoint", "Marker", "MemoryKey", "Metric", "NO_DEFAULT", "NoParams", "ObsSpec", "Observation", "Robot",
+__all__ = ["AGE", "COUNT", "DISTANCE", "FLAG", "FORCE", "ROTATION_ANGLE", "SPEED", "WEIGHT", "WRAPPED_ANGLE", "Command", "ControlPoint", "Marker", "MemoryKey", "Metric", "MissingObservation", "NO_DEFAULT", "NoParams", "ObsKey", "ObsSpec", "Observation", "Robot",
            "RobotNeeds", "StepResult", "StrictModel", "Task", "TaskContext", "TaskScene", "World", "array", "flag",
-           "instance", "mapping", "message", "scalar", "sequence", "text"]
+           "instance", "mapping", "message", "required_specs", "scalar", "sequence", "text"]
 
 Command = dict[str, NDArray[np.float64]]
 """Robot command: named arrays (e.g. ``{"v": [0.3], "steer": [0.1]}``); keys are the robot's."""
@@ -89,122 +115,10 @@ class StepResult:
     sensors: tuple[str, ...] | None = None
 
 
-class Metric(str):
-    """The unit of a published metric (or mission-data key) with the range its values can take.
-
-    It *is* the unit string (``Metric("m", low=0.0) == "m"``), so ``metrics = {"speed": "m/s"}`` and
-    ``{"pos_error": Metric("m", low=0.0, reason="a distance")}`` declare alike; ``low``/``high`` bound every
-    value the metric can have (inclusive, in the unit; None: unbounded on that side) and ``reason`` says why
-    (``"a distance"``, ``"an angle wrapped to [-π, π]"``).  The loader refuses a guard comparison that no
-    value in ``[low, high]`` satisfies (``pos_error < -1 mm``; ``abs(x)`` reads ``[0, max(|low|, |high|)]``).
-    """
-
-    low: float | None
-    high: float | None
-    reason: str
-
-    def __new__(cls, unit: str = "", low: float | None = None, high: float | None = None, reason: str = "") -> Metric:
-        if low is not None and high is not None and not low <= high:
-            raise ValueError(f"Metric range needs low <= high, got [{low}, {high}]")
-        self = super().__new__(cls, unit)
-        self.low, self.high, self.reason = low, high, reason
-        return self
-
-    def __reduce__(self) -> tuple[Any, ...]:
-        return (Metric, (str(self), self.low, self.high, self.reason))
-
-    def bounds(self) -> str:
-        """The range as the catalogue writes it, without the unit: ``"≥ 0"``, ``"in [-3.14159, 3.14159]"``
-        (empty: unbounded)."""
-        if self.low is None and self.high is None:
-            return ""
-        if self.high is None:
-            return f"≥ {self.low:g}"
-        if self.low is None:
-            return f"≤ {self.high:g}"
-        return f"in [{self.low:g}, {self.high:g}]"
-
-
-DISTANCE = Metric("m", low=0.0, reason="a distance")
-SPEED = Metric("m/s", low=0.0, reason="a speed |v|")
-WRAPPED_ANGLE = Metric("rad", low=-math.pi, high=math.pi, reason="a wrapped angle")
-ROTATION_ANGLE = Metric("rad", low=0.0, high=math.pi, reason="the angle of a rotation")
-FORCE = Metric("N", low=0.0, reason="the magnitude of a force")
-AGE = Metric("s", low=0.0, reason="the time since an earlier instant")
-FLAG = Metric("", low=0.0, high=1.0, reason="1 when true, 0 when false")
-COUNT = Metric("", low=0.0, reason="a count")
-WEIGHT = Metric("", low=0.0, high=1.0, reason="a task weight")
-"""Ranged units of the kinds of metric the shipped tasks publish (declare ``{"pos_error": DISTANCE}``)."""
-
-
-ValueT = TypeVar("ValueT")
-
-
-class _NoDefault:
-    """The default of a :class:`MemoryKey` that has none (the key must be written before it is read)."""
-
-    def __repr__(self) -> str:
-        return "NO_DEFAULT"
-
-
-NO_DEFAULT: Any = _NoDefault()
-
-
-@dataclass(frozen=True, eq=False)
-class MemoryKey(Generic[ValueT]):
-    """One entry of a run's mission data (:attr:`TaskContext.memory`), defined once by the module that
-    owns it and declared by every task that writes it (:attr:`Task.writes`) or needs it (:attr:`Task.reads`):
-
-    * ``name`` — its whole name, the owner's namespace and the entry (``"viki.object"``); missions name it
-      so (``data:`` defaults, ``data.viki.object[0]`` in guards, ``$data.viki.object`` in parameters);
-    * ``spec`` — the type of its value, in the observation-spec vocabulary (``array(2)``, ``scalar()``,
-      ``flag()``, ``text()``, ``mapping()``, ``sequence()``, ``instance(PidState)``); every write is checked
-      against it, and it decides what a mission may do with the key (guards read ``scalar``/``flag`` keys
-      and the components of fixed-shape 1-D ``array`` keys; an ``instance`` cannot be given in YAML);
-    * ``unit`` — the SI base unit of its numbers (``"m"``), for guards (``data.viki.object[0] < 2 cm``);
-    * ``default`` — the value it holds from the start of every run (copied), or :data:`NO_DEFAULT`;
-    * ``doc`` — what it holds, for ``docs/missions.md``;
-    * ``output`` — whether the run summary lists its final value under ``outputs`` (False for a
-      controller's internal state — integrators, histories — that would only bloat the summary).
-
-    Through its type parameter it types the accessors: ``MEM_OBJECT: MemoryKey[NDArray[np.float64]]``;
-    ``key(memory)`` reads an entry that must exist (the error names it), ``key.get``, ``key.set``,
-    ``key.setdefault``, ``key.present`` the rest."""
-
-    name: str
-    spec: ObsSpec
-    unit: str = ""
-    default: Any = NO_DEFAULT
-    doc: str = ""
-    output: bool = True
-
-    @property
-    def has_default(self) -> bool:
-        return self.default is not NO_DEFAULT
-
-    def get(self, memory: Mapping[str, Any]) -> ValueT | None:
-        return cast("ValueT | None", memory.get(self.name))
-
-    def __call__(self, memory: Mapping[str, Any]) -> ValueT:
-        """The entry, which must be there (a clear error names it otherwise)."""
-        try:
-            return cast(ValueT, memory[self.name])
-        except KeyError:
-            raise KeyError(f"shared memory has no {self.name!r} yet (written by an earlier state)") from None
-
-    def set(self, memory: MutableMapping[str, Any], value: ValueT) -> None:
-        memory[self.name] = value
-
-    def setdefault(self, memory: MutableMapping[str, Any], default: ValueT) -> ValueT:
-        return cast(ValueT, memory.setdefault(self.name, default))
-
-    def present(self, memory: Mapping[str, Any]) -> bool:
-        return self.name in memory
-
-
 ParamsT = TypeVar("ParamsT", bound=BaseModel)
 RobotParamsT = TypeVar("RobotParamsT", bound=BaseModel)
 ProfileT = TypeVar("ProfileT", bound=BaseModel)
+KinematicsT = TypeVar("KinematicsT")
 
 
 @dataclass
@@ -240,12 +154,23 @@ class TaskContext(Generic[ParamsT, RobotParamsT]):
 
     def profile(self, slot: str, model: type[ProfileT]) -> ProfileT:
         """The profile bound to ``slot``, typed as ``model`` (the slot's declared model, which the loader
-        checked it against)."""
+        checked it against).  A slot the mission binds nothing to holds its model's defaults when the
+        model has them (bound by the loader, :meth:`Task.default_profiles`)."""
         return cast(ProfileT, self.profiles[slot])
 
     def optional_profile(self, slot: str, model: type[ProfileT]) -> ProfileT | None:
-        """The profile bound to ``slot``, or None when the mission binds none (an optional slot)."""
+        """The profile bound to ``slot``, or None when the mission binds none and the model has no
+        defaults (an optional slot)."""
         return cast("ProfileT | None", self.profiles.get(slot))
+
+    def kinematics(self, model: type[KinematicsT]) -> KinematicsT:
+        """The robot's kinematics, typed as ``model`` (the task's :attr:`Task.kinematics`, which the loader
+        checked the robot's :attr:`Robot.kinematics_model` against); a ``TypeError`` names the robot
+        otherwise."""
+        kin = getattr(self.robot, "kinematics", None)
+        if not isinstance(kin, model):
+            raise TypeError(f"robot {self.robot.name!r} has no {model.__name__} kinematics (got {type(kin).__name__})")
+        return kin
 
 
 class Task(Generic[ParamsT, RobotParamsT]):
@@ -264,12 +189,16 @@ class Task(Generic[ParamsT, RobotParamsT]):
     * ``events`` — events ``step`` may raise;
     * ``command_interface`` — the robot command interface its commands are in (``"ackermann"``,
       ``"unicycle"`` ...; empty: it commands no motion), checked against the mission's robot;
-    * ``requires`` — observation entries ``step`` reads (``"state.pose": array(3)``), checked against
-      what the robot and the world provide;
+    * ``requires`` — observation entries ``step`` reads: :class:`ObsKey` s (``(POSE, MARKER)``, the keys
+      ``step`` reads with, ``POSE(obs)``) or the older mapping ``{"state.pose": array(3)}``, checked
+      against what the robot and the world provide (the class keeps it as the mapping, name → spec);
     * ``robot_params`` — a pydantic model of the robot parameters the law reads (geometry, limits,
       camera mounts).  The robot is accepted for its fields, not its name: the loader checks that the
       robot's ``Params`` has each field with a compatible type, and the framework builds this model from
       the robot's parameters as ``ctx.robot_params``;
+    * ``kinematics`` — the class of the robot kinematics the law computes with (e.g. a Pinocchio model),
+      or None: the loader checks the robot's :attr:`Robot.kinematics_model` is it (or a subclass) and
+      the task reads it typed with ``ctx.kinematics(Model)``;
     * ``writes`` — the mission-data keys (:class:`MemoryKey`) it may write (and read, whether written yet
       or not); ``reads`` — the keys it needs written before its state is entered.  The loader checks that
       every key a state reads is written on every path into it or has a default
@@ -282,10 +211,29 @@ class Task(Generic[ParamsT, RobotParamsT]):
     metrics: ClassVar[dict[str, str]] = {}
     events: ClassVar[tuple[str, ...]] = ()
     command_interface: ClassVar[str] = ""
-    requires: ClassVar[dict[str, ObsSpec]] = {}
+    requires: ClassVar[Requires] = {}
     robot_params: ClassVar[type[BaseModel] | None] = None
+    kinematics: ClassVar[type | None] = None
     writes: ClassVar[tuple[MemoryKey[Any], ...]] = ()
     reads: ClassVar[tuple[MemoryKey[Any], ...]] = ()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "requires" in cls.__dict__:
+            cls.requires = required_specs(cls.requires)
+
+    @classmethod
+    def default_profiles(cls, bound: Mapping[str, BaseModel] | None = None) -> dict[str, BaseModel]:
+        """``bound`` (slot → profile) with every other slot whose model builds from its defaults filled
+        with them — what the loader binds when a mission binds nothing to a slot."""
+        out = dict(bound or {})
+        for slot, model in cls.slots.items():
+            if slot not in out:
+                try:
+                    out[slot] = model()
+                except ValidationError:
+                    continue
+        return out
 
     def __init__(self, ctx: TaskContext[ParamsT, RobotParamsT]) -> None:
         self.ctx = ctx
@@ -324,6 +272,8 @@ class Robot:
     ("w_z", "rad/s"))}`` — what figures and exports label the trace's ``cmd.KEY.i`` columns with."""
     observations: ClassVar[dict[str, ObsSpec]] = {}
     sensors: ClassVar[dict[str, str]] = {}
+    kinematics_model: ClassVar[type | None] = None
+    """The class of the robot's ``kinematics`` attribute (what a task's :attr:`Task.kinematics` names), or None."""
 
     def __init__(self, params: BaseModel) -> None:
         if not isinstance(params, self.Params):

@@ -39,7 +39,7 @@ from pydantic.fields import FieldInfo
 from pydantic_core import to_jsonable_python
 
 from . import api
-from .api import ObsSpec, Robot, Task, World
+from .api import ObsSpec, Robot, Task, World, required_specs
 from .contracts import hosts, task_problem
 from .fidelity import Fidelity
 from .registry import ROBOTS, TASKS, WORLDS, Registry, RegistryError, describe_choices
@@ -417,7 +417,7 @@ def task_entry(task: type[Task], robots: dict[str, type], worlds: dict[str, type
         kind="task", name=task.name, summary=summary_of(doc), doc=doc, source=_source(task),
         params_doc=_own_doc(task.Params), params=params_of(task.Params), slots=slots,
         metrics=_metrics(task.metrics), events=tuple(task.events),
-        requires=tuple(Stream(k, str(s), _providers(k, s, robots, worlds)) for k, s in task.requires.items()),
+        requires=tuple(Stream(k, str(s), _providers(k, s, robots, worlds)) for k, s in required_specs(task.requires).items()),
         command_interface=task.command_interface, robot_params=params_of(task.robot_params),
         works_with=works, types=_nested_models([task.Params, *task.slots.values(), task.robot_params]))
 

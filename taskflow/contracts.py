@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel
 
-from .api import ObsSpec, Robot, Task, World
+from .api import ObsSpec, Robot, Task, World, required_specs
 from .registry import BODIES, ROBOTS, TASKS, WORLDS, RegistryError
 
 Problem = tuple[str, str]
@@ -90,11 +90,11 @@ def task_problem(task: type[Task], robot: type[Robot], world: type[World]) -> Pr
         return (f"task {task.name!r} commands the {task.command_interface!r} interface but robot {robot.name!r} "
                 f"takes {interface_label(robot)}",
                 f"tasks for {robot.command_interface!r}: {', '.join(drivers) or '(none)'}")
-    geometry = robot_params_problem(task, robot)
+    geometry = robot_params_problem(task, robot) or kinematics_problem(task, robot)
     if geometry is not None:
         return geometry
     have = provided(robot, world)
-    for key, need in task.requires.items():
+    for key, need in required_specs(task.requires).items():
         got = have.get(key)
         if got is None:
             return (f"task {task.name!r} reads observation {key} ({need}), which neither robot {robot.name!r} "
@@ -140,6 +140,17 @@ def robot_params_problem(task: type[Task], robot: type[Robot]) -> Problem | None
     fits = _names_where(ROBOTS, lambda r: not _robot_params_misfit(task, r))
     return (f"task {task.name!r} reads robot parameters {', '.join(model.model_fields)} ({model.__name__}); robot "
             f"{robot.name!r} {' and '.join(why)}", f"robots that have them: {', '.join(fits) or '(none)'}")
+
+
+def kinematics_problem(task: type[Task], robot: type[Robot]) -> Problem | None:
+    """Why ``robot`` cannot give ``task`` the kinematics it computes with (None: it can, or the task needs none)."""
+    need = task.kinematics
+    have = robot.kinematics_model
+    if need is None or (have is not None and issubclass(have, need)):
+        return None
+    fits = _names_where(ROBOTS, lambda r: r.kinematics_model is not None and issubclass(r.kinematics_model, need))
+    return (f"task {task.name!r} computes with {need.__name__} kinematics; robot {robot.name!r} provides "
+            f"{have.__name__ if have is not None else 'none'}", f"robots that provide them: {', '.join(fits) or '(none)'}")
 
 
 def _type_name(t: object) -> str:

@@ -128,7 +128,7 @@ TASKS: Registry[type[Task]] = Registry("task", Task, "taskflow.tasks")
 ROBOTS: Registry[type[Robot]] = Registry("robot", Robot, "taskflow.robots")
 WORLDS: Registry[type[World]] = Registry("world", World, "taskflow.worlds")
 BODIES: Registry[type] = Registry("body", object, "taskflow.bodies")
-"""Robot name → its simulator body class (``sim/``; the base is ``taskflow_sim.bodies.GroundBody``).
+"""Robot name → its simulator body class (``sim/``; the base is ``taskflow_sim.core.bodies.GroundBody``).
 The framework only asks whether a robot has one (:attr:`taskflow.api.RobotNeeds.body`), never imports it."""
 
 register_task = TASKS.register

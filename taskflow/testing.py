@@ -179,8 +179,9 @@ def task_context(task: type[Task], params: Any, robot: Robot, profiles: dict[str
     """The context the executor would give ``task`` on entry — for unit tests of one task outside a
     mission: ``robot_params`` is built from the robot's parameters as the framework builds it, and
     ``memory`` (the run's mission data: a plain dict the test may read and fill) is reached through the
-    task's declared view, as in a run (an undeclared key is refused)."""
-    return TaskContext(t=t, params=params, profiles=profiles or {},
+    task's declared view, as in a run (an undeclared key is refused); a slot given no profile holds its
+    model's defaults when it has them, as the loader binds it."""
+    return TaskContext(t=t, params=params, profiles=task.default_profiles(profiles),
                        memory=DataAccess({} if memory is None else memory, task),
                        robot=robot, items=items or {}, dt=dt, robot_params=build_robot_params(task, robot))
 

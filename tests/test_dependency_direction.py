@@ -81,7 +81,8 @@ def test_plugins_use_only_the_public_api_of_the_framework(package):
 
 
 def test_importing_sim_loads_no_task_and_no_framework_machinery():
-    mods = [f"taskflow_sim.{f.stem}" for f in sorted((ROOT / "sim").glob("*.py")) if f.stem != "__init__"]
+    mods = ["taskflow_sim." + ".".join(f.relative_to(ROOT / "sim").with_suffix("").parts).removesuffix(".__init__")
+            for f in sorted((ROOT / "sim").rglob("*.py")) if f.relative_to(ROOT / "sim").parts != ("__init__.py",)]
     code = (
         "import importlib, sys\n"
         f"for m in {mods!r}: importlib.import_module(m)\n"

@@ -12,7 +12,7 @@ Two responses (``quad_room``'s ``command_response``):
   replaces it with a new one, again relative to where the drone is by then: the part of each move not
   done within a command period is lost.
 
-:class:`taskflow_sim.command_delay.CommandDelay` holds commands for a transport delay before they act.
+:class:`taskflow_sim.core.command_delay.CommandDelay` holds commands for a transport delay before they act.
 """
 
 from __future__ import annotations

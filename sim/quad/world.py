@@ -45,12 +45,12 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
-from taskflow_sim.command_delay import CommandDelay
-from taskflow_sim.faults import FaultIntervals, IntervalFault
+from taskflow_sim.core.command_delay import CommandDelay
+from taskflow_sim.core.faults import FaultIntervals, IntervalFault
+from taskflow_sim.core.stepped import SensorSchedule, SteppedWorld, check_command
+from taskflow_sim.quad.landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
 from taskflow_sim.quad.response import move_target, relative_move_step
 from taskflow_sim.quad.scene import Column, QuadScene, Room
-from taskflow_sim.quad.landmarks import column_silhouette, project, sample_landmarks, visible_landmarks
-from taskflow_sim.stepped import SensorSchedule, SteppedWorld, check_command
 
 from taskflow.api import (
     Command,

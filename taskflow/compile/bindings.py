@@ -48,12 +48,13 @@ def bind_profiles(c: Compilation, root: StateNode) -> None:
 
 def _bind_leaf(c: Compilation, n: StateNode, profiles: dict[str, dict[str, dict[str, Any]]]) -> None:
     assert n.task_cls is not None
+    defaults = n.task_cls.default_profiles()
     for slot, model in n.task_cls.slots.items():
         kind = profile_kind(model, slot)
         if slot not in n.bind:
-            try:
-                n.profiles[slot] = model()
-            except ValidationError:
+            if slot in defaults:  # a slot the mission binds nothing to holds its model's defaults
+                n.profiles[slot] = defaults[slot]
+            else:
                 c.err(n.ypath, f"task {n.task_cls.name!r} needs a {kind!r} profile in slot {slot!r}",
                       f"add `bind: {{{slot}: NAME}}` here or on a parent; defined {kind} profiles: "
                       f"{', '.join(profiles.get(kind, {})) or '(none)'}")

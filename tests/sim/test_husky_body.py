@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.husky import Husky
-from taskflow_sim.bodies import GroundBody
-from taskflow_sim.flat_ground import FlatGround
+from taskflow_sim.core.bodies import GroundBody
+from taskflow_sim.ground.flat_ground import FlatGround
 from taskflow_sim.husky_body import HuskyBody
 
 ROBOT = Husky(Husky.Params())

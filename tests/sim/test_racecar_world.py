@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
-from taskflow_sim.flat_ground import FlatGround
+from taskflow_sim.ground.flat_ground import FlatGround
 from taskflow_tasks.car_goto import CarGains, CarGoto
 
 from taskflow.testing import task_context

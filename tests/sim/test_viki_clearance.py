@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import taskflow_robots.racecar  # noqa: F401 - registers racecar
 from taskflow_robots.racecar import Racecar
-from taskflow_sim.bodies import BodyOptions, make_body
+from taskflow_sim.core.bodies import BodyOptions, make_body
 from taskflow_sim.viki_clearance import Footprint, footprint_clearance, measure_footprint
 from taskflow_sim.viki_objects import SHAPES, PlacedObject
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.racecar import Racecar
-from taskflow_sim.odometry_slip import SlipOdometry
+from taskflow_sim.core.odometry_slip import SlipOdometry
 from taskflow_sim.viki_world import VikiGround, VikiGroundParams, biased_box
 
 ROBOT = Racecar(Racecar.Params())

@@ -1,11 +1,11 @@
-"""The platform's command transport delay (:class:`taskflow_sim.command_delay.CommandDelay`, the screw
+"""The platform's command transport delay (:class:`taskflow_sim.core.command_delay.CommandDelay`, the screw
 platform's and the drone's), against
 hand-computed times."""
 
 from __future__ import annotations
 
 import pytest
-from taskflow_sim.command_delay import CommandDelay
+from taskflow_sim.core.command_delay import CommandDelay
 
 
 def test_a_command_takes_effect_delay_seconds_after_it_was_given():

@@ -1,4 +1,4 @@
-"""SensorSchedule (sim/stepped.py) and the fault-interval model (sim/faults.py), without a simulator."""
+"""SensorSchedule (sim/core/stepped.py) and the fault-interval model (sim/core/faults.py), without a simulator."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import math
 
 import pytest
 from pydantic import ValidationError
-from taskflow_sim.faults import FaultIntervals, IntervalFault, check_intervals
-from taskflow_sim.stepped import SensorSchedule
+from taskflow_sim.core.faults import FaultIntervals, IntervalFault, check_intervals
+from taskflow_sim.core.stepped import SensorSchedule
 
 from taskflow.api import StrictModel
 

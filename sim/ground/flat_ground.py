@@ -1,6 +1,6 @@
 """``flat_ground``: a wheeled robot alone on a flat floor — the world of the kinematic states.
 
-Any robot with a registered ground body (:mod:`taskflow_sim.bodies`, entry point group
+Any robot with a registered ground body (:mod:`taskflow_sim.core.bodies`, entry point group
 ``taskflow.bodies``) drives here: the world builds the body by the robot's name and never names a robot.
 The observation's ``state`` is the body's proprioception (``pose``, ``v`` and what the robot adds, e.g.
 the racecar's ``steer``).
@@ -19,9 +19,9 @@ from typing import Any, ClassVar, cast
 import numpy as np
 import pybullet as p
 from pydantic import BaseModel, Field, model_validator
-from taskflow_sim.bodies import BodyOptions, GroundBody, make_body
 from taskflow_sim.car_scene import add_floor, connect
-from taskflow_sim.stepped import SteppedWorld, check_command
+from taskflow_sim.core.bodies import BodyOptions, GroundBody, make_body
+from taskflow_sim.core.stepped import SteppedWorld, check_command
 
 from taskflow.api import Command, Marker, Observation, Robot, RobotNeeds, StrictModel
 from taskflow.registry import register_world

@@ -8,19 +8,22 @@ the new time (where a world polls sensors scheduled per physics step).  Time is 
 steps, never the wall clock.  A world keeps its scoring (ground truth, summary metrics) apart from this.
 
 :class:`SensorSchedule` says when a sensor of rate ``r`` fires: on the first tick at or after each
-``t0 + k / r``.  Fault intervals (dropouts, occlusions, blackouts) are :mod:`taskflow_sim.faults`.
+``t0 + k / r``.  Fault intervals (dropouts, occlusions, blackouts) are :mod:`taskflow_sim.core.faults`.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Generic, Protocol, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel
 
 from taskflow.api import Command, Robot, World
+
+if TYPE_CHECKING:
+    from taskflow_sim.core.sensors import SensorStream
 
 EPS_T = 1e-9
 """Slack (s) when comparing a tick's time (steps / physics_hz) with a time computed another way (k / rate)."""
@@ -106,6 +109,21 @@ class SteppedWorld(World, Generic[SceneT]):
         self._steps = 0
         self.substep = 0
         self._carry = 0.0
+        self.streams: dict[str, SensorStream[Any]] = {}
+
+    def add_stream(self, name: str, stream: SensorStream[Any]) -> SensorStream[Any]:
+        """Declare ``stream`` under ``name`` (replacing one of that name); returns it."""
+        self.streams[name] = stream
+        return stream
+
+    def start_streams(self) -> None:
+        """Restart every stream at :attr:`t` (call at the end of ``reset``, once the scene exists); a
+        stream polled per ``advance`` takes its first poll now (a reading at the reset time)."""
+        t = self.t
+        for s in self.streams.values():
+            s.restart(t)
+            if s.poll_point == "advance":
+                s.poll(t)
 
     def close(self) -> None:
         if self.scene is not None:
@@ -138,6 +156,10 @@ class SteppedWorld(World, Generic[SceneT]):
         if not (math.isfinite(dt) and dt >= 0.0):
             raise ValueError(f"advance(dt) needs a finite dt >= 0, got {dt!r}")
         self._before_steps()
+        streams = self.streams.values()
+        for s in streams:
+            s.begin_advance()
+        per_step = [s for s in streams if s.poll_point == "physics_step"]
         self._carry += dt * self.physics_hz
         n = round(self._carry)
         self._carry -= n
@@ -147,11 +169,20 @@ class SteppedWorld(World, Generic[SceneT]):
             for _ in range(n):  # substep: index of the step being taken (after it: the steps taken)
                 self.physics_step(h)
                 self.substep += 1
+                if per_step:
+                    t = self.t
+                    for s in per_step:
+                        s.poll(t)
                 self.after_physics_step(h)
         finally:
             self.substep = 0
         self._steps += n
         self.end_steps(n, h)
+        if streams:
+            t = self.t
+            for s in streams:
+                if s.poll_point == "advance":
+                    s.poll(t)
 
     def _before_steps(self) -> None:
         """Hook run before the step count is taken (e.g. a check that the scene exists); default: nothing."""
