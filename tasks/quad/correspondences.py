@@ -18,6 +18,7 @@ the feed-forward of Alg. 2 is computed (:mod:`taskflow_tasks.quad.feedforward`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -28,7 +29,7 @@ from taskflow_tasks.quad.homography import sort_points
 from taskflow_tasks.quad.params import VisualPathParams
 from taskflow_tasks.quad.perception import ObstacleDetection, estimate_homography
 
-from taskflow.api import Observation
+from taskflow.api import Observation, ObsKey, sequence
 from taskflow.messages import FeatureView, Image, Silhouette
 
 Array = NDArray[np.float64]
@@ -36,6 +37,11 @@ Pixels = NDArray[np.floating[Any]]  # (N, 2) px: float64 landmarks, float32 trac
 Pairs = list[tuple[Pixels, Pixels]]
 
 __all__ = [
+    "IMAGE",
+    "KEYFRAMES",
+    "KEYFRAME_POINTS",
+    "OBSTACLE",
+    "POINTS",
     "Correspondences",
     "LandmarkCorrespondences",
     "Lost",
@@ -49,6 +55,15 @@ __all__ = [
     "keyframe_image",
     "silhouette_detection",
 ]
+
+# the camera's messages: one per frame, a FeatureView (geometric camera) or an Image (rendered), and the
+# keyframes' messages of the same type; the world's perception mode decides which pair it sends
+POINTS = ObsKey("sensors.points", FeatureView, optional=True)
+KEYFRAME_POINTS: ObsKey[Sequence[FeatureView] | None] = ObsKey("sensors.keyframe_points",
+                                                               sequence(optional=True, of=FeatureView))
+IMAGE = ObsKey("sensors.image", Image, optional=True)
+KEYFRAMES: ObsKey[Sequence[Image] | None] = ObsKey("sensors.keyframes", sequence(optional=True, of=Image))
+OBSTACLE = ObsKey("sensors.obstacle", Silhouette, optional=True)  # the geometric camera's column silhouette
 
 
 @dataclass(frozen=True)
@@ -103,11 +118,11 @@ def camera_view(obs: Observation) -> FeatureView | Image:
     """This tick's camera message, whose type chooses the perception pipeline: the geometric camera's
     landmark :class:`FeatureView` (``sensors.points``: correspondences by id) or the rendered camera's
     :class:`Image` (``sensors.image``: ORB matching and LK tracking)."""
-    view = obs.sensors.get("points")
-    if isinstance(view, FeatureView):
+    view = POINTS(obs)
+    if view is not None:
         return view
-    image = obs.sensors.get("image")
-    if isinstance(image, Image):
+    image = IMAGE(obs)
+    if image is not None:
         return image
     raise RuntimeError("visual path tasks read the camera's sensors.points (FeatureView) or sensors.image (Image); "
                        f"this observation has: {', '.join(sorted(obs.sensors)) or 'no sensors'}")
@@ -115,20 +130,21 @@ def camera_view(obs: Observation) -> FeatureView | Image:
 
 def keyframe_image(obs: Observation, kf_id: int) -> NDArray[np.uint8]:
     """Keyframe ``kf_id``'s taught image (rendered camera)."""
-    kfs = obs.sensors.get("keyframes", ())
-    if kf_id >= len(kfs):
-        raise RuntimeError(f"keyframe {kf_id} has no image: the world provides {len(kfs)} keyframe images")
+    kfs = KEYFRAMES(obs)
+    n = 0 if kfs is None else len(kfs)
+    if kfs is None or kf_id >= n:
+        raise RuntimeError(f"keyframe {kf_id} has no image: the world provides {n} keyframe images")
     pixels: NDArray[np.uint8] = kfs[kf_id].pixels
     return pixels
 
 
 def keyframe_view(obs: Observation, kf_id: int) -> FeatureView:
     """Keyframe ``kf_id``'s taught landmark view (geometric camera)."""
-    kf_views = obs.sensors.get("keyframe_points", ())
-    if kf_id >= len(kf_views):
-        raise RuntimeError(f"keyframe {kf_id} has no view: the world provides {len(kf_views)}")
-    view: FeatureView = kf_views[kf_id]
-    return view
+    kf_views = KEYFRAME_POINTS(obs)
+    n = 0 if kf_views is None else len(kf_views)
+    if kf_views is None or kf_id >= n:
+        raise RuntimeError(f"keyframe {kf_id} has no view: the world provides {n}")
+    return kf_views[kf_id]
 
 
 def by_id(view: FeatureView, kf: FeatureView) -> tuple[Array, Array, NDArray[np.int64]]:
@@ -196,12 +212,15 @@ class LandmarkCorrespondences:
             in_tri = np.isin(ids, self.tri_ids, assume_unique=True)
         order = np.concatenate((np.flatnonzero(in_tri), np.flatnonzero(~in_tri)))  # the triangle first
         hier = self.hier
-        obstacle = silhouette_detection(obs.sensors.get("obstacle"), self.size, hier.min_obstacle_px) \
+        obstacle = silhouette_detection(OBSTACLE(obs), self.size, hier.min_obstacle_px) \
             if hier.collision else None
         return Matched(cur[order], kfp[order], H, obstacle)
 
     def keyframe_pairs(self, obs: Observation) -> Pairs:
-        return landmark_pairs(tuple(obs.sensors["keyframe_points"]))
+        views = KEYFRAME_POINTS(obs)
+        if views is None:
+            raise RuntimeError("visual_path_servo: feed-forward needs the keyframes' views (sensors.keyframe_points)")
+        return landmark_pairs(tuple(views))
 
 
 def landmark_pairs(views: tuple[FeatureView, ...]) -> Pairs:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from taskflow_tasks.quad.correspondences import Lost, Matched, Pairs, Rebase, camera_view, keyframe_image
+from taskflow_tasks.quad.correspondences import KEYFRAMES, Lost, Matched, Pairs, Rebase, camera_view, keyframe_image
 from taskflow_tasks.quad.gains import HierarchyGains
 from taskflow_tasks.quad.homography import mean_pixel_error
 from taskflow_tasks.quad.params import RematchParams, VisualPathParams
@@ -172,5 +172,8 @@ class ImageCorrespondences:
         return len(tr), rebase
 
     def keyframe_pairs(self, obs: Observation) -> Pairs:
-        kfs = tuple(k.pixels for k in obs.sensors.get("keyframes", ()))
+        images = KEYFRAMES(obs)
+        if images is None:
+            raise RuntimeError("visual_path_servo: feed-forward needs the keyframe images (sensors.keyframes)")
+        kfs = tuple(k.pixels for k in images)
         return image_pairs(kfs, self.p.features, self.p.n_features, self.cache)

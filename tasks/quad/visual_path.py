@@ -102,6 +102,11 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel
 from taskflow_tasks.quad.correspondences import (
+    IMAGE,
+    KEYFRAME_POINTS,
+    KEYFRAMES,
+    OBSTACLE,
+    POINTS,
     Correspondences,
     LandmarkCorrespondences,
     Lost,
@@ -125,17 +130,16 @@ from taskflow.api import (
     MemoryKey,
     Metric,
     Observation,
-    ObsSpec,
+    ObsKey,
+    Requires,
     StepResult,
     Task,
     TaskContext,
     array,
     instance,
-    message,
     scalar,
-    sequence,
 )
-from taskflow.messages import FeatureView, Image, Silhouette
+from taskflow.messages import FeatureView
 from taskflow.registry import register_task
 from taskflow.spatial import twist_adjoint
 
@@ -165,12 +169,10 @@ _METRICS: dict[str, str] = {
 
 
 # what both visual path tasks read: one camera message per frame (FeatureView or Image, by the world's
-# perception mode) and the keyframes' messages of the same type
-_CAMERA: dict[str, ObsSpec] = {
-    "sensors.frame_id": scalar(),
-    "sensors.points": message(FeatureView), "sensors.keyframe_points": sequence(optional=True, of=FeatureView),
-    "sensors.image": message(Image), "sensors.keyframes": sequence(optional=True, of=Image)}
-
+# perception mode) and the keyframes' messages of the same type; the servo also the measured velocity
+FRAME_ID: ObsKey[float] = ObsKey("sensors.frame_id", scalar())
+NU: ObsKey[NDArray[np.float64]] = ObsKey("state.nu", array(4))
+_CAMERA: tuple[ObsKey[Any], ...] = (FRAME_ID, POINTS, KEYFRAME_POINTS, IMAGE, KEYFRAMES)
 
 
 @register_task("visual_path_servo")
@@ -184,15 +186,15 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
     events: ClassVar[tuple[str, ...]] = ("features_lost",)
     command_interface: ClassVar[str] = "body_velocity"
     robot_params: ClassVar[type[BaseModel]] = ForwardCamera
-    requires: ClassVar[dict[str, ObsSpec]] = {**_CAMERA, "sensors.obstacle": message(Silhouette), "state.nu": array(4)}
+    requires: ClassVar[Requires] = (*_CAMERA, OBSTACLE, NU)
     writes: ClassVar[tuple[MemoryKey[Any], ...]] = (OBSTACLE_MEMORY,)
 
     def __init__(self, ctx: TaskContext[VisualPathParams, ForwardCamera]) -> None:
         super().__init__(ctx)
         self.p = ctx.params
-        self.visual = ctx.optional_profile("visual", VisualGains) or VisualGains()
-        self.hier = ctx.optional_profile("hierarchy", HierarchyGains) or HierarchyGains()
-        self.path_gains = ctx.optional_profile("path", PathGains) or PathGains()
+        self.visual = ctx.profile("visual", VisualGains)  # an unbound slot: the defaults, bound by the loader
+        self.hier = ctx.profile("hierarchy", HierarchyGains)
+        self.path_gains = ctx.profile("path", PathGains)
         cam = ctx.robot_params.camera
         self.K = cam.K()
         self.Ad_body_camera = twist_adjoint(cam.T_body_camera())
@@ -229,7 +231,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         return table[k] if k < len(table) else np.zeros(4)
 
     def step(self, obs: Observation) -> StepResult:
-        fid = int(obs.sensors.get("frame_id", -1))
+        fid = int(FRAME_ID(obs))
         if fid == self.last_frame:  # no new image: hold the command (zero-order hold)
             return StepResult({"nu": self.command.copy()}, dict(self.metrics_out))
         self.last_frame = fid
@@ -248,7 +250,7 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
                                 OBSTACLE_MEMORY.setdefault(self.ctx.memory, ObstacleMemory()))
         tic2 = time.perf_counter()
         nu_e, metrics = self.law(obs.t, found.cur, found.kf, found.obstacle, found.H,
-                                 np.asarray(obs.state["nu"], dtype=np.float64))
+                                 np.asarray(NU(obs), dtype=np.float64))
         toc = time.perf_counter()
         self.command = nu_e
         self.metrics_out = metrics
@@ -266,7 +268,7 @@ class VisualPathRematch(Task[RematchParams, ForwardCamera]):
     events: ClassVar[tuple[str, ...]] = ("features_found",)
     command_interface: ClassVar[str] = "body_velocity"
     robot_params: ClassVar[type[BaseModel]] = ForwardCamera
-    requires: ClassVar[dict[str, ObsSpec]] = _CAMERA
+    requires: ClassVar[Requires] = _CAMERA
 
     def __init__(self, ctx: TaskContext[RematchParams, ForwardCamera]) -> None:
         super().__init__(ctx)
@@ -275,7 +277,7 @@ class VisualPathRematch(Task[RematchParams, ForwardCamera]):
         self.n = 0
 
     def step(self, obs: Observation) -> StepResult:
-        fid = int(obs.sensors.get("frame_id", -1))
+        fid = int(FRAME_ID(obs))
         events: tuple[str, ...] = ()
         if fid != self.last_frame:
             self.last_frame = fid
