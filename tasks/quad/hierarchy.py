@@ -84,7 +84,8 @@ def visibility_error(points: ArrayLike, c_star: ArrayLike) -> Array:
     m = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if len(m) == 0:
         raise ValueError("visibility error of an empty point set")
-    return m.mean(axis=0) - np.asarray(c_star, dtype=np.float64).reshape(2)
+    e_m: Array = m.mean(axis=0) - np.asarray(c_star, dtype=np.float64).reshape(2)
+    return e_m
 
 
 def visibility_jacobian(c: ArrayLike, z: float) -> Array:

@@ -101,7 +101,7 @@ def normalize_homography(G: ArrayLike, K: ArrayLike, m: ArrayLike | None = None,
     """
     g = np.asarray(G, dtype=np.float64).reshape(3, 3)
     k = np.asarray(K, dtype=np.float64).reshape(3, 3)
-    H = np.linalg.solve(k, g) @ k
+    H: Array = np.linalg.solve(k, g) @ k
     s = np.linalg.svd(H, compute_uv=False)
     if not (np.all(np.isfinite(s)) and s[1] > 0.0):
         raise ValueError("degenerate homography: its middle singular value is not positive")
@@ -176,7 +176,7 @@ def _hull_indices(p: Array) -> list[int]:
         return order
 
     def cross(o: int, a: int, b: int) -> float:
-        return (p[a, 0] - p[o, 0]) * (p[b, 1] - p[o, 1]) - (p[a, 1] - p[o, 1]) * (p[b, 0] - p[o, 0])
+        return float((p[a, 0] - p[o, 0]) * (p[b, 1] - p[o, 1]) - (p[a, 1] - p[o, 1]) * (p[b, 0] - p[o, 0]))
 
     lower: list[int] = []
     for i in order:

@@ -85,7 +85,7 @@ class ServoLaw:
         e = task_error(H, m_star)
         eps = mean_pixel_error(cur_px, kf_px)
         norm_e = float(np.linalg.norm(e))
-        lam = adaptive_gain(norm_e, self.visual.lambda_0, self.visual.lambda_inf, self.visual.lambda_0_slope)
+        lam = float(adaptive_gain(norm_e, self.visual.lambda_0, self.visual.lambda_inf, self.visual.lambda_0_slope))
         lam_v = gain_matrix(lam, self.gains)
         # collision avoidance, eqs. (8)-(9); h_a by eq. (20)
         if obstacle is not None and obstacle.touches_border:

@@ -131,7 +131,6 @@ from taskflow.api import (
     Metric,
     Observation,
     ObsKey,
-    Requires,
     StepResult,
     Task,
     TaskContext,
@@ -142,6 +141,7 @@ from taskflow.api import (
 from taskflow.messages import FeatureView
 from taskflow.registry import register_task
 from taskflow.spatial import twist_adjoint
+from taskflow.specs import Requires
 
 __all__ = ["OBSTACLE_MEMORY", "VisualPathRematch", "VisualPathServo"]
 
@@ -218,13 +218,14 @@ class VisualPathServo(Task[VisualPathParams, ForwardCamera]):
         """``nu_p`` of the segment flown toward this keyframe (Alg. 2's ``vVec``), from the run's table."""
         if not self.p.feedforward or self.p.is_last:
             return np.zeros(4)
-        cache = self.ctx.cache
-        key = ("visual_path.feedforward", corr.name, self.p.n_features, self.path_gains.gamma, self.visual)
-        table: list[NDArray[np.float64]] | None = cache.get(key)
+        memo: dict[tuple[str, int, float, VisualGains], list[NDArray[np.float64]]] = \
+            self.ctx.cache.setdefault("visual_path.feedforward", {})
+        key = (corr.name, self.p.n_features, self.path_gains.gamma, self.visual)
+        table = memo.get(key)
         if table is None:
             table = segment_velocities(corr.keyframe_pairs(obs), self.K, self.Ad_body_camera, self.visual,
                                        self.path_gains.gamma)
-            cache[key] = table
+            memo[key] = table
         k = self.p.keyframe.id
         if self.path_gains.segment == "current":
             k = max(k - 1, 0)

@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
+from taskflow_sim.quad.params import QuadRoomParams
 from taskflow_sim.quad.response import move_target, relative_move_step
-from taskflow_sim.quad.world import QuadRoom, QuadRoomParams
+from taskflow_sim.quad.world import QuadRoom
 
 
 def test_move_target_is_the_body_frame_move_turned_by_the_yaw():

@@ -11,6 +11,9 @@ import pytest
 from pydantic import ValidationError
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
 from taskflow_sim.quad.scene import generate_texture
+from taskflow_tasks.quad.correspondences import landmark_pairs
+from taskflow_tasks.quad.feedforward import segment_velocities
+from taskflow_tasks.quad.gains import HierarchyGains, PathGains, VisualGains
 from taskflow_tasks.quad.homography import (
     intrinsic_matrix,
     largest_triangle,
@@ -18,12 +21,8 @@ from taskflow_tasks.quad.homography import (
     normalize_pixels,
     task_error,
 )
-from taskflow_tasks.quad.correspondences import landmark_pairs
-from taskflow_tasks.quad.feedforward import segment_velocities
-from taskflow_tasks.quad.gains import HierarchyGains, PathGains, VisualGains
 from taskflow_tasks.quad.law import ServoLaw
 from taskflow_tasks.quad.params import KeyframeRef, RematchParams, VisualPathParams
-from taskflow_tasks.quad.tracking import image_pairs, match_with_retry
 from taskflow_tasks.quad.perception import (
     PointTracker,
     detect,
@@ -33,6 +32,7 @@ from taskflow_tasks.quad.perception import (
     obstacle_edges,
     to_grey,
 )
+from taskflow_tasks.quad.tracking import image_pairs, match_with_retry
 
 from taskflow.spatial import twist_adjoint
 
