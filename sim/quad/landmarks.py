@@ -17,11 +17,13 @@ at the image's middle row that :func:`taskflow_tasks.quad.perception.obstacle_ed
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 from taskflow_sim.quad.scene import Column, Room
+
+from taskflow.spatial import planar_apply, planar_apply_inverse
 
 Array = NDArray[np.float64]
 
@@ -30,7 +32,7 @@ def sample_landmarks(room: Room, density: float, rng: np.random.Generator) -> Ar
     """Points (N, 3) drawn uniformly on the four walls, the floor and the ceiling, ``density`` per m²."""
     x0, x1, y0, y1, h = room.x0, room.x1, room.y0, room.y1, room.height
     lx, ly = x1 - x0, y1 - y0
-    faces = [  # (area, sampler of n points)
+    faces: list[tuple[float, Callable[[int], Array]]] = [  # (area, sampler of n points)
         (lx * h, lambda n: np.column_stack((rng.uniform(x0, x1, n), np.full(n, y0), rng.uniform(0, h, n)))),
         (lx * h, lambda n: np.column_stack((rng.uniform(x0, x1, n), np.full(n, y1), rng.uniform(0, h, n)))),
         (ly * h, lambda n: np.column_stack((np.full(n, x0), rng.uniform(y0, y1, n), rng.uniform(0, h, n)))),
@@ -43,12 +45,9 @@ def sample_landmarks(room: Room, density: float, rng: np.random.Generator) -> Ar
 
 def _blocked_by(c: Column, eye: Array, pts: Array) -> NDArray[np.bool_]:
     """Which segments ``eye → pts`` cross column ``c`` below its top (vectorised over ``pts``)."""
-    ca, sa = math.cos(c.yaw), math.sin(c.yaw)
     # segment in the column's frame (xy); the parameter s in [0, 1] runs from the eye to the point
-    ex, ey = eye[0] - c.x, eye[1] - c.y
-    e = np.array([ca * ex + sa * ey, -sa * ex + ca * ey])
-    dx, dy = pts[:, 0] - eye[0], pts[:, 1] - eye[1]
-    d = np.column_stack((ca * dx + sa * dy, -sa * dx + ca * dy))
+    e = planar_apply_inverse((c.x, c.y, c.yaw), eye[:2])
+    d = planar_apply_inverse((0.0, 0.0, c.yaw), pts[:, :2] - eye[:2])  # directions: the rotation only
     n = len(pts)
     if c.depth > 0.0:  # box: slab test
         half = np.array([0.5 * c.depth, 0.5 * c.width])
@@ -71,7 +70,7 @@ def _blocked_by(c: Column, eye: Array, pts: Array) -> NDArray[np.bool_]:
         closest = e[None, :] + s[:, None] * d
         hit = np.einsum("ij,ij->i", closest, closest) < r * r
     z = eye[2] + s * (pts[:, 2] - eye[2])
-    return hit & (z <= c.height)
+    return np.asarray(hit & (z <= c.height), dtype=np.bool_)
 
 
 def project(points: Array, R_wc: Array, t_wc: Array, K: Array) -> tuple[Array, Array]:
@@ -109,10 +108,9 @@ def column_silhouette(c: Column, R_wc: Array, t_wc: Array, K: Array, size: tuple
         lx, ly = np.cos(a) / m, np.sin(a) / m
     else:
         lx, ly = 0.5 * c.width * np.cos(a), 0.5 * c.width * np.sin(a)
-    ca, sa = math.cos(c.yaw), math.sin(c.yaw)
     if t_wc[2] > c.height:
         return None
-    pts = np.column_stack((c.x + ca * lx - sa * ly, c.y + sa * lx + ca * ly, np.full(n, t_wc[2])))
+    pts = np.column_stack((planar_apply((c.x, c.y, c.yaw), np.column_stack((lx, ly))), np.full(n, t_wc[2])))
     z, uv = project(pts, R_wc, t_wc, K)
     front = z > near
     if not np.any(front):

@@ -54,13 +54,13 @@ class RoomCamera:
         self.landmarks, self.columns = landmarks, list(columns)
         self.image_noise, self.pixel_noise = image_noise, pixel_noise
 
-    def at(self, pose: Sequence[float]) -> CameraView:
+    def at(self, pose: Sequence[float] | Array) -> CameraView:
         """World ← optical rotation, camera position, intrinsics and image size at ``pose``."""
         cam = self.camera
         R, t = cam.pose_in_world(list(pose))
         return R, t, cam.K(), (cam.width, cam.height)
 
-    def landmark_view(self, pose: Sequence[float], stamp: float, frame: str,
+    def landmark_view(self, pose: Sequence[float] | Array, stamp: float, frame: str,
                       rng: np.random.Generator | None = None) -> FeatureView:
         """The landmarks seen from ``pose`` (exact pixels; with ``rng``, the pixel noise added), as a
         message stamped ``stamp`` in ``frame``."""
@@ -71,7 +71,7 @@ class RoomCamera:
         ids.setflags(write=False)
         return FeatureView(stamp=stamp, frame=frame, ids=ids, uv=uv)
 
-    def widest_column(self, pose: Sequence[float]) -> tuple[float, float, bool] | None:
+    def widest_column(self, pose: Sequence[float] | Array) -> tuple[float, float, bool] | None:
         """The widest column's left and right image columns (px) and whether it touches the border."""
         view = self.at(pose)
         best = None

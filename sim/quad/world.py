@@ -81,9 +81,6 @@ class QuadRoom(SteppedWorld[QuadScene]):
         "sensors.image": message(Image), "sensors.keyframes": sequence(optional=True, of=Image)}
 
     params: QuadRoomParams
-
-
-    params: QuadRoomParams
     robot: Quadcopter
 
     @classmethod

@@ -76,7 +76,9 @@ class Features:
 def detect(detector: cv2.Feature2D, grey: NDArray[np.uint8], kind: str) -> Features:
     kps, des = detector.detectAndCompute(grey, None)
     pts = np.array([k.pt for k in kps], dtype=np.float32).reshape(-1, 2)
-    return Features(pts, None if des is None else np.asarray(des), kind)
+    if des is None:
+        return Features(pts, None, kind)
+    return Features(pts, np.asarray(des, dtype=np.uint8) if kind == "orb" else np.asarray(des, dtype=np.float32), kind)
 
 
 Criteria = tuple[int, int, float]
