@@ -22,13 +22,11 @@ Pose = tuple[float, float, float, float]
 
 class KeyframeSpec(StrictModel):
     """One keyframe of a visual path: its index and the pose ``[x, y, z, yaw]`` (m, rad) it was
-    taught at.  The pose is ground truth for the summary; the task sees only the image."""
+    taught at.  The pose places the camera that renders the keyframe image and is ground truth for the
+    summary; the tasks see only the image (their path lists the ids, ``visual_path_servo``'s ``path``)."""
 
     id: int = Field(ge=0, description="its index on the path: 0, 1, 2, ... in order")
     pose: tuple[float, float, float, float] = Field(description="[x, y, z, yaw] it was taught at (m, rad), inside the room")
-    sigma: float | None = Field(default=None, gt=0.0, le=2.0, description="the obstacle reference width the "
-                                "collision task uses at this keyframe (normalised), as its profile's sigma: 0 < sigma ≤ 2; "
-                                "used by the control law, not by the world")
 
 
 class RoomSpec(StrictModel):

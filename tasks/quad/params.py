@@ -12,11 +12,12 @@ from taskflow.api import StrictModel
 
 
 class KeyframeRef(StrictModel):
-    """A keyframe of the path: its index (into the world's keyframe images) and its taught pose
-    (ground truth, unused by the control law)."""
+    """A keyframe of the path as the robot knows it: its index into the taught keyframe images (the
+    observation's ``sensors.keyframes`` / ``sensors.keyframe_points``) and its settings.  The pose it
+    was taught at is the world's (``world.params.keyframes``, ground truth for the summary): a robot has
+    the images, not the poses."""
 
     id: int = Field(ge=0)
-    pose: tuple[float, float, float, float] | None = None
     sigma: float | None = Field(default=None, gt=0.0, le=2.0,
                                 description="collision reference σ while servoing to this keyframe (§5.2 changes it per obstacle)")
 

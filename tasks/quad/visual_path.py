@@ -23,8 +23,8 @@ tracked points that a new matching of the keyframe cannot bring back to ``min_po
 raises ``features_found``.
 
 Only images (and, for the obstacle memory, the measured body velocity) are used: the current frame (``obs.sensors["image"]``, an :class:`~taskflow.messages.Image`)
-and the keyframe images (``obs.sensors["keyframes"]``); the keyframe poses in the parameters are ground
-truth for the world's summary and are never read here.  With the world's geometric camera the frame's
+and the keyframe images (``obs.sensors["keyframes"]``); the path in the parameters lists the keyframes by
+index (and their settings), never by pose: the taught poses are the world's ground truth.  With the world's geometric camera the frame's
 message is a :class:`~taskflow.messages.FeatureView` instead (``obs.sensors["points"]``, and
 ``["keyframe_points"]``: landmark ids and noisy pixels; ``["obstacle"]``: a column's
 :class:`~taskflow.messages.Silhouette`): the type of the camera's message (:func:`camera_view`) chooses

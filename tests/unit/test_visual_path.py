@@ -252,7 +252,7 @@ def test_rebase_keeps_the_epsilon_rules_on_the_scale_of_a_grown_point_set():
     rng = np.random.default_rng(1)
     kf = rng.uniform([20, 20], [300, 220], (40, 2))
     extra = rng.uniform([20, 20], [300, 220], (40, 2))
-    params = VisualPathParams(keyframe=KeyframeRef(id=0, pose=None), path=[KeyframeRef(id=0), KeyframeRef(id=1)],
+    params = VisualPathParams(keyframe=KeyframeRef(id=0), path=[KeyframeRef(id=0), KeyframeRef(id=1)],
                               progress_window_s=1.0, feedforward=True)
     runs = {}
     for rebase in (True, False):
@@ -311,18 +311,24 @@ def test_segment_velocities_from_landmark_views_point_along_the_path():
 
 
 def test_feedforward_needs_two_keyframes():
-    path = [{"id": 0, "pose": [1, 0, 1, 0]}]
+    path = [{"id": 0}]
     with pytest.raises(ValidationError, match="at least two keyframes"):
         VisualPathParams(keyframe=path[0], path=path, feedforward=True)
-    VisualPathParams(keyframe=path[0], path=path + [{"id": 1, "pose": [2, 0, 1, 0]}], feedforward=True)
+    VisualPathParams(keyframe=path[0], path=path + [{"id": 1}], feedforward=True)
 
 
 def test_keyframe_must_belong_to_its_path():
-    path = [{"id": 0, "pose": [1, 0, 1, 0]}, {"id": 1, "pose": [2, 0, 1, 0]}]
+    path = [{"id": 0}, {"id": 1, "sigma": 0.1}]
     with pytest.raises(ValidationError, match="not entry 1"):
-        VisualPathParams(keyframe={"id": 1, "pose": [3, 0, 1, 0]}, path=path)
+        VisualPathParams(keyframe={"id": 1, "sigma": 0.2}, path=path)
     p = VisualPathParams(keyframe=path[1], path=path)
     assert p.is_last and p.n_keyframes == 2
+
+
+def test_the_taught_pose_does_not_travel_into_the_task():
+    """A robot has its keyframe images, not the poses they were taught at (the world's ground truth)."""
+    with pytest.raises(ValidationError, match="pose"):
+        VisualPathParams(keyframe={"id": 0, "pose": [1, 0, 1, 0]})
 
 
 @pytest.mark.parametrize(
