@@ -215,7 +215,8 @@ def largest_triangle(points: ArrayLike) -> tuple[int, int, int]:
                 best, best_idx = float(area[m]), (a, bb, int(c[m]))
     if best <= 0.0:
         raise ValueError("all points are collinear")
-    return tuple(hull[q] for q in best_idx)  # type: ignore[return-value]
+    i, j, k = best_idx
+    return hull[i], hull[j], hull[k]
 
 
 def sort_points(points: ArrayLike) -> Array:
