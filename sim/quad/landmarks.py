@@ -73,30 +73,30 @@ def _blocked_by(c: Column, eye: Array, pts: Array) -> NDArray[np.bool_]:
     return np.asarray(hit & (z <= c.height), dtype=np.bool_)
 
 
-def project(points: Array, R_wc: Array, t_wc: Array, K: Array) -> tuple[Array, Array]:
-    """Camera-frame depth (N,) and pixels (N, 2) of world points for the camera at ``(R_wc, t_wc)``
+def project(points: Array, R_world_camera: Array, t_world_camera: Array, K: Array) -> tuple[Array, Array]:
+    """Camera-frame depth (N,) and pixels (N, 2) of world points for the camera at ``(R_world_camera, t_world_camera)``
     (world ← optical frame rotation, camera position)."""
-    Xc = (points - t_wc) @ R_wc
+    Xc = (points - t_world_camera) @ R_world_camera
     z = Xc[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         uv = Xc[:, :2] / z[:, None] * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
     return z, uv
 
 
-def visible_landmarks(points: Array, columns: Sequence[Column], R_wc: Array, t_wc: Array, K: Array,
+def visible_landmarks(points: Array, columns: Sequence[Column], R_world_camera: Array, t_world_camera: Array, K: Array,
                       size: tuple[int, int], margin: float = 2.0, near: float = 0.05) -> tuple[NDArray[np.int64], Array]:
     """Ids and exact pixels of the landmarks the camera sees (see module doc)."""
     w, h = size
-    z, uv = project(points, R_wc, t_wc, K)
+    z, uv = project(points, R_world_camera, t_world_camera, K)
     ok = (z > near) & (uv[:, 0] >= margin) & (uv[:, 0] <= w - 1 - margin) & (uv[:, 1] >= margin) & (uv[:, 1] <= h - 1 - margin)
     idx = np.flatnonzero(ok)
     for c in columns:
         if len(idx):
-            idx = idx[~_blocked_by(c, t_wc, points[idx])]
+            idx = idx[~_blocked_by(c, t_world_camera, points[idx])]
     return idx.astype(np.int64), uv[idx]
 
 
-def column_silhouette(c: Column, R_wc: Array, t_wc: Array, K: Array, size: tuple[int, int],
+def column_silhouette(c: Column, R_world_camera: Array, t_world_camera: Array, K: Array, size: tuple[int, int],
                       n: int = 48, near: float = 0.05) -> tuple[float, float, bool] | None:
     """Left and right image columns (px, pixel boundaries) of column ``c`` at the camera's height and
     whether it is cut by the image border or the camera plane; ``None`` when out of view."""
@@ -108,10 +108,10 @@ def column_silhouette(c: Column, R_wc: Array, t_wc: Array, K: Array, size: tuple
         lx, ly = np.cos(a) / m, np.sin(a) / m
     else:
         lx, ly = 0.5 * c.width * np.cos(a), 0.5 * c.width * np.sin(a)
-    if t_wc[2] > c.height:
+    if t_world_camera[2] > c.height:
         return None
-    pts = np.column_stack((planar_apply((c.x, c.y, c.yaw), np.column_stack((lx, ly))), np.full(n, t_wc[2])))
-    z, uv = project(pts, R_wc, t_wc, K)
+    pts = np.column_stack((planar_apply((c.x, c.y, c.yaw), np.column_stack((lx, ly))), np.full(n, t_world_camera[2])))
+    z, uv = project(pts, R_world_camera, t_world_camera, K)
     front = z > near
     if not np.any(front):
         return None
