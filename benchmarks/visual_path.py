@@ -49,8 +49,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import taskflow_robots.quadcopter  # noqa: F401 - registration
-import taskflow_sim.room_world  # noqa: F401
-import taskflow_tasks.visual_path  # noqa: F401
+import taskflow_sim.quad.world  # noqa: F401
+import taskflow_tasks.quad.visual_path  # noqa: F401
 
 from taskflow.campaigns.batch import run_batch
 from taskflow.campaigns.stats import mean_interval, wilson_interval
@@ -316,7 +316,7 @@ def shapes(out: Path, seeds: int, overrides: list[str]) -> dict:
     a room 1.6 m beyond the path), geometric camera, seeds 0 … ``seeds`` − 1: success [Wilson 95 %], max
     deviation (mean, worst), final error."""
     text = (ROOT / "missions" / EXPERIMENTS["oval"][0]).read_text()
-    head, rest = text.split("    keyframes: &path\n", 1)
+    head, rest = text.split("    keyframes:\n", 1)
     tail = rest[rest.index("rate_hz:"):]  # the keyframe list ends where the mission's top-level keys resume
     out.mkdir(parents=True, exist_ok=True)
     rows = {}
@@ -330,7 +330,8 @@ def shapes(out: Path, seeds: int, overrides: list[str]) -> dict:
             room = f"{{x0: {min(xs) - 1.6:.2f}, x1: {max(xs) + 1.6:.2f}, y0: {min(ys) - 1.6:.2f}, y1: {max(ys) + 1.6:.2f}, height: 2.5}}"
             top = re.sub(r"    room: \{[^}]*\}", f"    room: {room}", top, count=1)
         file = out / f"visual_path_{name}.yaml"
-        file.write_text(top + "    keyframes: &path\n" + "".join(kfs) + tail)
+        ids = ", ".join(f"{{id: {i}}}" for i in range(len(poses)))
+        file.write_text(top + "    keyframes:\n" + "".join(kfs) + re.sub(r"  path: \[[^\]]*\]", f"  path: [{ids}]", tail, count=1))
         res = run_batch(str(file), trials=seeds, seed=0, out=out / name,
                         overrides=["world.params.perception=geometric", *overrides])
         trials = res["trials"]

@@ -33,8 +33,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import taskflow_robots.quadcopter  # noqa: F401 - registration
-import taskflow_sim.room_world  # noqa: F401
-import taskflow_tasks.visual_path  # noqa: F401
+import taskflow_sim.quad.world  # noqa: F401
+import taskflow_tasks.quad.visual_path  # noqa: F401
 
 from taskflow.campaigns.batch import run_batch
 from taskflow.campaigns.stats import wilson_interval

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 import taskflow_robots.quadcopter  # noqa: F401 - registration (until the entry points are added)
-import taskflow_sim.room_world  # noqa: F401
-import taskflow_tasks.visual_path  # noqa: F401
+import taskflow_sim.quad.world  # noqa: F401
+import taskflow_tasks.quad.visual_path  # noqa: F401
 
 from taskflow.errors import MissionError
 from taskflow.execution.runtime import run_mission

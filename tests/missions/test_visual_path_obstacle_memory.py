@@ -6,8 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import taskflow_robots.quadcopter  # noqa: F401 - registration
-import taskflow_sim.room_world  # noqa: F401
-import taskflow_tasks.visual_path  # noqa: F401
+import taskflow_sim.quad.world  # noqa: F401
+import taskflow_tasks.quad.visual_path  # noqa: F401
 
 from taskflow.execution.runtime import run_mission
 from taskflow.mission.loader import load_mission

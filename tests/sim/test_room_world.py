@@ -10,10 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import taskflow_tasks.visual_path  # noqa: F401 - registers the tasks the missions use
+import taskflow_tasks.quad.visual_path  # noqa: F401 - registers the tasks the missions use
 from pydantic import ValidationError
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
-from taskflow_sim.room_world import QuadRoom, QuadRoomParams, load_keyframe_dir
+from taskflow_sim.quad.params import QuadRoomParams
+from taskflow_sim.quad.teaching import load_keyframe_dir
+from taskflow_sim.quad.world import QuadRoom
 
 from taskflow.cli import main as cli_main
 from taskflow.errors import MissionError
@@ -89,12 +91,12 @@ def test_collision_events_and_clearance(world):
     world.pose[:] = (0.4, 1.0, 1.0, 0.0)
     world.vel[:] = 0.0
     world.apply({"nu": np.array([0.5, 0.0, 0.0, 0.0])})
-    n0 = world.collisions
+    n0 = world.score.collisions
     seen = []
     for _ in range(50):
         world.advance(0.04)
         seen += list(world.observe().events)
-    assert world.collisions == n0 + 1 and seen.count("collision") == 1
+    assert world.score.collisions == n0 + 1 and seen.count("collision") == 1
     s = world.summary_metrics()
     assert s["min_obstacle_clearance_m"] < 0 and s["collisions"] >= 1
     assert {"final_position_error_m", "final_yaw_error_deg", "final_epsilon_px", "min_clearance_m"} <= set(s)
@@ -162,11 +164,11 @@ def geo_world():
 def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, pose):
     """Every landmark the geometric camera reports is on the surface PyBullet renders at its pixel
     (rendered depth = landmark depth): projection, intrinsics and column occlusion agree."""
-    from taskflow_sim.room_landmarks import project
+    from taskflow_sim.quad.landmarks import project
 
     cam = geo_world.robot.params.camera
     geo_world.pose[:] = pose
-    view = geo_world._point_view(pose, 0.0, "camera")
+    view = geo_world.camera.landmark_view(pose, 0.0, "camera")
     assert len(view) > 50
     _, depth = geo_world._require_scene().render_with_depth(pose)
     R, t = cam.pose_in_world(pose)
@@ -179,16 +181,16 @@ def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, p
 
 
 def test_geometric_column_silhouette_matches_the_segmented_image(geo_world):
-    from taskflow_tasks.visual_path_perception import obstacle_edges
+    from taskflow_tasks.quad.perception import obstacle_edges
 
     for pose in [(0.0, 0.0, 1.0, 0.0), (0.6, 0.2, 1.0, 0.15), (0.8, -0.3, 1.0, -0.25)]:
         rgb = geo_world._require_scene().render(pose)
         det = obstacle_edges(rgb)
-        geo = geo_world._widest_column(pose)
+        geo = geo_world.camera.widest_column(pose)
         assert det is not None and geo is not None
         assert abs(geo[0] - det.p1[0]) <= 1.5 and abs(geo[1] - det.p2[0]) <= 1.5, (pose, geo, det)
         assert geo[2] == det.touches_border
-    assert geo_world._widest_column((0.0, 0.0, 1.0, math.pi)) is None  # columns behind the camera
+    assert geo_world.camera.widest_column((0.0, 0.0, 1.0, math.pi)) is None  # columns behind the camera
 
 
 def test_geometric_observations_carry_points_and_no_image(geo_world):
@@ -214,9 +216,9 @@ def test_geometric_mode_refuses_keyframe_images(tmp_path):
 def test_path_deviation_is_the_distance_to_the_taught_polyline():
     w = make_world(start=(0.0, 0.0, 1.0, 0.0))  # path (0,0) → (1,0) → (1.5,0.3)
     try:
-        assert w.path_deviation((0.5, 0.2)) == pytest.approx(0.2)
-        assert w.path_deviation((-0.3, 0.4)) == pytest.approx(0.5)  # beyond the start: to the start point
-        assert w.path_deviation((1.25, 0.15)) == pytest.approx(0.0, abs=1e-12)  # on the second segment
+        assert w.score.path_deviation((0.5, 0.2)) == pytest.approx(0.2)
+        assert w.score.path_deviation((-0.3, 0.4)) == pytest.approx(0.5)  # beyond the start: to the start point
+        assert w.score.path_deviation((1.25, 0.15)) == pytest.approx(0.0, abs=1e-12)  # on the second segment
         w.pose[:] = (0.0, 0.0, 1.0, math.pi / 2)
         w.vel[:] = 0.0
         w.apply({"nu": np.array([0.3, 0.0, 0.0, 0.0])})  # sideways off the path, 0.3 m/s for 1 s

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from taskflow_tasks.hierarchy import (
+from taskflow_tasks.quad.hierarchy import (
     Activation,
     activation,
     collision_error,

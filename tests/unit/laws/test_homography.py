@@ -8,16 +8,14 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from taskflow_tasks.homography import (
+from taskflow_tasks.quad.homography import (
     HomographyGains,
     adaptive_gain,
-    axis_rotation,
     euclidean_homography,
     feedforward_blend,
     feedforward_velocity,
     gain_matrix,
     homography_control,
-    homography_yaw,
     intrinsic_matrix,
     largest_triangle,
     mean_pixel_error,
@@ -27,8 +25,8 @@ from taskflow_tasks.homography import (
     sort_points,
     task_error,
     virtual_plane_homography,
-    yaw_decoupled_error,
 )
+from taskflow_tasks.quad.yaw_decoupling import axis_rotation, homography_yaw, yaw_decoupled_error
 
 from taskflow.spatial import R_FLU_OPTICAL, skew, transform, twist_adjoint, vee
 

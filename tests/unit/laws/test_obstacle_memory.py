@@ -1,5 +1,5 @@
 """The remembered obstacle and the committed escape side of the visual-path collision task
-(taskflow_tasks.obstacle_memory), against hand-computed values."""
+(taskflow_tasks.quad.obstacle_memory), against hand-computed values."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.quadcopter import QuadCamera
-from taskflow_tasks.hierarchy import collision_jacobian
-from taskflow_tasks.obstacle_memory import (
+from taskflow_tasks.quad.hierarchy import collision_jacobian
+from taskflow_tasks.quad.obstacle_memory import (
     LEFT,
     RIGHT,
     RememberedObstacle,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 from taskflow_robots.quadcopter import QuadCamera, Quadcopter, QuadcopterParams
-from taskflow_tasks.homography import robot_velocity
+from taskflow_tasks.quad.homography import robot_velocity
 
 from taskflow.spatial import R_FLU_OPTICAL, transform, twist_adjoint
 

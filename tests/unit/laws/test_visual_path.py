@@ -10,27 +10,20 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
-from taskflow_sim.quad_scene import generate_texture
-from taskflow_tasks.homography import (
+from taskflow_sim.quad.scene import generate_texture
+from taskflow_tasks.quad.correspondences import landmark_pairs
+from taskflow_tasks.quad.feedforward import segment_velocities
+from taskflow_tasks.quad.gains import HierarchyGains, PathGains, VisualGains
+from taskflow_tasks.quad.homography import (
     intrinsic_matrix,
     largest_triangle,
     normalize_homography,
     normalize_pixels,
     task_error,
 )
-from taskflow_tasks.visual_path import (
-    HierarchyGains,
-    KeyframeRef,
-    PathGains,
-    RematchParams,
-    ServoLaw,
-    VisualGains,
-    VisualPathParams,
-    match_with_retry,
-    segment_velocities,
-    segment_velocities_from_points,
-)
-from taskflow_tasks.visual_path_perception import (
+from taskflow_tasks.quad.law import ServoLaw
+from taskflow_tasks.quad.params import KeyframeRef, RematchParams, VisualPathParams
+from taskflow_tasks.quad.perception import (
     PointTracker,
     detect,
     estimate_homography,
@@ -39,6 +32,7 @@ from taskflow_tasks.visual_path_perception import (
     obstacle_edges,
     to_grey,
 )
+from taskflow_tasks.quad.tracking import image_pairs, match_with_retry
 
 from taskflow.spatial import twist_adjoint
 
@@ -186,7 +180,7 @@ def test_segment_velocities_match_the_scaled_law(texture):
     displacement between the two views."""
     rob = Quadcopter(QuadcopterParams())
     imgs = tuple(view(texture, plane_map(0.0, 0.1 * k, 0.25 * k)) for k in range(3))
-    nus = segment_velocities(imgs, K, twist_adjoint(rob.T_body_camera()), VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
+    nus = segment_velocities(image_pairs(imgs), K, twist_adjoint(rob.T_body_camera()), VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
     assert len(nus) == 2
     for nu in nus:
         assert nu[0] > 0.0 and nu[1] < 0.0  # forward, and to the right (body y is left)
@@ -258,7 +252,7 @@ def test_rebase_keeps_the_epsilon_rules_on_the_scale_of_a_grown_point_set():
     rng = np.random.default_rng(1)
     kf = rng.uniform([20, 20], [300, 220], (40, 2))
     extra = rng.uniform([20, 20], [300, 220], (40, 2))
-    params = VisualPathParams(keyframe=KeyframeRef(id=0, pose=None), path=[KeyframeRef(id=0), KeyframeRef(id=1)],
+    params = VisualPathParams(keyframe=KeyframeRef(id=0), path=[KeyframeRef(id=0), KeyframeRef(id=1)],
                               progress_window_s=1.0, feedforward=True)
     runs = {}
     for rebase in (True, False):
@@ -299,14 +293,14 @@ def test_segment_velocities_from_landmark_views_point_along_the_path():
         ok = np.flatnonzero((uv[:, 0] > 0) & (uv[:, 0] < 319) & (uv[:, 1] > 0) & (uv[:, 1] < 239))
         return SimpleNamespace(ids=ok, uv=uv[ok])
 
-    nus = segment_velocities_from_points((view(0.0, 0.0), view(0.3, 0.0), view(0.3, 0.25)), Kc, twist_adjoint(rob.T_body_camera()),
-                                         VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
+    nus = segment_velocities(landmark_pairs((view(0.0, 0.0), view(0.3, 0.0), view(0.3, 0.25))), Kc, twist_adjoint(rob.T_body_camera()),
+                             VisualGains(lambda_0=1.5, lambda_inf=0.8), 0.75)
     assert nus[0][0] > 0.02 and abs(nus[0][1]) < 0.2 * nus[0][0] and abs(nus[0][3]) < 0.01
     assert nus[1][3] > 0.02  # yaw left (+z)
     # the yawed segment under the paper's law (3) also slides sideways (e_v holds the rotation); with the
     # yaw decoupled (homography.yaw_decoupled_error) it turns in place, as the taught segment does
-    decoupled = segment_velocities_from_points((view(0.3, 0.0), view(0.3, 0.25)), Kc, twist_adjoint(rob.T_body_camera()),
-                                               VisualGains(lambda_0=1.5, lambda_inf=0.8, yaw_decoupling=True), 0.75)
+    decoupled = segment_velocities(landmark_pairs((view(0.3, 0.0), view(0.3, 0.25))), Kc, twist_adjoint(rob.T_body_camera()),
+                                 VisualGains(lambda_0=1.5, lambda_inf=0.8, yaw_decoupling=True), 0.75)
     # (what is left sideways is the camera's own swing: it sits 0.17 m ahead of the yaw axis)
     assert nus[1][1] > 0.1 and decoupled[0][3] > 0.02
     assert abs(decoupled[0][1]) < 0.25 * nus[1][1] and abs(decoupled[0][0]) < 0.01
@@ -317,18 +311,24 @@ def test_segment_velocities_from_landmark_views_point_along_the_path():
 
 
 def test_feedforward_needs_two_keyframes():
-    path = [{"id": 0, "pose": [1, 0, 1, 0]}]
+    path = [{"id": 0}]
     with pytest.raises(ValidationError, match="at least two keyframes"):
         VisualPathParams(keyframe=path[0], path=path, feedforward=True)
-    VisualPathParams(keyframe=path[0], path=path + [{"id": 1, "pose": [2, 0, 1, 0]}], feedforward=True)
+    VisualPathParams(keyframe=path[0], path=path + [{"id": 1}], feedforward=True)
 
 
 def test_keyframe_must_belong_to_its_path():
-    path = [{"id": 0, "pose": [1, 0, 1, 0]}, {"id": 1, "pose": [2, 0, 1, 0]}]
+    path = [{"id": 0}, {"id": 1, "sigma": 0.1}]
     with pytest.raises(ValidationError, match="not entry 1"):
-        VisualPathParams(keyframe={"id": 1, "pose": [3, 0, 1, 0]}, path=path)
+        VisualPathParams(keyframe={"id": 1, "sigma": 0.2}, path=path)
     p = VisualPathParams(keyframe=path[1], path=path)
     assert p.is_last and p.n_keyframes == 2
+
+
+def test_the_taught_pose_does_not_travel_into_the_task():
+    """A robot has its keyframe images, not the poses they were taught at (the world's ground truth)."""
+    with pytest.raises(ValidationError, match="pose"):
+        VisualPathParams(keyframe={"id": 0, "pose": [1, 0, 1, 0]})
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""The quadcopter's command response models (``taskflow_sim.quad_response``) and their use in ``quad_room``:
+"""The quadcopter's command response models (``taskflow_sim.quad.response``) and their use in ``quad_room``:
 ViSP's Bebop 2 ``setVelocity`` as relative moves, the command delay line (tests/unit/sim/test_command_delay.py) and the frame latency."""
 
 from __future__ import annotations
@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 from taskflow_robots.quadcopter import Quadcopter, QuadcopterParams
-from taskflow_sim.quad_response import move_target, relative_move_step
-from taskflow_sim.room_world import QuadRoom, QuadRoomParams
+from taskflow_sim.quad.params import QuadRoomParams
+from taskflow_sim.quad.response import move_target, relative_move_step
+from taskflow_sim.quad.world import QuadRoom
 
 
 def test_move_target_is_the_body_frame_move_turned_by_the_yaw():

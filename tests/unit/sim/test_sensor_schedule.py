@@ -87,7 +87,7 @@ def test_the_validator_keeps_valid_intervals():
 
 
 def test_the_worlds_use_the_one_validator():
-    from taskflow_sim.room_world import QuadRoomParams
+    from taskflow_sim.quad.params import QuadRoomParams
     from taskflow_sim.screw.params import ScrewWorldParams
 
     with pytest.raises(ValidationError, match=r"blackout interval \[3.0, 2.0\] must have 0 <= t0 < t1"):

@@ -3,7 +3,7 @@
 Toro-Arcila, Becerra, Arechavaleta (Control Engineering Practice), section 3, eqs. (8)–(20), and the
 keyframe transition of section 4, eqs. (28)–(29).  Pure functions; arrays in, arrays out.
 
-Conventions as in :mod:`taskflow_tasks.homography`: normalised image coordinates ``(x, y) = K^-1 p``, camera
+Conventions as in :mod:`taskflow_tasks.quad.homography`: normalised image coordinates ``(x, y) = K^-1 p``, camera
 twists ``[v, w]`` in the camera frame (OpenCV axes).  The hierarchy works on any velocity space of
 dimension ``n`` (6 for the camera twist of the paper); the Jacobians' columns define it.
 """
@@ -84,7 +84,8 @@ def visibility_error(points: ArrayLike, c_star: ArrayLike) -> Array:
     m = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if len(m) == 0:
         raise ValueError("visibility error of an empty point set")
-    return m.mean(axis=0) - np.asarray(c_star, dtype=np.float64).reshape(2)
+    e_m: Array = m.mean(axis=0) - np.asarray(c_star, dtype=np.float64).reshape(2)
+    return e_m
 
 
 def visibility_jacobian(c: ArrayLike, z: float) -> Array:

@@ -4,7 +4,7 @@ as silhouettes, projected exactly and perturbed with pixel noise — no renderin
 What the rendered pipeline gets from pixels (ORB keypoints matched to a keyframe, the green blob of a
 column), this module gets from geometry: every landmark has an id, so correspondences between a view
 and a keyframe are the ids both see; a column's silhouette gives the same edge points ``p1``, ``p2``
-at the image's middle row that :func:`taskflow_tasks.visual_path_perception.obstacle_edges` measures.
+at the image's middle row that :func:`taskflow_tasks.quad.perception.obstacle_edges` measures.
 
 * Landmarks are drawn uniformly on the walls, floor and ceiling (``density`` per m², seeded): the
   rendered room's textures are feature-rich everywhere, the columns plain.
@@ -17,11 +17,13 @@ at the image's middle row that :func:`taskflow_tasks.visual_path_perception.obst
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from taskflow_sim.quad_scene import Column, Room
+from taskflow_sim.quad.scene import Column, Room
+
+from taskflow.spatial import planar_apply, planar_apply_inverse
 
 Array = NDArray[np.float64]
 
@@ -30,7 +32,7 @@ def sample_landmarks(room: Room, density: float, rng: np.random.Generator) -> Ar
     """Points (N, 3) drawn uniformly on the four walls, the floor and the ceiling, ``density`` per m²."""
     x0, x1, y0, y1, h = room.x0, room.x1, room.y0, room.y1, room.height
     lx, ly = x1 - x0, y1 - y0
-    faces = [  # (area, sampler of n points)
+    faces: list[tuple[float, Callable[[int], Array]]] = [  # (area, sampler of n points)
         (lx * h, lambda n: np.column_stack((rng.uniform(x0, x1, n), np.full(n, y0), rng.uniform(0, h, n)))),
         (lx * h, lambda n: np.column_stack((rng.uniform(x0, x1, n), np.full(n, y1), rng.uniform(0, h, n)))),
         (ly * h, lambda n: np.column_stack((np.full(n, x0), rng.uniform(y0, y1, n), rng.uniform(0, h, n)))),
@@ -43,12 +45,9 @@ def sample_landmarks(room: Room, density: float, rng: np.random.Generator) -> Ar
 
 def _blocked_by(c: Column, eye: Array, pts: Array) -> NDArray[np.bool_]:
     """Which segments ``eye → pts`` cross column ``c`` below its top (vectorised over ``pts``)."""
-    ca, sa = math.cos(c.yaw), math.sin(c.yaw)
     # segment in the column's frame (xy); the parameter s in [0, 1] runs from the eye to the point
-    ex, ey = eye[0] - c.x, eye[1] - c.y
-    e = np.array([ca * ex + sa * ey, -sa * ex + ca * ey])
-    dx, dy = pts[:, 0] - eye[0], pts[:, 1] - eye[1]
-    d = np.column_stack((ca * dx + sa * dy, -sa * dx + ca * dy))
+    e = planar_apply_inverse((c.x, c.y, c.yaw), eye[:2])
+    d = planar_apply_inverse((0.0, 0.0, c.yaw), pts[:, :2] - eye[:2])  # directions: the rotation only
     n = len(pts)
     if c.depth > 0.0:  # box: slab test
         half = np.array([0.5 * c.depth, 0.5 * c.width])
@@ -71,33 +70,33 @@ def _blocked_by(c: Column, eye: Array, pts: Array) -> NDArray[np.bool_]:
         closest = e[None, :] + s[:, None] * d
         hit = np.einsum("ij,ij->i", closest, closest) < r * r
     z = eye[2] + s * (pts[:, 2] - eye[2])
-    return hit & (z <= c.height)
+    return np.asarray(hit & (z <= c.height), dtype=np.bool_)
 
 
-def project(points: Array, R_wc: Array, t_wc: Array, K: Array) -> tuple[Array, Array]:
-    """Camera-frame depth (N,) and pixels (N, 2) of world points for the camera at ``(R_wc, t_wc)``
+def project(points: Array, R_world_camera: Array, t_world_camera: Array, K: Array) -> tuple[Array, Array]:
+    """Camera-frame depth (N,) and pixels (N, 2) of world points for the camera at ``(R_world_camera, t_world_camera)``
     (world ← optical frame rotation, camera position)."""
-    Xc = (points - t_wc) @ R_wc
+    Xc = (points - t_world_camera) @ R_world_camera
     z = Xc[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         uv = Xc[:, :2] / z[:, None] * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
     return z, uv
 
 
-def visible_landmarks(points: Array, columns: Sequence[Column], R_wc: Array, t_wc: Array, K: Array,
+def visible_landmarks(points: Array, columns: Sequence[Column], R_world_camera: Array, t_world_camera: Array, K: Array,
                       size: tuple[int, int], margin: float = 2.0, near: float = 0.05) -> tuple[NDArray[np.int64], Array]:
     """Ids and exact pixels of the landmarks the camera sees (see module doc)."""
     w, h = size
-    z, uv = project(points, R_wc, t_wc, K)
+    z, uv = project(points, R_world_camera, t_world_camera, K)
     ok = (z > near) & (uv[:, 0] >= margin) & (uv[:, 0] <= w - 1 - margin) & (uv[:, 1] >= margin) & (uv[:, 1] <= h - 1 - margin)
     idx = np.flatnonzero(ok)
     for c in columns:
         if len(idx):
-            idx = idx[~_blocked_by(c, t_wc, points[idx])]
+            idx = idx[~_blocked_by(c, t_world_camera, points[idx])]
     return idx.astype(np.int64), uv[idx]
 
 
-def column_silhouette(c: Column, R_wc: Array, t_wc: Array, K: Array, size: tuple[int, int],
+def column_silhouette(c: Column, R_world_camera: Array, t_world_camera: Array, K: Array, size: tuple[int, int],
                       n: int = 48, near: float = 0.05) -> tuple[float, float, bool] | None:
     """Left and right image columns (px, pixel boundaries) of column ``c`` at the camera's height and
     whether it is cut by the image border or the camera plane; ``None`` when out of view."""
@@ -109,11 +108,10 @@ def column_silhouette(c: Column, R_wc: Array, t_wc: Array, K: Array, size: tuple
         lx, ly = np.cos(a) / m, np.sin(a) / m
     else:
         lx, ly = 0.5 * c.width * np.cos(a), 0.5 * c.width * np.sin(a)
-    ca, sa = math.cos(c.yaw), math.sin(c.yaw)
-    if t_wc[2] > c.height:
+    if t_world_camera[2] > c.height:
         return None
-    pts = np.column_stack((c.x + ca * lx - sa * ly, c.y + sa * lx + ca * ly, np.full(n, t_wc[2])))
-    z, uv = project(pts, R_wc, t_wc, K)
+    pts = np.column_stack((planar_apply((c.x, c.y, c.yaw), np.column_stack((lx, ly))), np.full(n, t_world_camera[2])))
+    z, uv = project(pts, R_world_camera, t_world_camera, K)
     front = z > near
     if not np.any(front):
         return None

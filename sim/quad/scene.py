@@ -21,6 +21,7 @@ import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -167,7 +168,8 @@ class QuadScene:
             if gui:
                 p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=client)
             rng = np.random.default_rng(seed)
-            hue = float(cv2.cvtColor(np.uint8([[np.array(obstacle_rgb[::-1]) * 255]]), cv2.COLOR_BGR2HSV)[0, 0, 0]) * 2
+            bgr = np.asarray([[np.array(obstacle_rgb[::-1]) * 255]]).astype(np.uint8)
+            hue = float(np.asarray(cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV))[0, 0, 0]) * 2
             walls = _build_room(client, tmp, room, rng, texture_px_per_m, hue)
             obstacles = [_build_column(client, c, obstacle_rgb) for c in columns]
             urdf = iris_urdf(tmp)
@@ -205,7 +207,7 @@ class QuadScene:
         return nearest(self.obstacles), nearest(self.walls)
 
     # -- the camera --------------------------------------------------------------------------------
-    def _camera_image(self, pose: tuple[float, float, float, float], cam: QuadCamera) -> tuple:
+    def _camera_image(self, pose: tuple[float, float, float, float], cam: QuadCamera) -> tuple[NDArray[np.uint8], Any]:
         R_world_camera, eye = cam.pose_in_world(pose)
         target = eye + R_world_camera[:, 2]
         up = -R_world_camera[:, 1]
@@ -291,7 +293,7 @@ def _build_column(client: int, c: Column, rgb: tuple[float, float, float]) -> in
         vis = p.createVisualShape(p.GEOM_CYLINDER, radius=0.5 * c.width, length=c.height, rgbaColor=[*rgb, 1.0],
                                   physicsClientId=client)
     quat = p.getQuaternionFromEuler([0.0, 0.0, c.yaw])
-    return p.createMultiBody(0.0, col, vis, [c.x, c.y, 0.5 * c.height], quat, physicsClientId=client)
+    return int(p.createMultiBody(0.0, col, vis, [c.x, c.y, 0.5 * c.height], quat, physicsClientId=client))
 
 
 def cleanup_dir(path: str | os.PathLike[str]) -> None:

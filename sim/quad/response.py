@@ -22,6 +22,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from taskflow.spatial import planar_apply
+
 Vec = NDArray[np.float64]
 
 __all__ = ["move_target", "relative_move_step"]
@@ -31,9 +33,9 @@ def move_target(pose: Vec, nu: Vec, dt: float) -> Vec:
     """Target ``[x, y, z, yaw]`` of the relative move ``nu·dt`` (``nu = [vx, vy, vz, wz]``, body frame
     FLU) started at ``pose`` (world frame): translation turned by the current yaw, yaw added."""
     x, y, z, yaw = (float(v) for v in pose)
-    c, s = math.cos(yaw), math.sin(yaw)
     vx, vy, vz, wz = (float(v) * dt for v in nu)
-    return np.array([x + c * vx - s * vy, y + s * vx + c * vy, z + vz, yaw + wz])
+    px, py = planar_apply((x, y, yaw), (vx, vy))
+    return np.array([px, py, z + vz, yaw + wz])
 
 
 def relative_move_step(pose: Vec, target: Vec, h: float, tau: float) -> Vec:

@@ -3,7 +3,7 @@
 * ``matchingKeyPoints``: ORB (default) or SIFT keypoints and descriptors, brute-force matching with
   Lowe's ratio test, RANSAC on a homography (planar / small-parallax scenes) or on the fundamental
   matrix (general scenes) to keep the inliers — :func:`match_keyframe`.
-* ``sortPoints``: the three points of the largest triangle first (:func:`taskflow_tasks.homography.sort_points`).
+* ``sortPoints``: the three points of the largest triangle first (:func:`taskflow_tasks.quad.homography.sort_points`).
 * ``tracking``: pyramidal Lucas–Kanade with a forward–backward check, each point re-anchored on its
   keyframe patch through the homography of the tracked plane, so frame-to-frame drift does not add
   up — :class:`PointTracker`.
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from taskflow_tasks.homography import (
+from taskflow_tasks.quad.homography import (
     normalize_homography,
     normalize_pixels,
     sort_points,
@@ -51,16 +51,16 @@ def to_grey(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """Grey image from RGB (or pass a grey image through)."""
     if image.ndim == 2:
         return image
-    return cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2GRAY)
+    return np.asarray(cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2GRAY), dtype=np.uint8)
 
 
 def make_detector(kind: str, n_features: int) -> cv2.Feature2D:
     """``orb`` (default of this port; fast) or ``sift`` (the paper's detector; ~2x slower)."""
     if kind == "orb":
-        return cv2.ORB_create(nfeatures=n_features, scaleFactor=1.2, nlevels=6, edgeThreshold=15, patchSize=15,
+        return cv2.ORB.create(nfeatures=n_features, scaleFactor=1.2, nlevels=6, edgeThreshold=15, patchSize=15,
                               fastThreshold=12)
     if kind == "sift":
-        return cv2.SIFT_create(nfeatures=n_features)
+        return cv2.SIFT.create(nfeatures=n_features)
     raise ValueError(f"unknown feature detector {kind!r}: use 'orb' or 'sift'")
 
 
@@ -69,20 +69,36 @@ class Features:
     """Keypoint locations ``(N, 2)`` (px) and their descriptors; ``kind`` is the detector."""
 
     pts: NDArray[np.float32]
-    des: NDArray | None
+    des: NDArray[np.uint8] | NDArray[np.float32] | None
     kind: str
 
 
 def detect(detector: cv2.Feature2D, grey: NDArray[np.uint8], kind: str) -> Features:
     kps, des = detector.detectAndCompute(grey, None)
-    pts = np.float32([k.pt for k in kps]).reshape(-1, 2)
-    return Features(pts, des, kind)
+    pts = np.array([k.pt for k in kps], dtype=np.float32).reshape(-1, 2)
+    if des is None:
+        return Features(pts, None, kind)
+    return Features(pts, np.asarray(des, dtype=np.uint8) if kind == "orb" else np.asarray(des, dtype=np.float32), kind)
+
+
+Criteria = tuple[int, int, float]
+LK_CRITERIA: Criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
+
+
+def _lk(prev: NDArray[np.uint8], nxt: NDArray[np.uint8], pts: NDArray[np.float32], init: NDArray[np.float32] | None,
+        win: int, levels: int, criteria: Criteria = LK_CRITERIA, flags: int = 0) -> tuple[NDArray[np.float32],
+                                                                                        NDArray[np.uint8]]:
+    """Pyramidal LK from ``prev`` to ``nxt`` for ``pts`` ``(N, 1, 2)``, started at ``init`` with
+    ``flags=cv2.OPTFLOW_USE_INITIAL_FLOW`` (``None``: at ``pts``); the found points and their status."""
+    p1, st, _ = cv2.calcOpticalFlowPyrLK(prev, nxt, pts, init,  # type: ignore[arg-type]  # the stubs want nextPts; None lets OpenCV allocate it
+                                         winSize=(win, win), maxLevel=levels, criteria=criteria, flags=flags)
+    return np.asarray(p1, dtype=np.float32), np.asarray(st, dtype=np.uint8)
 
 
 def match_keyframe(kf: Features, cur: Features, ratio: float = 0.8, ransac_px: float = 2.0,
                    model: str = "homography") -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """``matchingKeyPoints`` of Alg. 1: ratio-test matches filtered by RANSAC; returns the matched
-    ``(current_px, keyframe_px)`` inliers, ordered by :func:`taskflow_tasks.homography.sort_points`.
+    ``(current_px, keyframe_px)`` inliers, ordered by :func:`taskflow_tasks.quad.homography.sort_points`.
 
     ``model`` is the RANSAC model: ``homography`` (scene seen as one plane: right for small parallax or
     a dominant wall) or ``fundamental`` (any rigid scene; needs ≥ 8 matches).
@@ -130,8 +146,7 @@ class PointTracker:
         self.prev = grey
         self.cur = np.asarray(cur_px, dtype=np.float32).reshape(-1, 2)
         self.kf = np.asarray(kf_px, dtype=np.float32).reshape(-1, 2)
-        self.lk = {"winSize": (win, win), "maxLevel": levels,
-                   "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)}
+        self.win, self.levels = win, levels
         self.fb_px = fb_px
 
     def __len__(self) -> int:
@@ -143,8 +158,8 @@ class PointTracker:
             self.prev = grey
             return 0
         p0 = self.cur.reshape(-1, 1, 2)
-        p1, st, _ = cv2.calcOpticalFlowPyrLK(self.prev, grey, p0, None, **self.lk)
-        p0r, st2, _ = cv2.calcOpticalFlowPyrLK(grey, self.prev, p1, None, **self.lk)
+        p1, st = _lk(self.prev, grey, p0, None, self.win, self.levels)
+        p0r, st2 = _lk(grey, self.prev, p1, None, self.win, self.levels)
         h, w = grey.shape[:2]
         p1 = p1.reshape(-1, 2)
         fb = np.linalg.norm(p0r.reshape(-1, 2) - self.cur, axis=1)
@@ -206,11 +221,9 @@ class PointTracker:
             if np.any(ok & ~near):
                 self.prune(~(ok & ~near))
             return int(np.sum(ok & near))
-        lk = {**self.lk, "winSize": (win, win), "maxLevel": 1}
         p0 = self.kf.reshape(-1, 1, 2)
-        p1, st, _ = cv2.calcOpticalFlowPyrLK(kf_grey, grey, p0, self.cur.reshape(-1, 1, 2).copy(),
-                                             flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **lk)
-        back, st2, _ = cv2.calcOpticalFlowPyrLK(grey, kf_grey, p1, p0.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **lk)
+        p1, st = _lk(kf_grey, grey, p0, self.cur.reshape(-1, 1, 2).copy(), win, 1, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+        back, st2 = _lk(grey, kf_grey, p1, p0.copy(), win, 1, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
         p1 = p1.reshape(-1, 2)
         ok = (st.ravel() == 1) & (st2.ravel() == 1)
         ok &= np.linalg.norm(p1 - self.cur, axis=1) < max_shift
@@ -238,13 +251,9 @@ def anchor_on_keyframe(kf_grey: NDArray[np.uint8], grey: NDArray[np.uint8], kf_p
     G_inv = np.linalg.inv(Gm)
     h, w = kf_grey.shape[:2]
     target = np.asarray(cv2.warpPerspective(grey, Gm, (w, h), flags=cv2.INTER_LINEAR), dtype=np.uint8)
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
     p0 = k.reshape(-1, 1, 2)
-    p1, st, _ = cv2.calcOpticalFlowPyrLK(kf_grey, target, p0, p0.copy(), winSize=(win, win), maxLevel=1,
-                                         criteria=criteria, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
-    back, st2, _ = cv2.calcOpticalFlowPyrLK(target, kf_grey, np.asarray(p1, dtype=np.float32), p0.copy(),
-                                            winSize=(win, win), maxLevel=1, criteria=criteria,
-                                            flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+    p1, st = _lk(kf_grey, target, p0, p0.copy(), win, 1, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+    back, st2 = _lk(target, kf_grey, p1, p0.copy(), win, 1, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
     found = np.asarray(cv2.perspectiveTransform(np.asarray(p1, dtype=np.float64).reshape(-1, 1, 2), G_inv),
                        dtype=np.float64).reshape(-1, 2)
     ok = _window_inside(k, G_inv, 0.5 * win + 1.0, grey.shape[:2]) & (st.ravel() == 1) & (st2.ravel() == 1)
@@ -262,7 +271,7 @@ def _window_inside(kf_px: ArrayLike, G_inv: ArrayLike, half: float, shape: tuple
     ok = np.all(np.isfinite(q), axis=(1, 2))
     with np.errstate(invalid="ignore"):
         ok &= np.all((q[..., 0] >= 0.0) & (q[..., 0] <= w - 1) & (q[..., 1] >= 0.0) & (q[..., 1] <= h - 1), axis=1)
-    return ok
+    return np.asarray(ok, dtype=np.bool_)
 
 
 def transfer_errors(G: NDArray[np.float64], cur_px: ArrayLike, kf_px: ArrayLike) -> NDArray[np.float64]:
@@ -307,7 +316,7 @@ def estimate_homography(cur_px: ArrayLike, kf_px: ArrayLike, K: ArrayLike, mode:
         G, _ = cv2.findHomography(c, k, 0)
         if G is None:
             raise ValueError("homography estimation failed")
-        inl = transfer_errors(G, c, k) < ransac_px
+        inl = transfer_errors(np.asarray(G, dtype=np.float64), c, k) < ransac_px
     m, ms = normalize_pixels(c, Kq), normalize_pixels(k, Kq)
     if mode == "ransac" or len(c) < 8 or inl.mean() > 0.9:
         return normalize_homography(G, Kq, m[inl], ms[inl]), inl
