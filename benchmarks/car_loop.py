@@ -25,7 +25,7 @@ def step_us(n: int = 2400) -> float:
     world = FlatGround(ROBOT, FlatGround.Params(), seed=0)
     world.reset()
     world.apply({"v": np.array([0.4]), "steer": np.array([0.2])})
-    client = world.scene.client
+    client = world.sim.client
     t0 = time.perf_counter()
     for _ in range(n):
         p.stepSimulation(physicsClientId=client)

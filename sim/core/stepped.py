@@ -97,15 +97,17 @@ class SteppedWorld(World, Generic[SceneT]):
     """A world advanced in whole physics steps of ``1 / physics_hz`` (a ``physics_hz`` parameter, or
     the class's).  Subclasses implement :meth:`physics_step` and call :meth:`restart_clock` in ``reset``;
     the hooks :meth:`begin_steps`, :meth:`after_physics_step` and :meth:`end_steps` frame the steps
-    of one ``advance``.  A world that keeps its simulator in ``self.scene`` (built by ``reset``) gets
+    of one ``advance``.  A world that keeps its simulator in ``self.sim`` (built by ``reset``; ``scene`` is the class's figure
+    markers, :meth:`taskflow.api.World.scene`) gets
     :meth:`close` and :meth:`_require_scene`."""
 
-    scene: SceneT | None  # type: ignore[assignment]  # the instance's simulator, built by reset(); shadows World.scene (the class's figure markers) on instances
+    sim: SceneT | None
+    """The simulator client and its bodies, built by ``reset`` (None before it and after :meth:`close`)."""
 
     def __init__(self, robot: Robot, params: BaseModel, seed: int, gui: bool = False) -> None:
         super().__init__(robot, params, seed, gui)
         self.physics_hz = float(getattr(params, "physics_hz", type(self).physics_hz))
-        self.scene = None
+        self.sim = None
         self._steps = 0
         self.substep = 0
         self._carry = 0.0
@@ -126,14 +128,14 @@ class SteppedWorld(World, Generic[SceneT]):
                 s.poll(t)
 
     def close(self) -> None:
-        if self.scene is not None:
-            self.scene.close()
-            self.scene = None
+        if self.sim is not None:
+            self.sim.close()
+            self.sim = None
 
     def _require_scene(self) -> SceneT:
-        if self.scene is None:
+        if self.sim is None:
             raise RuntimeError(f"{self.name or type(self).__name__}: call reset() before using the world")
-        return self.scene
+        return self.sim
 
     def restart_clock(self) -> None:
         self._steps = 0

@@ -89,7 +89,7 @@ class FlatGround(SteppedWorld[GroundScene]):
     needs: ClassVar[RobotNeeds] = RobotNeeds(body=True)
 
     @classmethod
-    def scene(cls, params: BaseModel) -> list[Marker]:  # type: ignore[override]  # World.scene (figure markers); the instance's simulator is SteppedWorld's attribute of that name
+    def scene(cls, params: BaseModel) -> list[Marker]:
         """The start pose of the robot frame."""
         x, y, yaw = cast(FlatGroundParams, params).start
         return [Marker.point("start", "start", x, y, yaw=yaw)]
@@ -108,7 +108,7 @@ class FlatGround(SteppedWorld[GroundScene]):
         client = connect(self.gui, self.physics_hz)
         floor = add_floor(client, wp.floor_half_size, wp.friction)
         body.spawn(client, wp.start)
-        self.scene = GroundScene(client, floor, body)  # type: ignore[assignment, method-assign]  # the instance's simulator shadows the classmethod (see scene)
+        self.sim = GroundScene(client, floor, body)
         self.restart_clock()
         self._rng = np.random.default_rng(self.seed)
         noisy = wp.odom_noise > 0.0 or wp.odom_yaw_noise > 0.0
@@ -122,7 +122,7 @@ class FlatGround(SteppedWorld[GroundScene]):
             p.resetDebugVisualizerCamera(3.0, 0.0, -45.0, [x, y, 0.0], physicsClientId=client)
 
     def _populate(self) -> None:
-        """Hook for subclasses: add bodies to ``self.scene`` and sensor streams (:meth:`add_stream`) after
+        """Hook for subclasses: add bodies to ``self.sim`` and sensor streams (:meth:`add_stream`) after
         the robot and its odometry are built."""
 
     # --- sensors ---------------------------------------------------------------------------------

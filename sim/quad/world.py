@@ -84,7 +84,7 @@ class QuadRoom(SteppedWorld[QuadScene]):
     robot: Quadcopter
 
     @classmethod
-    def scene(cls, params: BaseModel) -> list[Marker]:  # type: ignore[override]  # World.scene (the plot markers) and SteppedWorld.scene (the simulator) share a name in the framework
+    def scene(cls, params: BaseModel) -> list[Marker]:
         """The room's walls, the columns, the start pose and every taught keyframe pose."""
         wp = cast(QuadRoomParams, params)
         r = wp.room
@@ -133,7 +133,7 @@ class QuadRoom(SteppedWorld[QuadScene]):
         cols = [Column(o.x, o.y, o.width, o.depth, wp.obstacle_height, o.yaw) for o in wp.obstacles]
         scene = QuadScene.build(room, cols, seed=wp.texture_seed, camera=rp.camera, scale=rp.scale,
                                 gui=self.gui, texture_px_per_m=wp.texture_px_per_m)
-        self.scene = scene  # type: ignore[assignment, method-assign]  # the simulator (see the scene classmethod)
+        self.sim = scene
         self._rng = np.random.default_rng(self.seed)
         # OpenCV's RANSAC draws from a process-global RNG: seed it so a seed reproduces a run whatever
         # ran before in the process

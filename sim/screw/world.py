@@ -84,7 +84,7 @@ from taskflow.spatial import T_from_planar, planar_apply, planar_between
 
 _NO_WRENCH = np.zeros(6)
 @register_world("screw_conveyor")
-class ScrewConveyor(SteppedWorld[Scene]):  # the PyBullet client is self.client (self.scene stays None)
+class ScrewConveyor(SteppedWorld[Scene]):  # the PyBullet client is self.client (self.sim stays None)
     """The mobile iiwa fastening the bolts of a part carried by a conveyor or a trolley."""
 
     Params: ClassVar[type[ScrewWorldParams]] = ScrewWorldParams

@@ -130,7 +130,7 @@ class VikiGround(FlatGround):
 
     # --- scene ---------------------------------------------------------------------------------
     @classmethod
-    def scene(cls, params: BaseModel) -> list[Marker]:  # type: ignore[override]  # World.scene (markers) vs SteppedWorld.scene (the simulator): one name, sim/stepped.py
+    def scene(cls, params: BaseModel) -> list[Marker]:
         """The start pose and the object (with its footprint radius) as placed."""
         wp = cast(VikiGroundParams, params)
         return [*super().scene(wp), object_marker(wp)]

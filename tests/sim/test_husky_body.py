@@ -32,7 +32,7 @@ def world():
 
 
 def test_flat_ground_builds_the_husky_body_from_the_registry(world):
-    assert isinstance(world.scene.car, HuskyBody) and isinstance(world.scene.car, GroundBody)
+    assert isinstance(world.sim.car, HuskyBody) and isinstance(world.sim.car, GroundBody)
     gt = world.ground_truth()
     assert (gt["x"], gt["y"], gt["yaw"]) == pytest.approx((1.0, -1.0, 0.5), abs=2e-3)
     assert set(world.observe().state) == {"pose", "v", "w"}
@@ -57,7 +57,7 @@ def test_turns_by_skid_steer(world, w):
 
 def test_stop_command_brings_it_to_rest(world):
     drive(world, 0.8, 0.0, 2.0)
-    world.scene.car.stop()
+    world.sim.car.stop()
     for _ in range(40):
         world.advance(DT)
     assert abs(world.ground_truth()["v"]) < 1e-2

@@ -40,7 +40,7 @@ def test_base_frame_is_rear_axle_midpoint():
         assert (gt["x"], gt["y"], gt["yaw"]) == pytest.approx((1.0, -2.0, 0.7), abs=1e-6)
         import pybullet as p
 
-        car = world.scene.car
+        car = world.sim.car
         wheels = [
             p.getLinkState(car.body, car.joints[n], physicsClientId=car.client)[4]
             for n in ("left_rear_wheel_joint", "right_rear_wheel_joint")
