@@ -32,7 +32,8 @@ _FILE_TIER = {
     "test_view_browser.py": "browser",
     "test_ray_backend.py": "cluster",
 }
-"""The tier of each test module directly in ``tests/`` (read from what the module does)."""
+"""The tier of each test module outside the tier folders (directly in ``tests/`` or in a folder mirroring a
+framework package: ``tests/mission/``, ``tests/execution/``, ...), by file name (read from what the module does)."""
 
 _MISSION_FIXTURES = frozenset({"rendered_run_dir"})
 """Fixtures that run a mission on PyBullet: a unit or machine test using one is a mission test."""

@@ -16,7 +16,7 @@ import pytest
 from taskflow.cli import main
 from taskflow.readers.run_files import read_trace
 
-HERE = Path(__file__).parent
+HERE = Path(__file__).parents[1]
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 BROKEN = HERE / "broken"
 TOY_STATES = ["search", "operate", "visit", "approach", "settle", "next", "broken", "home", "home_done",
@@ -300,7 +300,7 @@ def test_a_world_that_cannot_be_built_ends_the_run_aborted_with_its_record(tmp_p
 
 
 def test_teach_refuses_a_world_that_has_nothing_to_teach(capsys: pytest.CaptureFixture[str]) -> None:
-    car = Path(__file__).resolve().parent.parent / "missions" / "car_waypoints.yaml"
+    car = Path(__file__).resolve().parents[2] / "missions" / "car_waypoints.yaml"
     assert main(["teach", str(car)]) == 1
     err = capsys.readouterr().err
     assert "world 'flat_ground' has nothing to teach" in err and "quad_room" in err

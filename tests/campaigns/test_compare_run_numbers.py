@@ -12,7 +12,7 @@ from taskflow.campaigns.batch import run_batch
 from taskflow.campaigns.stats import mann_whitney
 from taskflow.cli import main
 
-TOY = Path(__file__).resolve().parent / "machine" / "missions" / "toy_full.yaml"
+TOY = Path(__file__).resolve().parents[1] / "machine" / "missions" / "toy_full.yaml"
 
 
 def test_compare_carries_sim_time_and_accepts_it_as_a_metric(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -27,7 +27,7 @@ from taskflow.campaigns.compare import compare
 from taskflow.campaigns.stats import fisher_exact, wilson_interval
 from taskflow.cli import main
 
-HERE = Path(__file__).parent
+HERE = Path(__file__).parents[1]
 ROOT = HERE.parent
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 FAST = str(ROOT / "missions" / "viki_forward.yaml")  # ~0.4 s a trial at 8 s simulated

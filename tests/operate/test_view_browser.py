@@ -31,7 +31,7 @@ from taskflow.operate.replay import serve_replay
 from taskflow.readers.run_files import read_trace
 from taskflow.testing import Script, browser_paths, drive, headless_chromium
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 DT = 1.0 / 20  # the toy mission's rate
 

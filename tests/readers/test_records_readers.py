@@ -24,7 +24,7 @@ from taskflow.operate.replay import serve_replay
 from taskflow.readers.plots import metrics_figure
 from taskflow.readers.recorded import load_run
 
-MISSIONS = Path(__file__).resolve().parent / "machine" / "missions"
+MISSIONS = Path(__file__).resolve().parents[1] / "machine" / "missions"
 FULL_SCRIPT = """\
 - {t: 1.0, action: pause, who: script}
 - {t: 1.0, action: hold, who: ann}

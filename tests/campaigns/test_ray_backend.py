@@ -17,7 +17,7 @@ import pytest
 from taskflow.campaigns.batch import run_batch
 from taskflow.campaigns.ray_cluster import LocalRayCluster
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 FAST = str(ROOT / "missions" / "viki_forward.yaml")
 
 

@@ -28,7 +28,7 @@ from taskflow.mission.loader import load_mission
 from taskflow.operate.control_http import ControlServer
 from taskflow.operate.replay import serve_replay
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 CAR = HERE.parent / "missions" / "car_waypoints.yaml"
 PAUSE_AT_1 = [{"t": 1.0, "action": "pause", "who": "script"}]

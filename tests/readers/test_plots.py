@@ -18,7 +18,7 @@ from taskflow.readers.scene import mission_scene
 from taskflow.registry import ROBOTS
 from taskflow.units import UNITS
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CAR = ROOT / "missions" / "car_waypoints.yaml"
 
 

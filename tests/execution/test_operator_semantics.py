@@ -28,7 +28,7 @@ from taskflow.mission.loader import load_mission_text
 from taskflow.readers.run_files import read_trace
 from taskflow.testing import Script, assert_outcome, drive
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 CAR = HERE.parent / "missions" / "car_waypoints.yaml"
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from taskflow.campaigns.batch import BatchProgress, resume_batch, run_batch
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 # two conditions of two trials: the tool works (succeeded) or fails (failed), so 2 of 4 succeed
 ARGS = ["batch", str(TOY), "--trials", "2", "--workers", "1", "--seed", "3", "--sweep", "world.params.tool_ok=true,false"]

@@ -28,7 +28,7 @@ from taskflow.cli import main
 from taskflow.mission.yamlsrc import load_yaml_file
 from taskflow.registry import ROBOTS, TASKS, WORLDS
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
 
 

@@ -15,11 +15,11 @@ from diagram_parsers import ParserMissing, dot_errors, mermaid_errors
 from taskflow.catalogue.graph import WRAP, mermaid_text, start_id, to_dot, to_mermaid
 from taskflow.mission.loader import load_mission
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
-REGIONS = Path(__file__).parent / "machine" / "missions" / "toy_regions.yaml"  # drive (owns v), watch
-EVERY_FEATURE = Path(__file__).parent / "graph" / "every_feature.yaml"  # nested regions, history, use:, keywords
-DIAGRAMMED = MISSIONS + sorted((Path(__file__).parent / "machine" / "missions").glob("*.yaml")) + [EVERY_FEATURE]
+REGIONS = Path(__file__).parents[1] / "machine" / "missions" / "toy_regions.yaml"  # drive (owns v), watch
+EVERY_FEATURE = Path(__file__).parents[1] / "graph" / "every_feature.yaml"  # nested regions, history, use:, keywords
+DIAGRAMMED = MISSIONS + sorted((Path(__file__).parents[1] / "machine" / "missions").glob("*.yaml")) + [EVERY_FEATURE]
 """Every shipped mission and the test missions with regions, nested regions, history, foreach and sub-missions."""
 
 

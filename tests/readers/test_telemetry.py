@@ -14,7 +14,7 @@ from mcap.reader import make_reader
 from taskflow.cli import main
 from taskflow.readers.run_files import read_trace
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 VIKI = ROOT / "missions" / "viki_hyco.yaml"
 
 

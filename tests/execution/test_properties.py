@@ -56,7 +56,7 @@ from taskflow.mission.model import (
 from taskflow.mission.yamlsrc import MissionLoader
 from taskflow.testing import Script, ScriptedWorld, drive
 
-TOY = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"
+TOY = Path(__file__).parents[1] / "machine" / "missions" / "toy_full.yaml"
 RATE_HZ = 20
 MAX_TIME = 12.0
 EVENTS = ["target_lost", "target_found", "arrived", "tool_done", "tool_failed"]

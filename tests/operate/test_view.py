@@ -1,6 +1,6 @@
 """The web view's server side without a browser (taskflow.operate.view, taskflow.operate.view_http): what the page is fed.
 
-The page itself is driven in a real browser by tests/test_view_browser.py.
+The page itself is driven in a real browser by tests/operate/test_view_browser.py.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from taskflow.readers.recorded import load_run
 from taskflow.readers.scene import Scene, mission_scene
 from taskflow.testing import Script, drive
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 MISSIONS = HERE.parent / "missions"
 

@@ -30,7 +30,7 @@ from taskflow.operate.control_http import ControlClient, ControlServer
 from taskflow.readers.run_files import read_trace
 from taskflow.testing import Script, drive
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 VIKI = HERE.parent / "missions" / "viki_hyco.yaml"
 PAUSE_AT_1 = [{"t": 1.0, "action": "pause", "who": "script"}]

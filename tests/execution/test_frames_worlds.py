@@ -12,7 +12,7 @@ from taskflow.execution.runtime import run_mission
 from taskflow.messages import Image
 from taskflow.mission.loader import load_mission
 
-MISSIONS = Path(__file__).resolve().parents[1] / "missions"
+MISSIONS = Path(__file__).resolve().parents[2] / "missions"
 
 
 def _frames_run(mission: str, overrides: list[str], out: Path) -> list:

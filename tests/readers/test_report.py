@@ -14,7 +14,7 @@ from taskflow.readers.recorded import RecordedRun, load_run
 from taskflow.readers.report import format_report
 from taskflow.units import suffix_unit
 
-FULL = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"
+FULL = Path(__file__).parents[1] / "machine" / "missions" / "toy_full.yaml"
 
 
 def _run(tmp_path: Path, overrides: list[str]) -> RecordedRun:

@@ -11,7 +11,7 @@ import pytest
 from taskflow.errors import MissionError
 from taskflow.mission.yamlsrc import MissionLoader, SourceMap, _walk, load_yaml_text
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 FILES = sorted(p for p in [*ROOT.glob("missions/**/*.yaml"), *ROOT.glob("tests/**/*.yaml")]
                if not p.name.startswith(("yaml_", "gap_yaml", "gap_control", "gap_duplicate")))
 

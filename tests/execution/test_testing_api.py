@@ -11,7 +11,7 @@ from taskflow.execution.summary import RunResult
 from taskflow.mission.loader import load_mission_text
 from taskflow.testing import Script, assert_outcome, drive
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 TOY = """
 mission: toy
 robot: racecar

@@ -16,7 +16,7 @@ import pytest
 
 from taskflow.readers.run_files import read_trace
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 LONG = str(ROOT / "missions" / "car_waypoints_unreachable.yaml")  # 60 s simulated: still running when signalled
 
 

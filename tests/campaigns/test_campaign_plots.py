@@ -15,7 +15,7 @@ from taskflow.campaigns.campaign_plots import campaign_figures, metric_unit, plo
 from taskflow.campaigns.compare import load_batch
 from taskflow.mission.loader import load_mission
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 CAR = HERE.parent / "missions" / "car_waypoints.yaml"
 

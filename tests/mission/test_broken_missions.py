@@ -23,8 +23,8 @@ import yaml
 from taskflow.errors import MissionError, Problem
 from taskflow.mission.loader import load_mission, load_mission_text
 
-BROKEN = Path(__file__).parent / "broken"
-TOY = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"
+BROKEN = Path(__file__).parents[1] / "broken"
+TOY = Path(__file__).parents[1] / "machine" / "missions" / "toy_full.yaml"
 _PAIR = re.compile(r'(\w+)=(?:"((?:[^"\\]|\\.)*)"|(\S+))')
 
 

@@ -23,7 +23,7 @@ from taskflow.operate.replay import serve_replay
 from taskflow.readers.telemetry import export_run
 from taskflow.testing import Script, ScriptedWorld, drive
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 TOY = HERE / "machine" / "missions" / "toy_full.yaml"
 RATE = 25.0  # the rendered mission's control rate (and the quadcopter camera's)
 

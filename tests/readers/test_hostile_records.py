@@ -177,7 +177,7 @@ def test_a_record_whose_mission_names_a_folder_outside_is_read_without_opening_i
     outside = tmp_path / "elsewhere"
     outside.mkdir()
     (outside / "keyframes.json").write_text(SECRET + " {")
-    raw = load_mission(Path(__file__).resolve().parent.parent / "missions" / "visual_path_pose_regulation.yaml").raw
+    raw = load_mission(Path(__file__).resolve().parents[2] / "missions" / "visual_path_pose_regulation.yaml").raw
     raw["world"]["params"] = {**raw["world"].get("params", {}), "keyframe_dir": str(outside)}
     def damage(d: Path) -> None:
         (d / "mission.yaml").write_text(yaml.safe_dump(raw))

@@ -13,7 +13,7 @@ from taskflow.execution.runtime import run_mission
 from taskflow.mission.loader import load_mission, load_mission_text
 from taskflow.mission.yamlsrc import load_yaml_text
 
-TOY = Path(__file__).parent / "machine" / "missions" / "toy_full.yaml"
+TOY = Path(__file__).parents[1] / "machine" / "missions" / "toy_full.yaml"
 
 
 def test_yaml_12_exponent_floats_are_numbers():
@@ -55,7 +55,7 @@ def test_a_partial_mapping_changes_one_field_of_a_default_sub_model():
     import taskflow_robots.racecar  # noqa: F401 - registration
     from taskflow_robots.racecar import RacecarParams
 
-    viki = Path(__file__).resolve().parents[1] / "missions" / "viki_hyco.yaml"
+    viki = Path(__file__).resolve().parents[2] / "missions" / "viki_hyco.yaml"
     m = load_mission(viki, overrides=["robot.params.front_camera.width=320"])
     default = RacecarParams().front_camera
     cam = m.robot_params.front_camera
