@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from toys import MARKED
 
 from taskflow.cli import main
 from taskflow.execution.control import ControlError, OperatorChannel
@@ -245,30 +246,7 @@ def test_a_scripted_pause_must_end_at_its_own_sim_time():
 
 # -- 3. a pre-emption into a state that reads mission data not written yet is refused ---------------------
 
-# start at 0.3 → away to x = 1.0 → mark writes toy.mark → back (toy_return reads it) → done
-MARKED = """
-mission: marked
-robot: toy_point
-world: {name: toy_line, params: {start: 0.3}}
-rate_hz: 20
-max_time: 20 s
-machine:
-  initial: away
-  states:
-    away:
-      task: {name: toy_goto, params: {target: 1.0}}
-      bind: {gains: {kp: 2.0}}
-      transitions: [{to: mark, when: "pos_error < 1 cm"}]
-    mark:
-      task: toy_mark
-      transitions: [{to: back, after: 0.2 s}]
-    back:
-      task: toy_return
-      bind: {gains: {kp: 2.0}}
-      transitions: [{to: done, when: "pos_error < 1 cm"}]
-    done: {final: succeeded}
-"""
-
+# MARKED (tests/toys.py): start at 0.3 → away to x = 1.0 → mark writes toy.mark → back (toy_return reads it) → done
 
 def test_a_scripted_preempt_into_an_unwritten_read_is_refused_and_the_run_goes_on(tmp_path):
     m = load_mission_text(MARKED, "marked.yaml")
