@@ -1,6 +1,6 @@
 """Operator control of a running mission, continued: a live session replayed, ViKi-HyCo on PyBullet, `taskflow
 run` / `taskflow ctl`, and a pre-emption the run's mission data cannot take (the endpoint and its live
-runs as in tests/operate/test_control.py; helpers in control_live.py)."""
+runs as in tests/operate/test_control.py; helpers in tests/control_live.py)."""
 
 from __future__ import annotations
 
