@@ -1,7 +1,7 @@
 """Broken command-line inputs, each with the fragment its one-line message must hold.
 
 Every case is a ``taskflow`` command on a shipped mission (so a fresh process can run it without
-the test-only toy plugins).  ``tests/test_cli_bad_input.py`` runs them in-process and checks the
+the test-only toy plugins).  ``tests/cli/test_cli_bad_input.py`` runs them in-process and checks the
 message, the exit code 1 and the absence of a traceback; ``benchmarks/bad_input.py`` runs each in
 a fresh process and prints its wall time and peak memory (the issue's 2 s / 200 MB budget).
 """

@@ -8,7 +8,15 @@ import toys
 toys.register()
 
 
+from collections.abc import Callable, Iterator  # noqa: E402
+from typing import TYPE_CHECKING  # noqa: E402
+
 import pytest  # noqa: E402
+
+if TYPE_CHECKING:
+    from control_live import LiveRun
+
+    from taskflow.execution.summary import RunResult
 
 # -- test tiers (README "Testing", docs/design.md "Testing") -------------------------------------------------
 TIERS = ("unit", "machine", "sim", "mission", "browser", "cluster")
@@ -22,9 +30,11 @@ _FILE_TIER = {
     "test_batch_progress.py": "machine", "test_broken_missions.py": "machine", "test_campaign.py": "machine",
     "test_campaign_plots.py": "machine", "test_catalogue.py": "machine", "test_cli.py": "machine",
     "test_cli_bad_input.py": "machine", "test_compare_run_numbers.py": "machine", "test_control.py": "machine",
+    "test_control_runs.py": "machine",
     "test_control_auth.py": "machine", "test_dependency_direction.py": "machine", "test_frames.py": "machine",
     "test_graph.py": "machine", "test_hostile_records.py": "machine", "test_loader_extras.py": "machine",
-    "test_operator_semantics.py": "machine", "test_properties.py": "machine", "test_records_readers.py": "machine",
+    "test_operator_semantics.py": "machine", "test_properties_machines.py": "machine", "test_properties_mutations.py": "machine",
+    "test_properties_operated.py": "machine", "test_properties_regions.py": "machine", "test_records_readers.py": "machine",
     "test_report.py": "machine", "test_seam_submission.py": "machine", "test_view.py": "machine",
     "test_conformance.py": "sim",
     "test_frames_worlds.py": "mission", "test_journeys.py": "mission", "test_packaging.py": "mission",
@@ -32,7 +42,8 @@ _FILE_TIER = {
     "test_view_browser.py": "browser",
     "test_ray_backend.py": "cluster",
 }
-"""The tier of each test module directly in ``tests/`` (read from what the module does)."""
+"""The tier of each test module outside the tier folders (directly in ``tests/`` or in a folder mirroring a
+framework package: ``tests/mission/``, ``tests/execution/``, ...), by file name (read from what the module does)."""
 
 _MISSION_FIXTURES = frozenset({"rendered_run_dir"})
 """Fixtures that run a mission on PyBullet: a unit or machine test using one is a mission test."""
@@ -94,3 +105,28 @@ def rendered_run(out: Path, seed: int = 5, max_time: float = 3.0) -> Path:
 def rendered_run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """One short rendered run with camera frames, shared by the tests that read frames."""
     return rendered_run(tmp_path_factory.mktemp("rendered") / "run")
+
+
+@pytest.fixture
+def live() -> Iterator[Callable[..., "LiveRun"]]:
+    """Start a run in a thread with its control endpoint (tests/control_live.py); a run a failed test leaves
+    behind is pre-empted at teardown."""
+    from control_live import LiveRun
+
+    from taskflow.execution.control import ControlError
+
+    runs: list[LiveRun] = []
+
+    def start(fn: Callable[[], "RunResult"], run_dir: Path) -> LiveRun:
+        run = LiveRun(fn, run_dir)
+        runs.append(run)
+        return run
+
+    yield start
+    for run in runs:  # a failed test must not leave a paused run behind
+        if run.thread.is_alive():
+            try:
+                run.client.send("preempt", who="teardown")
+            except ControlError:
+                pass
+            run.thread.join(10)

@@ -213,6 +213,33 @@ class ToyReturn(Task[Any, ToyLimits]):
         return StepResult({"v": np.array([self.kp * e])}, {"pos_error": abs(e)})
 
 
+# A mission of the toys for pre-emptions into a state that reads mission data (tests/execution/
+# test_operator_semantics.py, tests/operate/test_control*.py): start at 0.3 → away to x = 1.0 → mark writes
+# toy.mark → back (toy_return reads it) → done.
+MARKED = """
+mission: marked
+robot: toy_point
+world: {name: toy_line, params: {start: 0.3}}
+rate_hz: 20
+max_time: 20 s
+machine:
+  initial: away
+  states:
+    away:
+      task: {name: toy_goto, params: {target: 1.0}}
+      bind: {gains: {kp: 2.0}}
+      transitions: [{to: mark, when: "pos_error < 1 cm"}]
+    mark:
+      task: toy_mark
+      transitions: [{to: back, after: 0.2 s}]
+    back:
+      task: toy_return
+      bind: {gains: {kp: 2.0}}
+      transitions: [{to: done, when: "pos_error < 1 cm"}]
+    done: {final: succeeded}
+"""
+
+
 def register() -> None:
     for reg, name, cls in ((ROBOTS, "toy_point", ToyPoint), (ROBOTS, "toy_wheel", ToyWheel),
                            (ROBOTS, "toy_pair", ToyPair), (WORLDS, "toy_line", ToyLine),

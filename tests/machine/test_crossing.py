@@ -215,7 +215,7 @@ def test_a_sibling_metric_not_published_on_a_tick_compares_false():
     assert r.executor.world.ground_truth()["x"] > 0.9
 
 
-# -- found by the oracle (tests/test_properties.py): a region moves while the last region is final ---------
+# -- found by the oracle (tests/execution/test_properties_regions.py): a region moves while the last region is final ---------
 
 def test_a_region_moves_on_while_the_last_region_has_finished():
     # `transitions` 0.9.3's own final-state check took region b's final state for the parallel state's and
