@@ -18,7 +18,7 @@ line (``[[``, ``%%``) have their first character written as its code.  Mermaid h
 its regions are only separated by ``--`` (Mermaid lays them out itself); a state id that is one of
 Mermaid's keywords (``note``, ``state``, ``class`` …) gets a trailing ``_``, and ids that would clash
 are told apart (:func:`diagram_ids`).  Both outputs are checked by
-their own parsers over every shipped mission in ``tests/test_graph.py``.
+their own parsers over every shipped mission in ``tests/catalogue/test_graph.py``.
 """
 
 from __future__ import annotations

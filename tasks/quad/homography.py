@@ -15,7 +15,7 @@ Conventions
   keyframe camera frame, so at small errors ``e_v ≈ t / Z*`` and ``e_w ≈ 2 θ`` (θ the rotation
   vector of the current camera w.r.t. the keyframe): the printed law (3) ``nu_c = -Λ e`` then
   drives the camera *to* the keyframe.  With the opposite direction (``findHomography(keyframe,
-  current)``) the same printed law drives it away — checked in ``tests/unit/laws/test_homography.py``
+  current)``) the same printed law drives it away — checked in ``tests/unit/laws/quad/test_homography.py``
   with a synthetic camera (points on a plane, exact projection).
 * Robot (quadcopter) body frame ``{e}``: x forward, y left, z up (FLU).  The paper's Bebop frame is
   x forward, y right, z down, hence its ``eR_c = [[0,0,1],[1,0,0],[0,1,0]]``; in FLU the same
