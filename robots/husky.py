@@ -18,12 +18,10 @@ import math
 from typing import ClassVar
 
 from pydantic import Field
-from taskflow_robots.racecar import CameraMount, LidarMount
+from taskflow_robots.racecar import CAMERA_PITCH, GROUND_SENSORS, CameraMount, LidarMount
 
 from taskflow.api import ObsSpec, Robot, StrictModel, array, scalar
 from taskflow.registry import register_robot
-
-_PITCH = math.radians(30.0)
 
 
 class HuskyParams(StrictModel):
@@ -50,9 +48,9 @@ class HuskyParams(StrictModel):
                                 "motors give ~60 N m per wheel after their gearbox; more only spins the wheels)")
     # RGB-D cameras on a mast 0.55 m high pitched 30 deg down, at the front and rear bumpers (data only:
     # worlds that render sensors, e.g. viki_ground, read them), and a LiDAR above the centre.
-    front_camera: CameraMount = Field(default=CameraMount(xyz=(0.58, 0.0, 0.55), rpy=(0.0, _PITCH, 0.0)),
+    front_camera: CameraMount = Field(default=CameraMount(xyz=(0.58, 0.0, 0.55), rpy=(0.0, CAMERA_PITCH, 0.0)),
                                       description="the forward RGB-D camera")
-    rear_camera: CameraMount = Field(default=CameraMount(xyz=(-0.40, 0.0, 0.55), rpy=(0.0, _PITCH, math.pi)),
+    rear_camera: CameraMount = Field(default=CameraMount(xyz=(-0.40, 0.0, 0.55), rpy=(0.0, CAMERA_PITCH, math.pi)),
                                      description="the backward RGB-D camera")
     lidar: LidarMount = Field(default=LidarMount(xyz=(0.0, 0.0, 1.10)), description="the LiDAR above the centre")
 
@@ -66,7 +64,7 @@ class Husky(Robot):
     command_keys: ClassVar[dict[str, int]] = {"v": 1, "w": 1}
     command_units: ClassVar[dict[str, tuple[tuple[str, str], ...]]] = {"v": (("v", "m/s"),), "w": (("w", "rad/s"),)}
     observations: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar(), "state.w": scalar()}
-    sensors: ClassVar[dict[str, str]] = {"front_camera": "rgbd_camera", "rear_camera": "rgbd_camera", "lidar": "lidar"}
+    sensors: ClassVar[dict[str, str]] = GROUND_SENSORS
 
     params: HuskyParams
 

@@ -127,7 +127,10 @@ class LidarMount(Mount):
         return self
 
 
-_PITCH = math.radians(30.0)
+#: the pitch (rad, down) of the ground robots' RGB-D cameras (racecar, husky)
+CAMERA_PITCH = math.radians(30.0)
+#: the sensor kinds of a ground robot's mounts: RGB-D cameras front and rear, a LiDAR (racecar, husky)
+GROUND_SENSORS: dict[str, str] = {"front_camera": "rgbd_camera", "rear_camera": "rgbd_camera", "lidar": "lidar"}
 
 
 class RacecarParams(StrictModel):
@@ -150,9 +153,9 @@ class RacecarParams(StrictModel):
                            "below pi/2 (a wheel turned across the car)")
     # Cameras 0.55 m high pitched 30 deg down: the optical axis meets the ground ~0.95 m away and the
     # image spans ~0.45–3.5 m of ground ahead (behind for the rear camera).
-    front_camera: CameraMount = Field(default=CameraMount(xyz=(0.40, 0.0, 0.55), rpy=(0.0, _PITCH, 0.0)),
+    front_camera: CameraMount = Field(default=CameraMount(xyz=(0.40, 0.0, 0.55), rpy=(0.0, CAMERA_PITCH, 0.0)),
                                       description="the forward RGB-D camera c1")
-    rear_camera: CameraMount = Field(default=CameraMount(xyz=(-0.10, 0.0, 0.55), rpy=(0.0, _PITCH, math.pi)),
+    rear_camera: CameraMount = Field(default=CameraMount(xyz=(-0.10, 0.0, 0.55), rpy=(0.0, CAMERA_PITCH, math.pi)),
                                      description="the backward RGB-D camera c2")
     lidar: LidarMount = Field(default=LidarMount(xyz=(0.20, 0.0, 1.10)), description="the 16-layer LiDAR")
 
@@ -166,7 +169,7 @@ class Racecar(Robot):
     command_keys: ClassVar[dict[str, int]] = {"v": 1, "steer": 1}
     command_units: ClassVar[dict[str, tuple[tuple[str, str], ...]]] = {"v": (("v", "m/s"),), "steer": (("steer", "rad"),)}
     observations: ClassVar[dict[str, ObsSpec]] = {"state.pose": array(3), "state.v": scalar(), "state.steer": scalar()}
-    sensors: ClassVar[dict[str, str]] = {"front_camera": "rgbd_camera", "rear_camera": "rgbd_camera", "lidar": "lidar"}
+    sensors: ClassVar[dict[str, str]] = GROUND_SENSORS
 
     params: RacecarParams
 

@@ -9,43 +9,25 @@ from __future__ import annotations
 import math
 import re
 
-# unit -> (dimension, factor to the base unit)
-UNITS: dict[str, tuple[str, float]] = {
-    "m": ("length", 1.0),
-    "cm": ("length", 1e-2),
-    "mm": ("length", 1e-3),
-    "rad": ("angle", 1.0),
-    "deg": ("angle", math.pi / 180.0),
-    "px": ("pixel", 1.0),
-    "s": ("time", 1.0),
-    "ms": ("time", 1e-3),
-    "min": ("time", 60.0),
-    "m/s": ("speed", 1.0),
-    "cm/s": ("speed", 1e-2),
-    "mm/s": ("speed", 1e-3),
-    "rad/s": ("angular_speed", 1.0),
-    "deg/s": ("angular_speed", math.pi / 180.0),
-    "Hz": ("frequency", 1.0),
-    "kHz": ("frequency", 1e3),
-    "N": ("force", 1.0),
-    "Nm": ("torque", 1.0),
-    "%": ("ratio", 1e-2),
-    "": ("ratio", 1.0),
+# dimension -> {unit: factor to the base unit}; the base unit of a dimension is its unit of factor 1
+_UNITS_OF: dict[str, dict[str, float]] = {
+    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3},
+    "angle": {"rad": 1.0, "deg": math.pi / 180.0},
+    "pixel": {"px": 1.0},
+    "time": {"s": 1.0, "ms": 1e-3, "min": 60.0},
+    "speed": {"m/s": 1.0, "cm/s": 1e-2, "mm/s": 1e-3},
+    "angular_speed": {"rad/s": 1.0, "deg/s": math.pi / 180.0},
+    "frequency": {"Hz": 1.0, "kHz": 1e3},
+    "force": {"N": 1.0},
+    "torque": {"Nm": 1.0},
+    "ratio": {"%": 1e-2, "": 1.0},
 }
 
+# unit -> (dimension, factor to the base unit)
+UNITS: dict[str, tuple[str, float]] = {u: (dim, f) for dim, units in _UNITS_OF.items() for u, f in units.items()}
+
 # the base unit a task or world may declare for a metric
-BASE_UNIT_OF: dict[str, str] = {
-    "length": "m",
-    "angle": "rad",
-    "pixel": "px",
-    "time": "s",
-    "speed": "m/s",
-    "angular_speed": "rad/s",
-    "frequency": "Hz",
-    "force": "N",
-    "torque": "Nm",
-    "ratio": "",
-}
+BASE_UNIT_OF: dict[str, str] = {dim: next(u for u, f in units.items() if f == 1.0) for dim, units in _UNITS_OF.items()}
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z%/]*)\s*$")
 

@@ -43,9 +43,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Generic, Literal, TypeVar
+from typing import Annotated, Any, Generic, Literal, TypeVar
 
 import numpy as np
+from pydantic import Field
 from taskflow_sim.core.faults import Interval, IntervalFault
 from taskflow_sim.core.stepped import EPS_T, SensorSchedule
 
@@ -53,6 +54,10 @@ V = TypeVar("V")
 
 Delivery = Literal["each", "newest", "past"]
 PollPoint = Literal["physics_step", "advance"]
+
+DropoutFraction = Annotated[float, Field(ge=0.0, lt=1.0)]
+"""The type of a world's ``dropout`` parameter (the chance a frame is missed): in [0, 1), as a sensor
+that misses every frame sees nothing; each world gives its own default and description."""
 
 
 @dataclass(frozen=True, slots=True)

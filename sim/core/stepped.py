@@ -14,11 +14,11 @@ steps, never the wall clock.  A world keeps its scoring (ground truth, summary m
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, Generic, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from taskflow.api import Command, Robot, World
 
@@ -27,6 +27,10 @@ if TYPE_CHECKING:
 
 EPS_T = 1e-9
 """Slack (s) when comparing a tick's time (steps / physics_hz) with a time computed another way (k / rate)."""
+
+PhysicsHz = Annotated[float, Field(ge=100.0, le=10_000.0)]
+"""The type of a world's ``physics_hz`` parameter (Hz): 100 Hz to 10 kHz, the bounds every PyBullet world
+shares (contact needs at least 100 Hz); each world gives its own default and description."""
 
 
 def check_command(robot: Robot, command: Command) -> dict[str, NDArray[np.float64]]:

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, Field, model_validator
 from taskflow_sim.core.bodies import BodyOptions, GroundBody, make_body
 from taskflow_sim.core.sensors import SensorStream
-from taskflow_sim.core.stepped import SteppedWorld, check_command
+from taskflow_sim.core.stepped import PhysicsHz, SteppedWorld, check_command
 from taskflow_sim.ground.ground_plane import add_floor, connect
 
 from taskflow.api import Command, Marker, Observation, Robot, RobotNeeds, StrictModel
@@ -56,8 +56,8 @@ class FlatGroundParams(StrictModel):
 
     start: tuple[float, float, float] = Field(default=(0.0, 0.0, 0.0), description="[x, y, yaw] (m, m, rad); "
                                               "x and y on the floor (|x|, |y| < floor_half_size)")
-    physics_hz: float = Field(default=240.0, ge=100.0, le=10_000.0,
-                              description="physics rate (Hz): wheel contact needs ≥ 100 Hz; a whole multiple of rate_hz")
+    physics_hz: PhysicsHz = Field(default=240.0,
+                                  description="physics rate (Hz): wheel contact needs ≥ 100 Hz; a whole multiple of rate_hz")
     odom_noise: float = Field(default=0.0, ge=0.0, le=0.1, description="std of odometry x, y noise (m): at most 0.1, "
                               "beyond the missions' waypoint tolerances (3-25 cm) ten times over")
     odom_yaw_noise: float = Field(default=0.0, ge=0.0, le=0.2, description="std of odometry yaw noise (rad): at most "

@@ -182,22 +182,10 @@ class RacecarBody:
         g, a, c = self.geometry, self.actuation, self.client
         left, right = ackermann_wheel_angles(psi, g.wheelbase, g.track)
         wl, wr = differential_wheel_speeds(v, psi, g.wheelbase, g.drive_track, g.wheel_radius)
-        p.setJointMotorControlArray(
-            self.body,
-            [self.joints[n] for n in HINGES],
-            p.POSITION_CONTROL,
-            targetPositions=[left, right],
-            forces=[a.steer_torque, a.steer_torque],
-            physicsClientId=c,
-        )
-        p.setJointMotorControlArray(
-            self.body,
-            [self.joints[n] for n in REAR_WHEELS],
-            p.VELOCITY_CONTROL,
-            targetVelocities=[wl, wr],
-            forces=[a.wheel_torque, a.wheel_torque],
-            physicsClientId=c,
-        )
+        p.setJointMotorControlArray(self.body, [self.joints[n] for n in HINGES], p.POSITION_CONTROL,
+                                    targetPositions=[left, right], forces=[a.steer_torque] * 2, physicsClientId=c)
+        p.setJointMotorControlArray(self.body, [self.joints[n] for n in REAR_WHEELS], p.VELOCITY_CONTROL,
+                                    targetVelocities=[wl, wr], forces=[a.wheel_torque] * 2, physicsClientId=c)
 
     # --- state (ground truth) ------------------------------------------------------------------
     def pose(self) -> NDArray[np.float64]:

@@ -12,6 +12,8 @@ from typing import ClassVar, Literal
 
 from pydantic import ConfigDict, Field, field_validator, model_validator
 from taskflow_sim.core.faults import FaultIntervals
+from taskflow_sim.core.sensors import DropoutFraction
+from taskflow_sim.core.stepped import PhysicsHz
 from taskflow_sim.screw import scene as sc
 
 from taskflow.api import StrictModel
@@ -85,7 +87,7 @@ class ScrewWorldParams(Fidelity):
     base_tau: float = Field(default=0.1, gt=0.0, le=5.0,
                             description="platform: time constant of the first-order lag of its twist behind the command "
                             "(s): at most 5")
-    dropout: float = Field(default=0.01, ge=0.0, lt=1.0, description="probability a frame misses the marker (both "
+    dropout: DropoutFraction = Field(default=0.01, description="probability a frame misses the marker (both "
                            "modes): below 1 (a camera that misses every frame sees nothing)")
     image_noise: float = Field(default=2.0, ge=0.0, le=64.0,
                                description="rendered mode: std of the camera's pixel noise (8-bit grey levels), seeded: "
@@ -95,7 +97,7 @@ class ScrewWorldParams(Fidelity):
     lost_after: float = Field(default=0.2, gt=0.0, le=10.0, description="no detection for this long → target_lost (s); "
                               "longer than one camera period, at most 10 s")
     occlusions: FaultIntervals = Field(default_factory=list, description="[t0, t1] intervals hiding the marker (s)")
-    physics_hz: float = Field(default=100.0, ge=100.0, le=10_000.0, description="physics rate (Hz): one step per 100 Hz control tick; 250 gives the same benchmark errors at twice the cost; a whole multiple of rate_hz")
+    physics_hz: PhysicsHz = Field(default=100.0, description="physics rate (Hz): one step per 100 Hz control tick; 250 gives the same benchmark errors at twice the cost; a whole multiple of rate_hz")
     contact_stiffness: float = Field(default=1e4, ge=100.0, le=1e5, description="tool-part contact stiffness "
                                      "(N/m): 100 to 1e5; the 0.6 kg tool on a stiffer contact oscillates with a period "
                                      "2 pi sqrt(m / k) under 15 ms, 1.5 steps of the 100 Hz physics, and bounces "

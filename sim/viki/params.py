@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from typing import ClassVar, Literal
 
 from pydantic import Field, model_validator
+from taskflow_sim.core.sensors import DropoutFraction
 from taskflow_sim.ground.flat_ground import FlatGroundParams
 
 from taskflow.fidelity import Fidelity, Level, Sourced
@@ -53,7 +54,7 @@ class VikiGroundParams(Fidelity, FlatGroundParams):
                                "geometric mode: at most 0.2 (10 times the RealSense's 2 % at 2 m)")
     min_pixels: int = Field(default=4, ge=1, le=10_000, description="fewer visible object pixels: no detection; "
                             "1-10000 (the object at 2 m covers ~3000 px of the default image)")
-    dropout: float = Field(default=0.0, ge=0.0, lt=1.0, description="fraction of frames the detector misses: below 1 "
+    dropout: DropoutFraction = Field(default=0.0, description="fraction of frames the detector misses: below 1 "
                            "(a detector that misses every frame sees nothing)")
     dropout_burst: float = Field(default=1.0, ge=1.0, le=150.0, description="mean length of a miss burst (frames): "
                                  "1 to 150 (10 s at 15 fps, longer than the tasks' search timeouts: a longer miss is "

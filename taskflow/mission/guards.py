@@ -184,18 +184,18 @@ class _Parser:
         return node
 
     def expr(self) -> Node:
-        parts = [self.and_expr()]
-        while self.is_word("or"):
-            self.take()
-            parts.append(self.and_expr())
-        return parts[0] if len(parts) == 1 else Node("or", parts)
+        return self.chain("or", self.and_expr)
 
     def and_expr(self) -> Node:
-        parts = [self.not_expr()]
-        while self.is_word("and"):
+        return self.chain("and", self.not_expr)
+
+    def chain(self, word: str, operand: Callable[[], Node]) -> Node:
+        """``operand (word operand)*``: one operand, or a ``word`` node of them all."""
+        parts = [operand()]
+        while self.is_word(word):
             self.take()
-            parts.append(self.not_expr())
-        return parts[0] if len(parts) == 1 else Node("and", parts)
+            parts.append(operand())
+        return parts[0] if len(parts) == 1 else Node(word, parts)
 
     def not_expr(self) -> Node:
         if self.is_word("not"):

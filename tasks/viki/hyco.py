@@ -75,6 +75,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.racecar import CameraMount
+from taskflow_tasks.core import keys
 from taskflow_tasks.core.gains import positive_gains
 from taskflow_tasks.core.keep_out import keep_out_speed
 from taskflow_tasks.ground.car_goto import CarGains, CarGeometry
@@ -106,16 +107,14 @@ from taskflow.api import (
     TaskScene,
     array,
     mapping,
-    scalar,
 )
 from taskflow.messages import Detection
 from taskflow.registry import register_task
 from taskflow.spatial import planar_apply, planar_apply_inverse, twist_adjoint_inverse
 from taskflow.specs import Requires
 
-# the observations the ViKi-HyCo tasks read (declared in their ``requires``, called to read: one thing)
-ODOM_POSE: ObsKey[NDArray[np.float64]] = ObsKey("state.pose", array(3))
-MEASURED_V: ObsKey[float] = ObsKey("state.v", scalar())
+# the observations the ViKi-HyCo tasks read (declared in their ``requires``, called to read: one thing);
+# the odometry pose and speed are the shared keys of :mod:`taskflow_tasks.core.keys`
 DETECTION = ObsKey("sensors.detection", Detection, optional=True)
 
 # the mission data the ViKi-HyCo tasks keep across states (one definition each)
@@ -213,7 +212,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
     events: ClassVar[tuple[str, ...]] = ("no_target",)
     command_interface: ClassVar[str] = "ackermann"
     robot_params: ClassVar[type[BaseModel]] = CameraCar
-    requires: ClassVar[Requires] = (ODOM_POSE, DETECTION, MEASURED_V)
+    requires: ClassVar[Requires] = (keys.POSE, DETECTION, keys.SPEED)
     writes: ClassVar[tuple[MemoryKey[Any], ...]] = (MEM_OBJECT, MEM_TARGET, MEM_FIRST)
 
     def __init__(self, ctx: TaskContext[ViKiHyCoParams, CameraCar]) -> None:
@@ -271,7 +270,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
 
     # -- one tick ------------------------------------------------------------------------------------
     def step(self, obs: Observation) -> StepResult:
-        pose = np.asarray(ODOM_POSE(obs), dtype=float)
+        pose = np.asarray(keys.POSE(obs), dtype=float)
         det = DETECTION(obs)
         if det is not None and det.camera != self.camera:
             det = None
@@ -337,7 +336,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         if out.feature_error is not None:
             self.last_feature_error = out.feature_error
         metrics: dict[str, float] = {"detected": 1.0 if out.used_vs else 0.0, "v_cmd": out.v_cmd,
-                                     "speed": abs(float(MEASURED_V(obs)))}
+                                     "speed": abs(float(keys.SPEED(obs)))}
         metrics.update(zip(_CAM_KEYS, (self._cam_twist @ out.V).tolist()))
         if self.last_feature_error is not None:
             metrics["feature_error"] = self.last_feature_error

@@ -38,9 +38,10 @@ from typing import ClassVar, Literal, cast
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
+from taskflow_tasks.core import keys
 from taskflow_tasks.ground.car_goto import CarGains, CarGeometry, car_control_point
 from taskflow_tasks.ground.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
-from taskflow_tasks.viki.hyco import MEASURED_V, MEM_OBJECT, ODOM_POSE
+from taskflow_tasks.viki.hyco import MEM_OBJECT
 from taskflow_tasks.viki.laws import reverse_control
 
 from taskflow.api import (
@@ -129,7 +130,7 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
                                          "speed": SPEED}
     events: ClassVar[tuple[str, ...]] = ("no_target",)
     command_interface: ClassVar[str] = "ackermann"
-    requires: ClassVar[Requires] = (ODOM_POSE, MEASURED_V)
+    requires: ClassVar[Requires] = (keys.POSE, keys.SPEED)
     robot_params: ClassVar[type[BaseModel]] = CarGeometry
     reads: ClassVar[tuple[MemoryKey[NDArray[np.float64]], ...]] = (MEM_OBJECT,)
     writes: ClassVar[tuple[MemoryKey[NDArray[np.float64]], ...]] = (MEM_ROTATION,)
@@ -168,8 +169,8 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
         MEM_ROTATION.set(self.memory, self.final.copy())
 
     def step(self, obs: Observation) -> StepResult:
-        pose = np.asarray(ODOM_POSE(obs), dtype=float)
-        speed = abs(float(MEASURED_V(obs)))
+        pose = np.asarray(keys.POSE(obs), dtype=float)
+        speed = abs(float(keys.SPEED(obs)))
         if self.legs is None:
             if not MEM_OBJECT.present(self.memory):
                 stop = {"v": np.zeros(1), "steer": np.zeros(1)}

@@ -302,12 +302,13 @@ def test_keep_out_turns_the_fallback_around_within_the_margin():
 
 def test_the_tasks_read_what_they_declare_and_a_missing_required_entry_is_an_error():
     """requires and the reads are one set of keys: no silent default for the measured speed or the pose."""
-    from taskflow_tasks.viki.hyco import DETECTION, MEASURED_V, ODOM_POSE
+    from taskflow_tasks.core import keys
+    from taskflow_tasks.viki.hyco import DETECTION
 
     from taskflow.specs import MissingObservation, required_specs
 
-    assert set(required_specs(ViKiHyCo.requires)) == {ODOM_POSE.name, DETECTION.name, MEASURED_V.name}
-    assert set(required_specs(ViKiRotate.requires)) == {ODOM_POSE.name, MEASURED_V.name}
+    assert set(required_specs(ViKiHyCo.requires)) == {keys.POSE.name, DETECTION.name, keys.SPEED.name}
+    assert set(required_specs(ViKiRotate.requires)) == {keys.POSE.name, keys.SPEED.name}
     task = make_task()
     assert task.step(obs(0.0)).metrics["detected"] == 0.0  # the detection is optional: absent is "none yet"
     no_speed = Observation(t=0.0, state={"pose": np.zeros(3)}, sensors={"detection": det(0.0)})
