@@ -103,7 +103,7 @@ class SteppedWorld(World, Generic[SceneT]):
     the hooks :meth:`begin_steps`, :meth:`after_physics_step` and :meth:`end_steps` frame the steps
     of one ``advance``.  A world that keeps its simulator in ``self.sim`` (built by ``reset``; ``scene`` is the class's figure
     markers, :meth:`taskflow.api.World.scene`) gets
-    :meth:`close` and :meth:`_require_scene`."""
+    :meth:`close` and :meth:`_require_sim`."""
 
     sim: SceneT | None
     """The simulator client and its bodies, built by ``reset`` (None before it and after :meth:`close`)."""
@@ -136,7 +136,7 @@ class SteppedWorld(World, Generic[SceneT]):
             self.sim.close()
             self.sim = None
 
-    def _require_scene(self) -> SceneT:
+    def _require_sim(self) -> SceneT:
         if self.sim is None:
             raise RuntimeError(f"{self.name or type(self).__name__}: call reset() before using the world")
         return self.sim

@@ -127,7 +127,7 @@ class FlatGround(SteppedWorld[GroundScene]):
 
     # --- sensors ---------------------------------------------------------------------------------
     def _read_odometry(self, t: float, _state: object) -> NDArray[np.float64]:
-        return np.array(self._require_scene().car.pose(), dtype=np.float64)
+        return np.array(self._require_sim().car.pose(), dtype=np.float64)
 
     def _odometry_noise(self, pose: NDArray[np.float64], t: float, rng: np.random.Generator) -> NDArray[np.float64]:
         wp = self.params
@@ -139,23 +139,23 @@ class FlatGround(SteppedWorld[GroundScene]):
 
     # --- the loop ------------------------------------------------------------------------------
     def observe(self) -> Observation:
-        car = self._require_scene().car
+        car = self._require_sim().car
         reading = self.odometry.latest
         assert reading is not None and reading.value is not None  # captured at reset and every advance
         state: dict[str, Any] = {**car.proprioception(), "pose": reading.value.copy()}
         return Observation(t=self.t, state=state)
 
     def apply(self, command: Command) -> None:
-        self._require_scene().car.apply(check_command(self.robot, command))
+        self._require_sim().car.apply(check_command(self.robot, command))
 
     def _before_steps(self) -> None:
-        self._require_scene()
+        self._require_sim()
 
     def physics_step(self, h: float) -> None:
-        self._require_scene().step(h)
+        self._require_sim().step(h)
 
     def ground_truth(self) -> dict[str, float]:
-        car = self._require_scene().car
+        car = self._require_sim().car
         x, y, yaw = car.pose()
         return {"x": float(x), "y": float(y), "yaw": float(yaw), "v": float(car.twist()[0])}
 

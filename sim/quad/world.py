@@ -221,11 +221,11 @@ class QuadRoom(SteppedWorld[QuadScene]):
 
     def end_steps(self, n: int, h: float) -> None:
         self.score.moved(self._start_xyz, self.pose)
-        self._require_scene().set_drone_pose(*self.pose)
+        self._require_sim().set_drone_pose(*self.pose)
         self._check_contacts()
 
     def _check_contacts(self) -> None:
-        if self.score.contacts(*self._require_scene().clearances()):
+        if self.score.contacts(*self._require_sim().clearances()):
             self._events.append("collision")
 
     def safe_stop(self) -> None:

@@ -137,7 +137,7 @@ class VikiGround(FlatGround):
 
     def _populate(self) -> None:
         wp, rp = self.params, self.robot.params
-        scene = self._require_scene()
+        scene = self._require_sim()
         self.object, self.object_body = place_object(scene.client, wp)
         footprint = measure_footprint(make_body(self.robot, BodyOptions()))
         rig = cast(CameraRig, rp)
@@ -170,7 +170,7 @@ class VikiGround(FlatGround):
 
     def T_world_robot(self) -> NDArray[np.float64]:
         """World ← robot (rear-axle midpoint) 4x4 from the simulator (full 3-D, ground truth)."""
-        pos, q = cast(BaseFramed, self._require_scene().car)._base_frame()
+        pos, q = cast(BaseFramed, self._require_sim().car)._base_frame()
         return transform(rotation_from_unit_quaternion(q), pos)
 
     # --- the loop --------------------------------------------------------------------------------
@@ -181,7 +181,7 @@ class VikiGround(FlatGround):
     def _poll(self) -> None:
         """Once per control tick, before the camera streams' poll: the odometry's drift, the ground-truth
         scoring, the cameras' tick start."""
-        scene = self._require_scene()
+        scene = self._require_sim()
         car = scene.car
         true = np.asarray(car.pose(), dtype=float)
         if self._slip is not None:
@@ -196,7 +196,7 @@ class VikiGround(FlatGround):
     def observe(self) -> Observation:
         obs = super().observe()
         if self._odometry is not None:  # drifting odometry; FlatGround's white noise (if any) stays on top
-            true = np.asarray(self._require_scene().car.pose(), dtype=float)
+            true = np.asarray(self._require_sim().car.pose(), dtype=float)
             pose = np.asarray(obs.state["pose"], dtype=float)
             obs.state["pose"] = self._odometry + (pose - true)
         sensors = self.sensors
@@ -219,7 +219,7 @@ class VikiGround(FlatGround):
 
     def object_in_robot_frame(self) -> tuple[float, float]:
         """Ground truth: object base centre in the robot frame (m)."""
-        x, y, yaw = self._require_scene().car.pose()
+        x, y, yaw = self._require_sim().car.pose()
         return object_in_robot_frame(self._require_object(), (x, y, yaw))
 
     def ground_truth(self) -> dict[str, float]:

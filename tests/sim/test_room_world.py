@@ -125,7 +125,7 @@ def test_teach_writes_keyframes_that_a_run_can_load(tmp_path):
     try:
         assert np.array_equal(w.keyframe_images[0], images[0])
         # the taught image is what the camera sees at that pose
-        assert np.array_equal(w._require_scene().render((1.5, 0.0, 0.5, 0.0)), images[0])
+        assert np.array_equal(w._require_sim().render((1.5, 0.0, 0.5, 0.0)), images[0])
     finally:
         w.close()
 
@@ -170,7 +170,7 @@ def test_geometric_landmarks_lie_on_the_surfaces_the_renderer_shows(geo_world, p
     geo_world.pose[:] = pose
     view = geo_world.camera.landmark_view(pose, 0.0, "camera")
     assert len(view) > 50
-    _, depth = geo_world._require_scene().render_with_depth(pose)
+    _, depth = geo_world._require_sim().render_with_depth(pose)
     R, t = cam.pose_in_world(pose)
     z, uv = project(geo_world.landmarks[view.ids], R, t, cam.K())
     assert np.allclose(uv, view.uv)
@@ -184,7 +184,7 @@ def test_geometric_column_silhouette_matches_the_segmented_image(geo_world):
     from taskflow_tasks.quad.perception import obstacle_edges
 
     for pose in [(0.0, 0.0, 1.0, 0.0), (0.6, 0.2, 1.0, 0.15), (0.8, -0.3, 1.0, -0.25)]:
-        rgb = geo_world._require_scene().render(pose)
+        rgb = geo_world._require_sim().render(pose)
         det = obstacle_edges(rgb)
         geo = geo_world.camera.widest_column(pose)
         assert det is not None and geo is not None
