@@ -39,6 +39,14 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from taskflow.planar import as_planar
+from taskflow.planar import planar_apply as planar_apply  # re-exported: the planar transforms are this module's too
+from taskflow.planar import planar_apply_inverse as planar_apply_inverse
+from taskflow.planar import planar_between as planar_between
+from taskflow.planar import planar_compose as planar_compose
+from taskflow.planar import planar_inverse as planar_inverse
+from taskflow.planar import wrap_angle as wrap_angle
+
 Array = NDArray[np.float64]
 Floats = Sequence[float] | Array  # a short vector read element by element (PyBullet's tuples)
 
@@ -116,11 +124,6 @@ def rpy_from_rotation(R: Array) -> tuple[float, float, float]:
         roll = 0.0
         yaw = math.atan2(-float(R[0, 1]), float(R[1, 1]))
     return (roll, pitch, yaw)
-
-
-def wrap_angle(a: float) -> float:
-    """An angle (rad) wrapped to ``[-pi, pi]`` by IEEE remainder (``pi`` and ``-pi`` both possible at the edge)."""
-    return math.remainder(a, 2.0 * math.pi)
 
 
 def rotation_angle(R: Array) -> float:
@@ -267,83 +270,12 @@ def transform_xyz_yaw(x: float, y: float, z: float, yaw: float) -> Array:
     return T
 
 
-# -- planar transforms ---------------------------------------------------------------------------------
-# ``T_a_b = (x, y, yaw)``: frame b's origin and heading in a (odometry is ``T_odom_base``).  The expressions
-# are the paper code's inline ones, in its order; one pose turns by math.cos/sin, an (N, 3) stack by numpy's.
-
-
-def _planar(T_a_b: ArrayLike) -> tuple[float, float, float]:
-    a = np.asarray(T_a_b, dtype=np.float64)
-    if a.shape != (3,):
-        raise ValueError(f"a planar pose is (x, y, yaw), got shape {a.shape}")
-    return float(a[0]), float(a[1]), float(a[2])
-
-
-def _planar_turn(T_a_b: ArrayLike) -> tuple[float | Array, float | Array, float | Array, float | Array]:
-    """``(x, y, cos yaw, sin yaw)`` of one pose ``(3,)`` (floats) or of a stack ``(N, 3)`` (columns)."""
-    a = np.asarray(T_a_b, dtype=np.float64)
-    if a.ndim == 1:
-        x, y, th = _planar(a)
-        return x, y, math.cos(th), math.sin(th)
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"planar poses are (x, y, yaw) rows, got shape {a.shape}")
-    return a[:, 0], a[:, 1], np.cos(a[:, 2]), np.sin(a[:, 2])
-
-
-def _points(p: ArrayLike) -> tuple[Array, Array]:
-    a = np.asarray(p, dtype=np.float64)
-    if a.shape[-1:] != (2,) or a.ndim > 2:
-        raise ValueError(f"planar points are (x, y) or (N, 2) rows, got shape {a.shape}")
-    return a[..., 0], a[..., 1]
-
-
-def planar_apply(T_a_b: ArrayLike, p_b: ArrayLike) -> Array:
-    """``p_a``: points ``p_b`` (``(2,)`` or ``(N, 2)``) expressed in ``a``,
-    ``(x + c px - s py, y + s px + c py)``; ``T_a_b`` one pose or ``(N, 3)`` poses (broadcast)."""
-    x, y, c, s = _planar_turn(T_a_b)
-    px, py = _points(p_b)
-    return np.stack([x + c * px - s * py, y + s * px + c * py], axis=-1)
-
-
-def planar_apply_inverse(T_a_b: ArrayLike, p_a: ArrayLike) -> Array:
-    """``p_b``: points ``p_a`` expressed in ``b`` (``planar_apply(planar_inverse(T_a_b), p_a)`` without
-    inverting), ``(c dx + s dy, -s dx + c dy)`` with ``(dx, dy) = p_a - (x, y)``."""
-    x, y, c, s = _planar_turn(T_a_b)
-    px, py = _points(p_a)
-    dx, dy = px - x, py - y
-    return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
-
-
-def planar_compose(T_a_b: ArrayLike, T_b_c: ArrayLike, *, wrap: bool = True) -> Array:
-    """``T_a_c = T_a_b ∘ T_b_c``; the yaw ``yaw_a_b + yaw_b_c`` wrapped by :func:`wrap_angle` unless
-    ``wrap=False`` (for a caller that integrates an unwrapped heading)."""
-    x, y, th = _planar(T_a_b)
-    u, v, ph = _planar(T_b_c)
-    c, s = math.cos(th), math.sin(th)
-    yaw = th + ph
-    return np.array([x + c * u - s * v, y + s * u + c * v, wrap_angle(yaw) if wrap else yaw])
-
-
-def planar_inverse(T_a_b: ArrayLike) -> Array:
-    """``T_b_a``: ``(-c x - s y, s x - c y, -yaw)``."""
-    x, y, th = _planar(T_a_b)
-    c, s = math.cos(th), math.sin(th)
-    return np.array([-c * x - s * y, s * x - c * y, wrap_angle(-th)])
-
-
-def planar_between(T_w_a: ArrayLike, T_w_b: ArrayLike) -> Array:
-    """``T_a_b`` from two poses in one frame ``w`` (``planar_inverse(T_w_a) ∘ T_w_b`` without
-    inverting): ``b``'s offset turned into ``a``'s axes, the yaw difference wrapped."""
-    x, y, th = _planar(T_w_a)
-    u, v, ph = _planar(T_w_b)
-    c, s = math.cos(th), math.sin(th)
-    dx, dy = u - x, v - y
-    return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(ph - th)])
+# -- planar poses as 4x4 transforms (the planar maths itself: taskflow.planar) ---------------------------
 
 
 def T_from_planar(T_a_b: ArrayLike, z: float = 0.0) -> Array:
     """The 4x4 ``T_a_b`` of a planar pose, at height ``z`` (:func:`transform_xyz_yaw`)."""
-    x, y, th = _planar(T_a_b)
+    x, y, th = as_planar(T_a_b)
     return transform_xyz_yaw(x, y, z, th)
 
 

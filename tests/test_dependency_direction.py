@@ -29,6 +29,7 @@ PUBLIC_API = (
     "taskflow.fidelity",  # a world's named fidelity levels (Fidelity, Sourced)
     "taskflow.messages",  # typed sensor messages: worlds produce them, tasks read them
     "taskflow.spatial",  # rigid-body maths named by direction
+    "taskflow.planar",  # planar transforms (re-exported by taskflow.spatial)
     "taskflow.shaping",  # the papers' activation h(t), shared with the executor's blend
     "taskflow.units",  # quantities and units
     "taskflow.errors",  # typed exceptions
