@@ -11,7 +11,8 @@ main thread, so the run loop's Ctrl-C / SIGTERM handling stays as it is).  It bi
 told otherwise; port 0 picks a free port, and the address is written to ``RUN_DIR/control.json`` (removed
 when the run ends) so that ``taskflow ctl RUN_DIR ACTION`` finds it.
 
-Who may drive the robot: each server draws a secret token (``secrets.token_urlsafe``), written in
+Who may drive the robot: each server draws a secret token (``secrets.token_hex(32)``: 256 bits as 64 hex digits, so it never starts
+with ``-`` and ``taskflow ctl --token TOKEN`` always parses), written in
 ``control.json`` (created mode 0600: readable by the run's owner only) and printed once with the page's
 address (``http://HOST:PORT/?token=…``).  Every POST must carry it (``Authorization: Bearer TOKEN``, or
 ``?token=``), and so must every GET when the server listens on an address other than loopback (the page's
@@ -75,6 +76,12 @@ def is_loopback(host: str) -> bool:
     except ValueError:
         return False
 
+
+
+def new_token() -> str:
+    """A run's secret: 256 random bits as 64 hex digits (never a leading ``-``, which ``--token`` would take
+    for an option: ``secrets.token_urlsafe`` drew one in 64 runs)."""
+    return secrets.token_hex(32)
 
 class TokenGate:
     """ASGI middleware: refuse a request that lacks the run's token (401) or carries another (403).
@@ -250,7 +257,7 @@ class ControlServer:
         self.host = host
         self.announce = announce
         self.view = view
-        self.token: str | None = secrets.token_urlsafe(32)
+        self.token: str | None = new_token()
         self._server: Any = None
         self._thread: threading.Thread | None = None
         self._control_file: Path | None = None

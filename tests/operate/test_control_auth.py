@@ -276,3 +276,17 @@ def test_gui_without_a_display_is_refused_before_anything_starts(tmp_path):
     assert len(proc.stderr.splitlines()) == 1 and "Traceback" not in proc.stderr
     assert not out.exists()  # no run directory, no control.json
     assert time.monotonic() - t0 < 30
+
+
+def test_a_runs_token_is_hex_and_taskflow_ctl_takes_it_after_token() -> None:
+    """A token that began with ``-`` (``token_urlsafe`` draws one in 64) was read by ``taskflow ctl --token``
+    as an option and the command failed: tokens are hex digits, and every one parses as ``--token``'s value."""
+    from taskflow.cli import build_parser
+    from taskflow.operate.control_http import new_token
+
+    parser = build_parser()
+    for _ in range(300):
+        token = new_token()
+        assert len(token) == 64 and set(token) <= set("0123456789abcdef")
+        args = parser.parse_args(["ctl", "--url", "http://127.0.0.1:1", "--token", token, "state"])
+        assert args.token == token
