@@ -1,0 +1,209 @@
+"""Counterexamples a person can read and the engine can replay.
+
+A :class:`Counterexample` is a path of the model (:mod:`taskflow.verify.model`) from the configuration after
+the start, with the cause of every step, and a sentence for what happens at its end ("no final state can be
+reached from here", "waits in ``searching`` forever").  :meth:`Counterexample.render` prints it like the
+"how it got there" chain of a run's report; :meth:`Counterexample.script` turns it into a
+:class:`~taskflow.testing.Script` for the scripted backend — metric values that make each step's guard true
+(and the guards checked before it false) while its state is active, its events at their times — so that
+``taskflow.testing.drive`` runs the real engine along it and records the run the replay page shows
+(``taskflow verify MISSION --replay DIR``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from taskflow.execution.records import EVENT, GUARD
+from taskflow.mission.guards import DATA_PREFIX, Guard, Node
+from taskflow.mission.model import EventTransition, GuardTransition, Transition
+from taskflow.testing import Script, ScriptState
+from taskflow.verify.model import MAX_TIME, TICK, Model, Step
+
+__all__ = ["Counterexample", "satisfying_metrics"]
+
+
+@dataclass
+class Counterexample:
+    """A path of ``model`` from its initial configuration: ``[(from, step), …]``, then ``ending`` in words."""
+
+    model: Model
+    path: list[tuple[int, Step]]
+    ending: str = ""
+    highlight: list[str] = field(default_factory=list)  # the states the ending names (drawn on `taskflow graph`)
+
+    @property
+    def end(self) -> int:
+        return self.path[-1][1].target if self.path else self.model.initial
+
+    def times(self) -> list[float]:
+        """The model time (s) at which each step of :attr:`path` is taken."""
+        q, t, out = self.model.quantum, 0.0, []
+        for _, step in self.path:
+            out.append(t)
+            if step.cause == TICK:
+                t += q
+        return out
+
+    def states_visited(self) -> list[str]:
+        """The leaves the run enters, in order, as a run's ``summary.json`` lists them (``states_visited``)."""
+        m = self.model
+        out: list[str] = []
+        records = list(m.start_records) + [r for _, step in self.path for r in step.records]
+        for _cause, to in records:
+            node = m.mission.states[to]
+            out += [leaf.path for leaf in node.entry_leaves()] if node.parallel else [to]
+        return out
+
+    def transitions(self) -> list[Transition]:
+        m = self.model
+        return [m.mission.transitions[s.transition] for _, s in self.path if s.transition is not None]
+
+    def render(self, indent: str = "  ") -> str:
+        """The path as lines: time, the step's cause and transition, the configuration it leads to; runs of
+        ticks folded into one line."""
+        m = self.model
+        lines = [f"{indent}t = 0 s: start in {m.configs[m.initial].describe()}"]
+        times = self.times()
+        k = 0
+        while k < len(self.path):
+            src, step = self.path[k]
+            if step.cause == TICK:
+                j = k
+                while j < len(self.path) and self.path[j][1].cause == TICK:
+                    j += 1
+                n = j - k
+                lines.append(f"{indent}  … {n * m.quantum:g} s pass (every guard false, no event)")
+                k = j
+                continue
+            lines.append(f"{indent}t = {times[k]:g} s: {describe_step(m, step)} → {m.configs[step.target].describe()}")
+            k += 1
+        if self.ending:
+            lines.append(f"{indent}then: {self.ending}")
+        return "\n".join(lines)
+
+    def as_dict(self) -> dict[str, Any]:
+        m = self.model
+        return {"steps": [{"t": t, "cause": s.cause, "label": s.label, "transition": s.transition, "event": s.event,
+                           "from": m.configs[a].describe(), "to": m.configs[s.target].describe()}
+                          for t, (a, s) in zip(self.times(), self.path)],
+                "ending": self.ending, "highlight": self.highlight}
+
+    # -- driving the engine along it ------------------------------------------------------------------------
+    def script(self) -> Script:
+        """A :class:`Script` that drives the engine along this path: each step of the environment is taken one
+        control period after the previous step (a guard step: the metrics that make its guard true, and the
+        guards checked before it false, while the step's source leaf is active; an event step: the event at its
+        time); ticks and timeouts take the model's time."""
+        m = self.model
+        dt = 1.0 / float(m.mission.spec.rate_hz)
+        schedule: list[tuple[float, float, dict[str, float]]] = []  # (from, to, metrics) windows
+        events: list[tuple[float, str]] = []
+        t = 0.0
+        for src, step in self.path:
+            if step.cause == TICK:
+                t = (math.floor(t / m.quantum + 1e-6) + 1) * m.quantum
+                continue
+            if step.cause not in (GUARD, EVENT) or step.transition is None:
+                continue
+            t += dt
+            tr = m.mission.transitions[step.transition]
+            earlier = _checked_before(m, src, tr)
+            if isinstance(tr, GuardTransition):
+                values = satisfying_metrics(tr.guard, earlier)
+                hold = max(tr.dwell, 0.0)
+                schedule.append((t - dt / 2, t + hold + dt / 2, values))
+                t += hold
+            elif isinstance(tr, EventTransition):
+                if tr.guard is not None:
+                    values = satisfying_metrics(tr.guard, earlier)
+                    schedule.append((t - dt / 2, t + dt / 2, values))
+                events.append((t, tr.event))
+
+        def metrics(s: ScriptState) -> Mapping[str, float]:
+            for a, b, values in schedule:
+                if a <= s.t < b:
+                    return values
+            return {}
+
+        return Script(metrics=metrics, events=events,
+                      actions={name: (math.inf, evs[0] if evs else "") for name, evs in m.mission.world_cls.actions.items()})
+
+
+def describe_step(model: Model, step: Step) -> str:
+    """The cause of a step in words: ``guard `when: …` (declared on S)``, ``event e``, ``timeout `after: 3 s```."""
+    if step.cause == MAX_TIME:
+        return f"the max time ends the run ({step.label})"
+    if step.transition is None:
+        return step.cause
+    tr = model.mission.transitions[step.transition]
+    where = f" on {tr.source.path}"
+    cascade = [c for c, _ in step.records[1:]]
+    then = f" (then {', '.join(cascade)})" if cascade else ""
+    if step.cause == EVENT:
+        return f"event {step.event!r} `{tr.label}`{where}{then}"
+    return f"{step.cause} `{tr.label}`{where}{then}"
+
+
+def _checked_before(model: Model, src: int, tr: Transition) -> list[Guard]:
+    """The guards the engine checks before ``tr`` in the tables of the configuration ``src`` (they must be false
+    for ``tr`` to be the one that fires)."""
+    out: list[Guard] = []
+    states = model.mission.states
+    for leaf in model.configs[src].leaves:
+        table = [t for a in states[leaf].ancestors() for t in a.transitions]
+        if tr not in table:
+            continue
+        for t in table[:table.index(tr)]:
+            if isinstance(t, GuardTransition):
+                out.append(t.guard)
+    return out
+
+
+def _holds(n: Node, values: Mapping[str, float | None]) -> bool:
+    if n.kind == "and":
+        return all(_holds(x, values) for x in n.children)
+    if n.kind == "or":
+        return any(_holds(x, values) for x in n.children)
+    if n.kind == "not":
+        return not _holds(n.children[0], values)
+    c = n.cmp
+    assert c is not None
+    v = values.get(c.metric)
+    if v is None or c.value is None:
+        return False  # a metric with no value this tick: the comparison is false, as in the engine
+    x = abs(v) if c.absolute else v
+    return {"<": x < c.value, "<=": x <= c.value, ">": x > c.value, ">=": x >= c.value,
+            "==": x == c.value, "!=": x != c.value}[c.op]
+
+
+def satisfying_metrics(target: Guard | None, false: list[Guard]) -> dict[str, float]:
+    """Metric values under which ``target`` holds and every guard of ``false`` does not — by trying, for each
+    metric involved, no value at all (a comparison on a metric without a value is false) and points just
+    around each threshold it is compared with.  ``data.`` atoms are the run's mission data, not metrics: they are
+    left out.  An empty dict when no candidate works (the step is then left to the run)."""
+    guards = ([target] if target is not None else []) + false
+    candidates: dict[str, set[float | None]] = {}
+    for g in guards:
+        for c in g.comparisons():
+            if c.metric.startswith(DATA_PREFIX):
+                continue
+            opts = candidates.setdefault(c.metric, {None})
+            if c.value is not None:
+                v = float(c.value)
+                step = max(abs(v) * 1e-3, 1e-6)
+                opts.update({v - step, v, v + step, -v - step, -v + step})
+    names = sorted(candidates)
+    choices = [sorted(candidates[n], key=lambda x: (x is not None, x or 0.0)) for n in names]
+    for combo in itertools.islice(itertools.product(*choices), 20_000):
+        values = dict(zip(names, combo))
+        if target is not None and not _holds(target.tree, values):
+            continue
+        if any(_holds(g.tree, values) for g in false):
+            continue
+        return {k: v for k, v in values.items() if v is not None}
+    return {}
