@@ -16,15 +16,17 @@ import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
-from taskflow.execution.records import EVENT, GUARD
+from taskflow.execution.records import EVENT, START_CAUSE
+from taskflow.execution.summary import RunResult
 from taskflow.mission.guards import DATA_PREFIX, Guard, Node
-from taskflow.mission.model import EventTransition, GuardTransition, Transition
+from taskflow.mission.model import EventTransition, GuardTransition, TimeoutTransition, Transition
 from taskflow.testing import Script, ScriptState
-from taskflow.verify.model import MAX_TIME, TICK, Model, Step
+from taskflow.verify.model import MAX_TIME, TICK, Model, Step, entered_by
 
-__all__ = ["Counterexample", "satisfying_metrics"]
+__all__ = ["Counterexample", "Replay", "satisfying_metrics"]
 
 
 @dataclass
@@ -94,44 +96,94 @@ class Counterexample:
                 "ending": self.ending, "highlight": self.highlight}
 
     # -- driving the engine along it ------------------------------------------------------------------------
-    def script(self) -> Script:
-        """A :class:`Script` that drives the engine along this path: each step of the environment is taken one
-        control period after the previous step (a guard step: the metrics that make its guard true, and the
-        guards checked before it false, while the step's source leaf is active; an event step: the event at its
-        time); ticks and timeouts take the model's time."""
+    def schedule(self) -> tuple[list[tuple[float, float, dict[str, float]]], list[tuple[float, str]], float]:
+        """When the engine takes each step: metric windows ``(from, to, values)`` for the guard steps, the events
+        with their times, and the time of the last step.  An environment step comes one control period after
+        the step before it (and not before the tick the model has reached); a timeout fires its ``after`` after
+        its clock state was entered, as in the engine."""
         m = self.model
         dt = 1.0 / float(m.mission.spec.rate_hz)
-        schedule: list[tuple[float, float, dict[str, float]]] = []  # (from, to, metrics) windows
+        q = m.quantum
+        windows: list[tuple[float, float, dict[str, float]]] = []
         events: list[tuple[float, str]] = []
-        t = 0.0
+        entered_at = {p: 0.0 for p in entered_by(m, -1, Step(START_CAUSE, m.initial))}
+        t, ticks = 0.0, 0
         for src, step in self.path:
             if step.cause == TICK:
-                t = (math.floor(t / m.quantum + 1e-6) + 1) * m.quantum
+                ticks += 1
                 continue
-            if step.cause not in (GUARD, EVENT) or step.transition is None:
-                continue
-            t += dt
+            if step.cause == MAX_TIME or step.transition is None:
+                break
             tr = m.mission.transitions[step.transition]
-            earlier = _checked_before(m, src, tr)
-            if isinstance(tr, GuardTransition):
-                values = satisfying_metrics(tr.guard, earlier)
-                hold = max(tr.dwell, 0.0)
-                schedule.append((t - dt / 2, t + hold + dt / 2, values))
-                t += hold
-            elif isinstance(tr, EventTransition):
-                if tr.guard is not None:
-                    values = satisfying_metrics(tr.guard, earlier)
-                    schedule.append((t - dt / 2, t + dt / 2, values))
-                events.append((t, tr.event))
+            if isinstance(tr, TimeoutTransition):
+                t = max(t, entered_at.get(tr.since.path, 0.0) + tr.after)
+            else:
+                t = _on_grid(max(t + dt, ticks * q), dt)
+                earlier = _checked_before(m, src, tr)
+                if isinstance(tr, GuardTransition):
+                    windows.append((t - dt / 2, t + tr.dwell + dt / 2, satisfying_metrics(tr.guard, earlier)))
+                    t = _on_grid(t + tr.dwell, dt)
+                elif isinstance(tr, EventTransition):
+                    if tr.guard is not None:
+                        windows.append((t - dt / 2, t + dt / 2, satisfying_metrics(tr.guard, earlier)))
+                    events.append((t, tr.event))
+            for p in entered_by(m, src, step):
+                entered_at[p] = t
+        return windows, events, t
+
+    def script(self) -> Script:
+        """A :class:`Script` that drives the engine along this path (:meth:`schedule`): while a guard step is due,
+        metric values that make its guard true and the guards checked before it false; its events at their
+        times; the world's actions never end by themselves (their end events are among the path's events)."""
+        windows, events, _ = self.schedule()
 
         def metrics(s: ScriptState) -> Mapping[str, float]:
-            for a, b, values in schedule:
+            for a, b, values in windows:
                 if a <= s.t < b:
                     return values
             return {}
 
         return Script(metrics=metrics, events=events,
-                      actions={name: (math.inf, evs[0] if evs else "") for name, evs in m.mission.world_cls.actions.items()})
+                      actions={name: (math.inf, evs[0] if evs else "") for name, evs in
+                               self.model.mission.world_cls.actions.items()})
+
+    def replay(self, out_dir: str | Path | None = None) -> Replay:
+        """Drive the real engine (the scripted backend) along the path, recording into ``out_dir`` when given
+        (``taskflow view OUT_DIR`` shows it), and compare the records it writes with the path's."""
+        from taskflow.testing import drive
+
+        m = self.model
+        _, _, t_end = self.schedule()
+        result = drive(m.mission, self.script(), max_time=t_end + m.quantum + 1.0, out_dir=out_dir)
+        assert result.executor is not None  # drive returns the run's executor
+        got = [(r.cause, r.target) for r in result.executor.transitions_fired]
+        want = list(m.start_records) + [r for _, st in self.path for r in st.records]
+        return Replay(result, want, got)
+
+
+def _on_grid(t: float, dt: float) -> float:
+    """``t`` rounded up to the control period's grid."""
+    return math.ceil(t / dt - 1e-6) * dt
+
+
+@dataclass
+class Replay:
+    """The engine driven along a counterexample: its run, the records the path writes and those the run wrote."""
+
+    result: RunResult
+    expected: list[tuple[str, str]]
+    got: list[tuple[str, str]]
+
+    @property
+    def followed(self) -> bool:
+        return self.got[:len(self.expected)] == self.expected
+
+    def describe(self) -> str:
+        if self.followed:
+            return f"the engine followed the counterexample ({len(self.expected)} records); outcome {self.result.outcome}"
+        k = next(i for i, (a, b) in enumerate(itertools.zip_longest(self.expected, self.got)) if a != b)
+        return (f"the engine left the counterexample at record {k + 1}: expected {self.expected[k] if k < len(self.expected) else None}, "
+                f"got {self.got[k] if k < len(self.got) else None}")
 
 
 def describe_step(model: Model, step: Step) -> str:

@@ -57,7 +57,7 @@ from taskflow.mission.model import (
     Transition,
 )
 
-__all__ = ["MAX_TIME", "TICK", "Config", "Model", "NotAPath", "Step", "build_model", "StateBudgetExceeded"]
+__all__ = ["MAX_TIME", "TICK", "Config", "Model", "NotAPath", "StateBudgetExceeded", "Step", "build_model", "entered_by"]
 
 TICK = "tick"
 """The cause of a step in which time passes by one :attr:`Model.quantum`."""
@@ -442,6 +442,7 @@ class _Explorer:
                 w.leaves.append(n.path)
 
     def enter(self, w: _Work, node: StateNode, resuming: bool) -> None:
+        w.entered.append(node.path)
         i = self.clock_index.get((node.path, False))
         if i is not None:
             w.clocks[i] = 0
@@ -604,6 +605,22 @@ class _Work:
     outcome: str | None
     mission_ticks: int
     records: list[tuple[str, str]] = field(default_factory=list)
+    entered: list[str] = field(default_factory=list)  # the states the step entered, in order
+
+
+def entered_by(model: Model, source: int, step: Step) -> list[str]:
+    """The states ``step`` enters when taken from configuration ``source`` (the start's: ``source`` -1)."""
+    ex = _Explorer(model.mission, model.max_time)
+    if source < 0:
+        w = _Work([], [-1] * len(ex.clocks), {}, [[0, 0] for _ in ex.loop_states], {}, None, 0)
+        root = model.mission.root
+        ex.go(w, root.children[str(root.initial)].entry_point(), START_CAUSE, resume=False, keep=0)
+        return w.entered
+    if step.transition is None:
+        return []
+    w = ex.thaw(model.configs[source])
+    ex.fire(w, model.mission.transitions[step.transition], step.cause)
+    return w.entered
 
 
 def build_model(mission: CompiledMission, max_time: float | None = None, *, budget: int = DEFAULT_BUDGET) -> Model:
