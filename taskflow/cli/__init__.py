@@ -1,4 +1,4 @@
-"""``taskflow`` command line: run, view, ctl, validate, graph, schema, batch, compare, teach, plot, export, check, list,
+"""``taskflow`` command line: run, view, ctl, validate, graph, schema, verify, batch, compare, teach, plot, export, check, list,
 describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
@@ -14,7 +14,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from taskflow.cli import authoring, campaigns, catalogue, outputs, running
+from taskflow.cli import authoring, campaigns, catalogue, outputs, running, verifying
 from taskflow.cli.common import UsageError, print_problems
 from taskflow.errors import MissionError
 
@@ -22,7 +22,7 @@ from taskflow.errors import MissionError
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="taskflow", description="Run robot missions written as YAML state machines.")
     sub = ap.add_subparsers(dest="cmd", required=True)
-    for group in (running, authoring, campaigns, outputs, catalogue):  # the order of ``taskflow --help``
+    for group in (running, authoring, verifying, campaigns, outputs, catalogue):  # the order of ``taskflow --help``
         group.add_parsers(sub)
     return ap
 

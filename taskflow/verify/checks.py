@@ -30,7 +30,7 @@ from typing import Any
 from taskflow.mission.model import CompiledMission
 from taskflow.verify.counterexample import Counterexample, describe_step
 from taskflow.verify.export import label_name, labels
-from taskflow.verify.model import TICK, Model, Step, build_model
+from taskflow.verify.model import DEFAULT_BUDGET, TICK, Model, Step, build_model
 
 __all__ = ["HOLDS", "FAILS", "CheckResult", "Verification", "StormModel", "verify_mission"]
 
@@ -300,11 +300,12 @@ def check_region_conflicts(model: Model) -> CheckResult:
                        "region owns no part")
 
 
-def verify_mission(mission: CompiledMission, max_time: float | None = None, *,
+def verify_mission(mission: CompiledMission, max_time: float | None = None, *, budget: int = DEFAULT_BUDGET,
                    extra: list[Callable[[Model], CheckResult]] | None = None) -> Verification:
-    """Build the model of ``mission`` and answer every check (module docstring) with Storm."""
+    """Build the model of ``mission`` (at most ``budget`` configurations) and answer every check (module
+    docstring) with Storm."""
     t0 = time.perf_counter()
-    model = build_model(mission, max_time)
+    model = build_model(mission, max_time, budget=budget)
     build_s = time.perf_counter() - t0
     outcomes = model.outcomes()
     checks: list[CheckResult] = []

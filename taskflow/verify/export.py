@@ -76,7 +76,8 @@ def prism_text(model: Model, *, timed_only: bool = False) -> str:
                       if timed_only else "every step the machine can take (guards and events: the environment's choice)"),
              "mdp", "", "module machine", f"  s : [0..{max(n - 1, 0)}]{'' if timed_only else ' init 0'};"]
     for s, c in enumerate(model.configs):
-        lines.append(f"  // {s}: {c.describe()}")
+        clocks = ", ".join(f"{k.name}={v}" for k, v in zip(model.clocks, c.clocks) if v >= 0)
+        lines.append(f"  // {s}: {c.describe()}{'  (clocks: ' + clocks + ')' if clocks else ''}")
         for target, tick in _steps(model, s, timed_only):
             lines.append(f"  [{'tick' if tick else ''}] s={s} -> (s'={target});")
     lines.append("endmodule")
@@ -90,13 +91,23 @@ def prism_text(model: Model, *, timed_only: bool = False) -> str:
 
 
 def _jani_set(states: list[int]) -> Any:
+    """A JANI condition on ``s`` true exactly in ``states``: ranges of consecutive numbers, joined as a balanced
+    tree of disjunctions (so that a long list does not nest deeply)."""
     if not states:
         return False
-    expr: Any = None
-    for x in states:
-        eq = {"op": "=", "left": "s", "right": x}
-        expr = eq if expr is None else {"op": "∨", "left": expr, "right": eq}
-    return expr
+    runs: list[list[int]] = []
+    for x in sorted(states):
+        if runs and x == runs[-1][1] + 1:
+            runs[-1][1] = x
+        else:
+            runs.append([x, x])
+    terms: list[Any] = [{"op": "=", "left": "s", "right": a} if a == b else
+                        {"op": "∧", "left": {"op": "≥", "left": "s", "right": a}, "right": {"op": "≤", "left": "s", "right": b}}
+                        for a, b in runs]
+    while len(terms) > 1:
+        terms = [{"op": "∨", "left": terms[k], "right": terms[k + 1]} if k + 1 < len(terms) else terms[k]
+                 for k in range(0, len(terms), 2)]
+    return terms[0]
 
 
 def jani_text(model: Model, *, timed_only: bool = False) -> str:
