@@ -24,11 +24,23 @@ their own parsers over every shipped mission in ``tests/catalogue/test_graph.py`
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Collection
+from dataclasses import dataclass, field
 
 from taskflow.mission.model import CompiledMission, StateNode
 
 WRAP = 28
 """Longest line of a dot label before it wraps (characters)."""
+HIGHLIGHT = "#d62728"
+"""The colour of a highlighted path (a counterexample of ``taskflow verify``)."""
+
+
+@dataclass(frozen=True)
+class Highlight:
+    """What to draw in :data:`HIGHLIGHT`: states by path and transitions by index (a path through the machine)."""
+
+    states: Collection[str] = field(default_factory=frozenset)
+    transitions: Collection[int] = field(default_factory=frozenset)
 
 _MERMAID_ENTITIES = {"#": "#35;", "<": "#lt;", ">": "#gt;", ":": "#58;", ";": "#59;", '"': "#quot;",
                      "{": "#123;", "}": "#125;"}
@@ -94,9 +106,10 @@ def _state_label(node: StateNode) -> str:
     return label
 
 
-def to_mermaid(m: CompiledMission) -> str:
+def to_mermaid(m: CompiledMission, highlight: Highlight | None = None) -> str:
     """``m`` as a Mermaid ``stateDiagram-v2``: composites as nested ``state … {}`` blocks, a parallel
-    state's regions separated by ``--``, every transition drawn at the top level with its trigger as label."""
+    state's regions separated by ``--``, every transition drawn at the top level with its trigger as label;
+    ``highlight``'s states in a ``classDef`` of :data:`HIGHLIGHT` and its transitions with ``linkStyle``."""
     lines = ["stateDiagram-v2", f"    %% mission {mermaid_text(m.name)}"]
     ids = diagram_ids(m, mermaid=True)
 
@@ -117,8 +130,20 @@ def to_mermaid(m: CompiledMission) -> str:
                 lines.append(f"{indent}{ids[child.path]} --> [*]")
 
     block(m.root, "    ")
+    links = sum(1 for line in lines if " --> " in line)  # linkStyle counts every arrow, the [*] ones too
+    marked: list[int] = []
     for t in m.transitions:
+        if highlight is not None and t.index in highlight.transitions:
+            marked.append(links)
         lines.append(f"    {ids[t.source.path]} --> {ids[t.target.path]} : {mermaid_text(t.label)}")
+        links += 1
+    if highlight is not None:
+        lines.append(f"    classDef counterexample stroke:{HIGHLIGHT},stroke-width:3px")
+        states = [ids[p] for p in m.states if p in highlight.states]
+        if states:
+            lines.append(f"    class {','.join(states)} counterexample")
+        if marked:
+            lines.append(f"    linkStyle {','.join(map(str, marked))} stroke:{HIGHLIGHT},stroke-width:3px")
     return "\n".join(lines)
 
 
@@ -141,8 +166,10 @@ def start_id(node: StateNode | None, ids: dict[str, str] | None = None) -> str:
     return f"__start__{ids[node.path] if ids is not None else _mid(node)}"
 
 
-def to_dot(m: CompiledMission) -> str:
-    """``m`` as a Graphviz digraph laid out top to bottom (see the module's docstring)."""
+def to_dot(m: CompiledMission, highlight: Highlight | None = None) -> str:
+    """``m`` as a Graphviz digraph laid out top to bottom (see the module's docstring); ``highlight``'s states
+    and transitions drawn in :data:`HIGHLIGHT`."""
+    marked = highlight if highlight is not None else Highlight()
     ids = diagram_ids(m)
 
     def sid(node: StateNode) -> str:
@@ -197,6 +224,8 @@ def to_dot(m: CompiledMission) -> str:
                 fin = f" = {child.final}" if child.final else ""
                 second = _dot_text((task + fin).strip())
                 label = _dot_text(child.name) + (f"\\n{second}" if second else "")
+                if child.path in marked.states:
+                    shape += f', color="{HIGHLIGHT}", penwidth=2.5'
                 lines.append(f'{indent}"{ids[child.path]}" [label="{label}"{shape}];')
 
     block(m.root, "    ")
@@ -206,6 +235,8 @@ def to_dot(m: CompiledMission) -> str:
             attrs.append(f'ltail="cluster_{ids[t.source.path]}"')
         if t.target.children and not _contains(t.target, t.source):
             attrs.append(f'lhead="cluster_{ids[t.target.path]}"')
+        if t.index in marked.transitions:
+            attrs += [f'color="{HIGHLIGHT}"', f'fontcolor="{HIGHLIGHT}"', "penwidth=2.5"]
         lines.append(f'    "{anchor(t.source)}" -> "{anchor(t.target)}" [{", ".join(attrs)}];')
     lines.append("}")
     return "\n".join(lines)
