@@ -22,7 +22,7 @@ def _verification(args: argparse.Namespace, file: str) -> Verification:
 
     mission = load(file, args.set)
     try:
-        return verify_mission(mission, max_time_flag(args.max_time), budget=positive_flag("--max-states", args.max_states)
+        return verify_mission(mission, max_time_flag(args.max_time), operator=args.operator, budget=positive_flag("--max-states", args.max_states)
                               or 2_000_000)
     except StateBudgetExceeded as exc:
         raise UsageError(f"{exc} — valid: a larger --max-states, or fewer clocks (a coarser `after`)") from None
@@ -58,7 +58,7 @@ def _export(args: argparse.Namespace) -> int:
         raise UsageError("--export: give one mission file")
     mission = load(args.files[0], args.set)
     try:
-        model = build_model(mission, max_time_flag(args.max_time), budget=positive_flag("--max-states", args.max_states)
+        model = build_model(mission, max_time_flag(args.max_time), operator=args.operator, budget=positive_flag("--max-states", args.max_states)
                             or 2_000_000)
     except StateBudgetExceeded as exc:
         raise UsageError(f"{exc} — valid: a larger --max-states") from None
@@ -103,6 +103,8 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     v.add_argument("--max-time", default=None, metavar="T",
                    help="the run ends with `timeout` after T (seconds or '2 min'); default: no limit (the file's "
                         "max_time is not assumed: the checks ask whether the machine itself ends)")
+    v.add_argument("--operator", action="store_true",
+                   help="with an operator who may pre-empt the run to any state or abort it at any moment (taskflow ctl)")
     v.add_argument("--export", choices=["prism", "jani"], default=None,
                    help="print the model as PRISM or JANI text (for Storm's or PRISM's own tools) instead of checking")
     v.add_argument("--sensor-loss", action="store_true",

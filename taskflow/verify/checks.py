@@ -300,12 +300,12 @@ def check_region_conflicts(model: Model) -> CheckResult:
                        "region owns no part")
 
 
-def verify_mission(mission: CompiledMission, max_time: float | None = None, *, budget: int = DEFAULT_BUDGET,
-                   extra: list[Callable[[Model], CheckResult]] | None = None) -> Verification:
-    """Build the model of ``mission`` (at most ``budget`` configurations) and answer every check (module
-    docstring) with Storm."""
+def verify_mission(mission: CompiledMission, max_time: float | None = None, *, operator: bool = False,
+                   budget: int = DEFAULT_BUDGET, extra: list[Callable[[Model], CheckResult]] | None = None) -> Verification:
+    """Build the model of ``mission`` (at most ``budget`` configurations; ``operator``: with the operator's
+    pre-emptions and abort as steps) and answer every check (module docstring) with Storm."""
     t0 = time.perf_counter()
-    model = build_model(mission, max_time, budget=budget)
+    model = build_model(mission, max_time, operator=operator, budget=budget)
     build_s = time.perf_counter() - t0
     outcomes = model.outcomes()
     checks: list[CheckResult] = []

@@ -45,8 +45,8 @@ from dataclasses import dataclass, field
 from functools import reduce
 from typing import Any
 
-from taskflow.execution.outcomes import loop_verdict, parallel_outcome
-from taskflow.execution.records import DONE, EVENT, GUARD, NEXT_ITEM, START_CAUSE, TIMEOUT
+from taskflow.execution.outcomes import loop_verdict, parallel_outcome, parallel_verdict
+from taskflow.execution.records import DONE, EVENT, GUARD, NEXT_ITEM, OPERATOR, START_CAUSE, TIMEOUT
 from taskflow.mission.model import (
     CompiledMission,
     DoneTransition,
@@ -63,7 +63,7 @@ TICK = "tick"
 """The cause of a step in which time passes by one :attr:`Model.quantum`."""
 MAX_TIME = "max_time"
 """The cause of the step in which ``--max-time`` ends the run (outcome ``timeout``)."""
-ENVIRONMENT = frozenset({GUARD, EVENT})
+ENVIRONMENT = frozenset({GUARD, EVENT, OPERATOR})
 """The causes the environment chooses (a guard it makes true, an event it sends)."""
 DEFAULT_BUDGET = 2_000_000
 """Most configurations :func:`build_model` explores before it gives up."""
@@ -90,6 +90,7 @@ class Config:
     regions: tuple[tuple[str, tuple[tuple[str, str], ...]], ...]  # parallel state → finished region → outcome
     outcome: str | None = None  # the run ended with it
     mission_ticks: int = 0  # ticks since the start (only with a max time)
+    skipped: tuple[tuple[str, str], ...] = ()  # with the operator: rule state an operator left → its verdict then
 
     @property
     def final(self) -> bool:
@@ -154,6 +155,7 @@ class Model:
     initial: int = 0
     start_records: tuple[tuple[str, str], ...] = ()
     max_time: float | None = None
+    operator: bool = False  # the operator's pre-emption and abort are steps of the model
 
     @property
     def n_states(self) -> int:
@@ -223,7 +225,8 @@ class Model:
     # -- a run's records as a path of the model ---------------------------------------------------------
     def path_of(self, records: Sequence[Mapping[str, Any]], outcome: str | None = None) -> list[int]:
         """The configurations a run passes through, from its ``transitions.jsonl`` records (the transition
-        records, as written; operator records are refused: the model has no operator).  Between two records
+        records, as written; an operator's pre-emption only in a model built with ``operator=True``, which skips the
+        operator's other records — a hold stops the clocks, which the model does not follow).  Between two records
         the model takes exactly the ticks that lie between their times.  ``outcome``: the run's, checked
         against the configuration it ends in when the machine ended it.  Raises :class:`NotAPath` naming the
         first record the model cannot take."""
@@ -248,8 +251,11 @@ class Model:
         while i < len(recs):
             r = recs[i]
             cause = str(r.get("cause"))
-            if cause == "operator":
-                raise NotAPath(f"record {i + 1}: an operator action; the model has no operator")
+            if cause == OPERATOR and not self.operator:
+                raise NotAPath(f"record {i + 1}: an operator action; this model has no operator (build_model(operator=True))")
+            if cause == OPERATOR and "to" not in r:  # an operator record (hold, resume, pause, inject …), not a firing
+                i += 1
+                continue
             k = tick_of(r.get("t", 0.0))
             ticks = k - k_prev
             if ticks < 0:
@@ -259,9 +265,9 @@ class Model:
             for s, path in current.items():
                 for s2, p2 in self._ticks(s, ticks, path):
                     for step in self.steps[s2]:
-                        if step.cause == TICK or step.cause == MAX_TIME:
-                            continue
                         n = len(step.records)
+                        if n == 0:  # a tick, the max time, an abort: no transition record
+                            continue
                         got = [(str(x.get("cause")), str(x.get("to"))) for x in recs[i:i + n]]
                         if got != list(step.records) or not _same_transition(step, recs[i]):
                             continue
@@ -319,8 +325,9 @@ def quantum_of(mission: CompiledMission, max_time: float | None = None) -> float
 class _Explorer:
     """The statechart's semantics on plain data (:mod:`taskflow.execution.statechart`, step for step)."""
 
-    def __init__(self, mission: CompiledMission, max_time: float | None) -> None:
+    def __init__(self, mission: CompiledMission, max_time: float | None, operator: bool = False) -> None:
         self.m = mission
+        self.operator = operator
         self.q = quantum_of(mission, max_time)
         self.qms = _ms(self.q)
         self.max_ticks = None if max_time is None else _ms(max_time) // self.qms
@@ -351,13 +358,13 @@ class _Explorer:
     # -- the working configuration (mutable while a step is computed) ----------------------------------------
     def thaw(self, c: Config) -> _Work:
         return _Work(list(c.leaves), list(c.clocks), dict(c.history), [list(x) for x in c.loops],
-                     {p: dict(o) for p, o in c.regions}, c.outcome, c.mission_ticks)
+                     {p: dict(o) for p, o in c.regions}, c.outcome, c.mission_ticks, skipped=dict(c.skipped))
 
     def freeze(self, w: _Work) -> Config:
         leaves = tuple(sorted(w.leaves, key=self.order.__getitem__))
         return Config(leaves, tuple(w.clocks), tuple(sorted(w.history.items())), tuple((a, b) for a, b in w.loops),
                       tuple(sorted((p, tuple(sorted(o.items()))) for p, o in w.regions.items())), w.outcome,
-                      w.mission_ticks)
+                      w.mission_ticks, tuple(w.skipped.items()))
 
     def initial(self) -> tuple[Config, tuple[tuple[str, str], ...]]:
         w = _Work([], [-1] * len(self.clocks), {}, [[0, 0] for _ in self.loop_states], {}, None, 0)
@@ -455,6 +462,8 @@ class _Explorer:
             w.loops[self.loop_index[node.path]] = [0, 0]
         if node.parallel:
             w.regions.pop(node.path, None)
+        if (node.loop is not None or node.parallel) and not resuming:
+            w.skipped.pop(node.path, None)
 
     def forget_first_entries(self, w: _Work, node: StateNode) -> None:
         prefix = node.path + "."
@@ -479,7 +488,7 @@ class _Explorer:
             self.region_finished(w, parent, outcome)
             return
         if parent is None or parent.parent is None:
-            w.outcome = outcome
+            self.end(w, outcome)
             return
         if parent.loop is not None:
             loop = parent.loop
@@ -507,13 +516,42 @@ class _Explorer:
         if result is not None:
             self.complete(w, parallel, result)
 
+    def end(self, w: _Work, outcome: str) -> None:
+        """The run ends with ``outcome`` — a ``succeeded`` one yields to the first rule an operator left that does
+        not (:func:`taskflow.execution.outcomes.end_verdict`)."""
+        if outcome == "succeeded":
+            outcome = next((v for v in w.skipped.values() if v != "succeeded"), outcome)
+        w.outcome = outcome
+
     def complete(self, w: _Work, node: StateNode, outcome: str) -> None:
+        w.skipped.pop(node.path, None)
         for tr in node.transitions:
             if isinstance(tr, DoneTransition) and tr.handles(outcome):
                 leaf, resumed = self.destination(w, tr.target, tr.resume, tr.domain_depth)
                 self.go(w, leaf, DONE, resume=resumed, keep=tr.domain_depth)
                 return
-        w.outcome = outcome
+        self.end(w, outcome)
+
+    def preempt(self, w: _Work, target: StateNode) -> None:
+        """An operator's pre-emption to ``target`` (:mod:`taskflow.execution.preemption`): every active ``foreach``
+        or parallel state it leaves for good records what its rule gives now."""
+        leaf, resumed = self.destination(w, target, True, 0)
+        staying = {a.path for entered in leaf.entry_leaves() for a in entered.ancestors()}
+        rule_states: dict[str, StateNode] = {}
+        for p in w.leaves:
+            for a in self.states[p].ancestors():
+                if a.loop is not None or a.parallel:
+                    rule_states.setdefault(a.path, a)
+        for node in sorted(rule_states.values(), key=lambda n: n.depth):
+            if node.path in staying:
+                continue
+            if node.loop is not None:
+                succeeded = w.loops[self.loop_index[node.path]][1]
+                verdict, _ = loop_verdict(node.loop, succeeded, len(self.params[node.loop.items]))
+            else:
+                verdict, _ = parallel_verdict(node, w.regions.get(node.path, {}))
+            w.skipped[node.path] = verdict
+        self.go(w, leaf, OPERATOR, resume=resumed, keep=0)
 
     # -- what can happen next ---------------------------------------------------------------------------------
     def events_possible(self, c: Config) -> tuple[set[str], set[str]]:
@@ -580,6 +618,14 @@ class _Explorer:
             self.fire(w, tr, cause)
             event = tr.event if isinstance(tr, EventTransition) else None
             out.append((Step(cause, -1, tr.index, tr.label, event, tuple(w.records), action_end), self.freeze(w)))
+        if self.operator:
+            for path in self.m.outside_regions:
+                w = self.thaw(c)
+                self.preempt(w, self.states[path])
+                out.append((Step(OPERATOR, -1, None, f"preempt --to {path}", None, tuple(w.records)), self.freeze(w)))
+            w = self.thaw(c)
+            w.outcome = "aborted"
+            out.append((Step(OPERATOR, -1, None, "abort"), self.freeze(w)))
         if self.max_ticks is not None and c.mission_ticks >= self.max_ticks:
             w = self.thaw(c)
             w.outcome = "timeout"
@@ -606,30 +652,38 @@ class _Work:
     mission_ticks: int
     records: list[tuple[str, str]] = field(default_factory=list)
     entered: list[str] = field(default_factory=list)  # the states the step entered, in order
+    skipped: dict[str, str] = field(default_factory=dict)  # rule state → the verdict an operator left it with
 
 
 def entered_by(model: Model, source: int, step: Step) -> list[str]:
     """The states ``step`` enters when taken from configuration ``source`` (the start's: ``source`` -1)."""
-    ex = _Explorer(model.mission, model.max_time)
+    ex = _Explorer(model.mission, model.max_time, model.operator)
     if source < 0:
         w = _Work([], [-1] * len(ex.clocks), {}, [[0, 0] for _ in ex.loop_states], {}, None, 0)
         root = model.mission.root
         ex.go(w, root.children[str(root.initial)].entry_point(), START_CAUSE, resume=False, keep=0)
         return w.entered
+    w = ex.thaw(model.configs[source])
+    if step.cause == OPERATOR and step.label.startswith("preempt --to "):
+        ex.preempt(w, model.mission.states[step.label[len("preempt --to "):]])
+        return w.entered
     if step.transition is None:
         return []
-    w = ex.thaw(model.configs[source])
     ex.fire(w, model.mission.transitions[step.transition], step.cause)
     return w.entered
 
 
-def build_model(mission: CompiledMission, max_time: float | None = None, *, budget: int = DEFAULT_BUDGET) -> Model:
+def build_model(mission: CompiledMission, max_time: float | None = None, *, operator: bool = False,
+                budget: int = DEFAULT_BUDGET) -> Model:
     """Explore every configuration the machine of ``mission`` can reach (module docstring: what is kept and
-    what is abstracted).  ``max_time``: the run ends with ``timeout`` after it (seconds).  Raises
+    what is abstracted).  ``max_time``: the run ends with ``timeout`` after it (seconds).  ``operator``: an
+    operator may pre-empt the run to any state outside the regions, or abort it, at any moment
+    (``taskflow ctl preempt``; holds are not modelled: they only stop the clocks).  Raises
     :class:`StateBudgetExceeded` past ``budget`` configurations."""
-    ex = _Explorer(mission, max_time)
+    ex = _Explorer(mission, max_time, operator)
     c0, start_records = ex.initial()
-    model = Model(mission, ex.q, ex.clocks, ex.loop_states, start_records=start_records, max_time=max_time)
+    model = Model(mission, ex.q, ex.clocks, ex.loop_states, start_records=start_records, max_time=max_time,
+                  operator=operator)
     index: dict[Config, int] = {c0: 0}
     model.configs.append(c0)
     model.steps.append([])
