@@ -263,6 +263,15 @@ def check_graph(capsys: pytest.CaptureFixture[str], mission: Path) -> None:
     assert dot_errors(dot) is None, dot_errors(dot)  # Graphviz lays it out, without a warning
 
 
+def check_verify(capsys: pytest.CaptureFixture[str], mission: Path, records: list[dict[str, Any]], outcome: str) -> None:
+    """`taskflow verify` proves the mission's checks, and the PyBullet run's own records are a path of the model."""
+    code, out = cli(capsys, "verify", mission)
+    assert code == 0, out
+    from taskflow.verify.model import build_model
+
+    build_model(load_mission(mission)).path_of(records, outcome=outcome)
+
+
 def check_record(run: Path, out: str, outcome: str) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """The run wrote a readable record, and its end-of-run report read it."""
     summary = json.loads((run / "summary.json").read_text())
@@ -291,6 +300,7 @@ def test_a_shipped_mission_through_every_consumer(journey: Journey, tmp_path: Pa
     check_export(capsys, run, records)
     check_view(run, records, mission)
     check_graph(capsys, file)
+    check_verify(capsys, file, records, journey.outcome)
 
 
 def test_the_journeys_cover_every_record_kind() -> None:
@@ -322,6 +332,9 @@ def test_an_operated_run_through_every_consumer(tmp_path: Path, capsys: pytest.C
     check_export(capsys, run, records)
     check_view(run, records, mission)
     check_graph(capsys, file)
+    from taskflow.verify.model import build_model
+
+    build_model(mission, operator=True).path_of(records, outcome="succeeded")  # held time, pre-emption and all
 
 
 def test_two_batches_then_compare(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

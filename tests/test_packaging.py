@@ -118,6 +118,9 @@ def test_a_user_drives_the_installed_wheel_from_a_scratch_directory(venv: Path, 
     assert summary["outcome"] == "succeeded"
     assert Path(summary["file"]).is_relative_to(venv)  # the default mission is the wheel's own
 
+    r = _taskflow(venv, scratch, "verify", str(mission), "--json")  # Storm, from the wheel stormpy installs
+    assert r.returncode == 0 and json.loads(r.stdout)["ok"] is True, r.stdout + r.stderr
+
     r = _taskflow(venv, scratch, "graph", str(mission))
     assert r.returncode == 0 and r.stdout.startswith("stateDiagram-v2"), r.stdout + r.stderr
     r = _taskflow(venv, scratch, "graph", "--format", "dot", str(mission))

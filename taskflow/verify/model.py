@@ -225,9 +225,9 @@ class Model:
     # -- a run's records as a path of the model ---------------------------------------------------------
     def path_of(self, records: Sequence[Mapping[str, Any]], outcome: str | None = None) -> list[int]:
         """The configurations a run passes through, from its ``transitions.jsonl`` records (the transition
-        records, as written; an operator's pre-emption only in a model built with ``operator=True``, which skips the
-        operator's other records — a hold stops the clocks, which the model does not follow).  Between two records
-        the model takes exactly the ticks that lie between their times.  ``outcome``: the run's, checked
+        records, as written; an operator's pre-emption only in a model built with ``operator=True``; the operator's
+        other records are not firings, and the time between a ``hold`` and its ``resume`` does not count).  Between
+        two records the model takes exactly the ticks of operating time that lie between their times.  ``outcome``: the run's, checked
         against the configuration it ends in when the machine ended it.  Raises :class:`NotAPath` naming the
         first record the model cannot take."""
         recs = [r for r in records]
@@ -247,16 +247,24 @@ class Model:
 
         current: dict[int, list[int]] = {self.initial: [self.initial]}  # configuration → one path to it
         k_prev = tick_of(recs[n0 - 1].get("t", 0.0))
+        held, hold_from = 0.0, None  # time under operator hold so far (it does not count toward the timers)
         i = n0
         while i < len(recs):
             r = recs[i]
             cause = str(r.get("cause"))
-            if cause == OPERATOR and not self.operator:
-                raise NotAPath(f"record {i + 1}: an operator action; this model has no operator (build_model(operator=True))")
-            if cause == OPERATOR and "to" not in r:  # an operator record (hold, resume, pause, inject …), not a firing
+            if cause == OPERATOR and "to" not in r:  # hold, resume, pause, inject, abort: not a firing
+                action = r.get("action")
+                if action == "hold" and hold_from is None:
+                    hold_from = float(r.get("t", 0.0))
+                elif action == "resume" and hold_from is not None:
+                    held += float(r.get("t", 0.0)) - hold_from
+                    hold_from = None
                 i += 1
                 continue
-            k = tick_of(r.get("t", 0.0))
+            if cause == OPERATOR and not self.operator:
+                raise NotAPath(f"record {i + 1}: an operator's pre-emption; this model has no operator "
+                               "(build_model(operator=True))")
+            k = tick_of(float(r.get("t", 0.0)) - held)
             ticks = k - k_prev
             if ticks < 0:
                 raise NotAPath(f"record {i + 1}: time goes backwards")
