@@ -43,7 +43,9 @@ MACHINERY: dict[str, frozenset[str]] = {
     "operate": frozenset({"mission", "execution", "readers"}),  # the HTTP endpoint, the web view
     "catalogue": frozenset({"mission"}),  # what is registered, described
     "campaigns": frozenset({"mission", "execution", "readers", "catalogue"}),  # many runs, their statistics
-    "cli": frozenset({"mission", "execution", "readers", "operate", "catalogue", "campaigns"}),  # the command
+    # the finite model, its checks (Storm), counterexamples replayed on the scripted backend, campaign predictions
+    "verify": frozenset({"mission", "execution", "readers", "catalogue", "campaigns", "testing"}),
+    "cli": frozenset({"mission", "execution", "readers", "operate", "catalogue", "campaigns", "verify"}),  # the command
     "testing": frozenset({"mission", "execution"}),  # the pytest plugin (a top-level module)
 }
 """Framework package → the machinery packages it may import (the public modules, :data:`PUBLIC_API`, it
