@@ -259,3 +259,22 @@ def test_a_confidence_outside_0_1_is_refused(markov: tuple[CompiledMission, Path
     with pytest.raises(ValueError, match="confidence"):
         predict(mission, root, confidence=1.5)
     assert not math.isnan(predict(mission, root, confidence=0.9, samples=200).conditions[0].outcomes[0].predicted)
+
+
+def test_a_run_cut_by_max_time_ends_in_its_outcome_from_the_configuration_it_was_in(tmp_path: Path) -> None:
+    mission_file = tmp_path / "toy_grasp.yaml"
+    mission_file.write_text(GRASP)
+    mission = load_mission(str(mission_file))
+    camp = Campaign.create(tmp_path / "batch", CampaignSpec(mission=str(mission_file), trials=6, keep_runs=True))
+    for seed in camp.spec.seeds():  # half the runs are cut while grasping (at 0.5 s: approach takes 0.25 s)
+        result = drive(mission, _script(seed, markov_fate), max_time=0.5 if seed % 2 else None,
+                       out_dir=camp.run_dir(0, seed))
+        camp.record(0, seed, result.summary, {})
+    (cond,) = predict(mission, camp.root, samples=200).conditions
+    timeout = {o.outcome: o for o in cond.outcomes}["timeout"]
+    assert (timeout.k, timeout.n) == (3, 6) and timeout.predicted == pytest.approx(0.5, abs=1e-6)
+    grasp = next(s for s in cond.states if s.configuration == "grasp")
+    assert grasp.successors["timeout"] == 3
+    t = {x.outcome: x for x in cond.times}["timeout"]
+    # every cut run spent 0.5 s; the chain, which has no clock, lets a run slip and recover before its cut
+    assert t.measured == pytest.approx(0.5) and t.predicted is not None and t.predicted > 0.55
