@@ -90,8 +90,8 @@ def _fail(text: str, hint: str = "") -> CampaignDataError:
 @dataclass(frozen=True)
 class Configuration:
     """What the records say the machine holds: ``leaves`` (one per active region, declaration order),
-    ``loops`` (active ``foreach``: path, item index, items succeeded) and ``history`` (history state not active →
-    where it resumes, with the loop positions it keeps there)."""
+    ``loops`` (each ``foreach`` that is active or that a history state will resume into: path, item index, items
+    succeeded) and ``history`` (history state not active → where it resumes)."""
 
     leaves: tuple[str, ...]
     loops: tuple[tuple[str, int, int], ...] = ()
@@ -174,7 +174,8 @@ def configuration_of(mission: CompiledMission, before: Configuration | None, rec
     if record.cause == NEXT_ITEM and record.item is not None:
         _, ok = positions.get(record.state, (0, 0))
         positions[record.state] = (record.item, ok + (record.outcome == "succeeded"))
-    loops = tuple((p, *positions[p]) for p in mission.states if p in positions and any(_under(q, p) for q in new))
+    loops = tuple((p, *positions[p]) for p in mission.states if p in positions and (
+        any(_under(q, p) for q in new) or any(_under(point, p) and _under(p, h) for h, point in history.items())))
     return Configuration(new, loops, tuple(sorted(history.items())),
                          tuple((p, i, k) for p, (i, k) in sorted(positions.items())))
 
@@ -202,7 +203,7 @@ def read_run(mission: CompiledMission, run_dir: Path, seed: int, summary: dict[s
     config: Configuration | None = None
     last_t = -math.inf
     try:
-        for rec, n, _ in read_transitions(run_dir):
+        for rec, n, _ in read_transitions(run_dir, complete_only=True):  # a line cut short by a crash: left out
             if not isinstance(rec, TransitionRecord):
                 continue  # an operator's pause, hold or injection changes no configuration
             if rec.t < last_t - 1e-9:

@@ -206,7 +206,7 @@ def test_a_configuration_keeps_other_regions_leaves_the_item_index_and_the_histo
     assert labels[0] == f"{op}initial_search | {watch}"
     assert labels[2] == f"{screws}s2_arm_approach | {watch} {{screws: item 0, 0 ok}}"
     assert labels[4] == f"{screws}s2_arm_approach | {watch} {{screws: item 1, 1 ok}}"
-    assert labels[5] == f"{op}searching | {watch} (operate → {screws}s2_arm_approach)"
+    assert labels[5] == f"{op}searching | {watch} {{screws: item 1, 1 ok}} (operate → {screws}s2_arm_approach)"
     assert labels[6] == labels[4]  # history resumes the item where it was left
     with pytest.raises(CampaignDataError, match="x:1:1: the record leaves 'cell.operation.searching'"):
         configuration_of(mission, c, _rec(5.0, op + "searching", op + "fastened", "event"), "x:1")
@@ -278,3 +278,47 @@ def test_a_run_cut_by_max_time_ends_in_its_outcome_from_the_configuration_it_was
     t = {x.outcome: x for x in cond.times}["timeout"]
     # every cut run spent 0.5 s; the chain, which has no clock, lets a run slip and recover before its cut
     assert t.measured == pytest.approx(0.5) and t.predicted is not None and t.predicted > 0.55
+
+
+def _settled(s: ScriptState) -> dict[str, float]:
+    """Every error small once a state has run 0.3 s (each guard of the two missions below holds then)."""
+    e = 0.0 if s.time_in_state > 0.3 else 1.0
+    return {"pos_error": e, "camera_error.t": e, "camera_error.r": e, "ee_error.t": e, "ee_error.r": e,
+            "joint_error": e, "tool_force": 0.0, "marker_age": 0.0}
+
+
+@pytest.mark.parametrize("mission_file, script", [
+    (ROOT / "tests" / "machine" / "missions" / "toy_full.yaml",
+     Script(metrics=_settled, events=[(2.1, "target_lost"), (2.6, "target_found")],
+            actions={"tool": (0.2, "tool_done")})),
+    (ROOT / "missions" / "screw_fastening_trolley.yaml",
+     Script(metrics=_settled, events=[(0.05, "target_found"), (4.0, "target_lost"), (4.5, "target_found")],
+            actions={"screwdriver": lambda p: (0.2, "tool_activated") if p["phase"] == "activate"
+                     else (0.5, "screw_done")})),
+])
+def test_the_configurations_are_the_engines_active_leaves_at_every_step(tmp_path: Path, mission_file: Path,
+                                                                        script: Script) -> None:
+    """The independent oracle: ``trace.csv``'s state column, the engine's active leaves each tick (``|`` between
+    regions), through a run with regions, history resumed inside a ``foreach`` and the next items."""
+    mission = load_mission(str(mission_file))
+    result = drive(mission, script, out_dir=tmp_path / "run")
+    assert result.outcome == "succeeded"
+    from taskflow.readers.run_files import read_trace, read_transitions
+
+    records = [r for r, _, _ in read_transitions(tmp_path / "run") if isinstance(r, TransitionRecord)]
+    assert any(r.resumed for r in records) and any(r.cause == "next_item" for r in records)
+    c: Configuration | None = None
+    ours, labels = [], []
+    for k, rec in enumerate(records):
+        c = configuration_of(mission, c, rec)
+        labels.append(c.label)
+        if k + 1 == len(records) or records[k + 1].t > rec.t + 1e-9:
+            ours.append("|".join(c.leaves))
+    trace = [str(s) for s in read_trace(tmp_path / "run")["state"]]
+    engine = [s for i, s in enumerate(trace) if i == 0 or s != trace[i - 1]]
+    assert ours[: len(engine)] == engine and len(ours) - len(engine) <= 1  # the final leaf may have no trace row
+    lost = next(k for k, r in enumerate(records) if r.event == "target_lost")
+    back = next(k for k, r in enumerate(records) if r.resumed)
+    assert labels[lost - 1] == labels[back] and "item 2, 2 ok" in labels[back]  # history resumes the item …
+    assert "item 2, 2 ok" in labels[lost] and "→" in labels[lost]  # … and the search remembers it
+    assert labels[back] in [s for s, _ in read_run(mission, tmp_path / "run", 0, result.summary).steps]
