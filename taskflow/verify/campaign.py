@@ -35,7 +35,8 @@ premise is the same comparison from every configuration: under the Markov proper
 configuration ``c`` end in ``o`` at rate ``h(c)``; when ``c``'s future depends on how the run got there (a
 history the abstraction drops), the rate measured over those runs leaves ``h(c)``'s interval.  A disagreement
 — the prediction's interval and the measured Wilson interval disjoint — is reported for each configuration and
-for each outcome's mean time.
+for each outcome's mean time.  The chain has no clocks: a run cut by ``max_time`` ends by its elapsed time, which
+no configuration holds, so the time to ``timeout`` is where a campaign with cut runs disagrees first.
 """
 
 from __future__ import annotations
