@@ -82,15 +82,13 @@ def _replay(v: Verification, args: argparse.Namespace) -> None:
 
 
 def _campaign(args: argparse.Namespace) -> int:
-    from importlib import import_module
-
-    predict = import_module("taskflow.verify.campaign").predict
+    from taskflow.verify.campaign import predict
     if len(args.files) != 1:
         raise UsageError("--campaign BATCH_DIR: give one mission file")
     mission = load(args.files[0], args.set)
     prediction = predict(mission, Path(args.campaign))
     print(json.dumps(prediction.as_dict(), indent=1) if args.json else prediction.render())
-    return 0
+    return 0 if prediction.agrees else 1  # a disagreement: the behaviour depends on more than the configuration
 
 
 def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
