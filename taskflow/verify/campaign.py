@@ -501,12 +501,15 @@ class ConditionPrediction:
     expected_time: tuple[float, float]  # the chain's expected run time, the measured mean sim_time_s
     states: tuple[StateLine, ...]
     unseen: tuple[float, float, float] = (0.0, 0.0, 0.0)  # P(a step no run took) from the start: mean, interval
+    held_out: tuple[OutcomeLine, ...] = ()  # the chain of the even trials predicting the odd ones (>= 10 runs)
 
     @property
     def disagreements(self) -> list[str]:
         """Each comparison whose two intervals are disjoint, as a sentence."""
         out = [f"P({o.outcome}): predicted {_pi(o)} against measured {_mi(o)}" for o in self.outcomes
                if not o.agrees]
+        out += [f"held out: P({o.outcome}) predicted from the even trials {_pi(o)} against the odd trials' "
+                f"{_mi(o)}" for o in self.held_out if not o.agrees]
         out += [f"time to {t.outcome}: predicted {_ti(t.predicted, t.interval)} against measured "
                 f"{_ti(t.measured, t.measured_interval)}" for t in self.times if not t.agrees]
         out += [f"from {s.configuration}: P({o.outcome}) predicted {_pi(o)}, measured {_mi(o)} over the runs "
@@ -518,6 +521,7 @@ class ConditionPrediction:
                 "times": [t.as_dict() for t in self.times],
                 "expected_time_s": {"predicted": self.expected_time[0], "measured": self.expected_time[1]},
                 "unseen": {"mean": self.unseen[0], "interval": list(self.unseen[1:])},
+                "held_out": [o.as_dict() for o in self.held_out],
                 "configurations": [s.as_dict() for s in self.states], "disagreements": self.disagreements}
 
 
@@ -570,6 +574,11 @@ class CampaignPrediction:
             out.append(f"  {'outcome':<12} {'predicted':>26}   {'measured':>30}   agrees")
             for o in c.outcomes:
                 out.append(f"  {o.outcome:<12} {_pi(o):>26}   {_mi(o):>30}   {'yes' if o.agrees else 'NO'}")
+            if c.held_out:
+                out.append(f"  held out — the chain of the {c.runs - c.runs // 2} even trials predicting the "
+                           f"{c.runs // 2} odd ones:")
+                for o in c.held_out:
+                    out.append(f"  {o.outcome:<12} {_pi(o):>26}   {_mi(o):>30}   {'yes' if o.agrees else 'NO'}")
             out.append(f"  expected run time: predicted {c.expected_time[0]:.2f} s, measured {c.expected_time[1]:.2f} s;"
                        f" P(a step no run took) {_pct(c.unseen[0])} % [{_pct(c.unseen[1])}, {_pct(c.unseen[2])}]")
             for t in c.times:
@@ -645,7 +654,32 @@ def predict_runs(runs: list[RunPath], label: str = "all", confidence: float = 0.
                              _outcome_lines(chain, post, h, i, entered[i], confidence)) for i in range(chain.n))
     unseen = (float(post.unseen[:, 0].mean()), *_quantiles(post.unseen[:, 0], confidence))
     return ConditionPrediction(label, len(runs), outcomes, tuple(times),
-                               (expected, float(np.mean([run.end_s for run in runs]))), states, unseen)
+                               (expected, float(np.mean([run.end_s for run in runs]))), states, unseen,
+                               held_out(runs, confidence, samples))
+
+
+HELD_OUT_MIN = 10
+"""Fewest runs of a condition for the held-out prediction (half of them estimate, the other half measure)."""
+
+
+def held_out(runs: list[RunPath], confidence: float = 0.95, samples: int = SAMPLES) -> tuple[OutcomeLine, ...]:
+    """A prediction the measured rate did not shape: the chain estimated from the even-numbered trials, its
+    P(outcome) from the start with its posterior interval, beside the odd-numbered trials' measured rate (Wilson).
+    On its own runs a count-based chain reproduces the rates by construction; on runs it has not seen it
+    predicts.  Empty below :data:`HELD_OUT_MIN` runs."""
+    if len(runs) < HELD_OUT_MIN:
+        return ()
+    train, test = runs[0::2], runs[1::2]
+    chain = estimate_chain(train)
+    p, r = chain.matrices()
+    h, _ = storm_solve(p, r, chain.outcomes)
+    post = sample_posterior(chain, samples)
+    ends = [run.outcome for run in test]
+    lines = list(_outcome_lines(chain, post, h, 0, ends, confidence))
+    for o in sorted({e for e in ends if e not in chain.outcomes}):  # an outcome the training trials never reached
+        got = sum(e == o for e in ends)
+        lines.append(OutcomeLine(o, 0.0, (0.0, 0.0), got, len(ends), wilson_interval(got, len(ends), confidence)))
+    return tuple(lines)
 
 
 def predict(mission: CompiledMission, batch_dir: Path, confidence: float = 0.95,

@@ -159,6 +159,31 @@ def test_an_outcome_that_depends_on_history_is_reported_as_a_disagreement(tmp_pa
     assert pred.as_dict()["agrees"] is False
 
 
+def test_the_even_trials_predict_the_odd_ones(markov: tuple[CompiledMission, Path]) -> None:
+    """The held-out prediction: a chain the measured rate did not shape, against the trials it has not seen."""
+    mission, root = markov
+    (cond,) = predict(mission, root).conditions
+    held = {o.outcome: o for o in cond.held_out}
+    assert set(held) == {"succeeded", "failed"} and held["succeeded"].n == 20
+    summaries = [json.loads((root / f"trial-{s:05d}" / "summary.json").read_text()) for s in range(40)]
+    even = sum(s["outcome"] == "succeeded" for s in summaries[0::2]) / 20
+    odd = sum(s["outcome"] == "succeeded" for s in summaries[1::2])
+    line = held["succeeded"]
+    assert line.predicted == pytest.approx(even, abs=1e-6) and line.k == odd  # estimated on one half, measured on the other
+    assert line.agrees  # the script's fate is Markov: the halves agree within their intervals
+    few = predict_runs_on(mission, root, 8)
+    assert few.held_out == ()  # below HELD_OUT_MIN runs there is no held-out half
+
+
+def predict_runs_on(mission: CompiledMission, root: Path, n: int):  # type: ignore[no-untyped-def]
+    from taskflow.campaigns.campaign import Campaign
+    from taskflow.verify.campaign import _condition_runs, predict_runs
+
+    camp = Campaign.open(root)
+    (cond,) = list(camp.spec.conditions())
+    return predict_runs(_condition_runs(mission, camp, cond, camp.records())[:n])
+
+
 def test_storm_solves_the_chain_as_the_fundamental_matrix_does(markov: tuple[CompiledMission, Path]) -> None:
     mission, root = markov
     camp = Campaign.open(root)
