@@ -66,7 +66,8 @@ class Verification:
 
     @property
     def ok(self) -> bool:
-        return all(c.verdict == HOLDS for c in self.checks)
+        """Every check holds (a property the model cannot decide — it compares metrics — is left to the runs)."""
+        return all(c.verdict != FAILS for c in self.checks)
 
     def check(self, name: str) -> CheckResult:
         return next(c for c in self.checks if c.name == name)
@@ -100,7 +101,7 @@ class StormModel:
     values on both); built here directly, because Storm's PRISM builder evaluates every command's guard in every
     state, which is quadratic in an explicit model's size."""
 
-    def __init__(self, model: Model, *, timed_only: bool = False) -> None:
+    def __init__(self, model: Model, *, timed_only: bool = False, extra_labels: dict[str, list[int]] | None = None) -> None:
         import stormpy
         import stormpy.developer as dev
 
@@ -122,7 +123,7 @@ class StormModel:
         labeling.add_label("init")
         for s in (range(n) if timed_only else [model.initial]):
             labeling.add_label_to_state("init", s)
-        for name, states in labels(model).items():
+        for name, states in {**labels(model), **(extra_labels or {})}.items():
             labeling.add_label(name)
             for s in states:
                 labeling.add_label_to_state(name, s)
@@ -338,6 +339,10 @@ def verify_mission(mission: CompiledMission, max_time: float | None = None, *, o
     res = check_region_conflicts(model)
     res.seconds = time.perf_counter() - t
     checks.append(res)
+    from taskflow.verify.properties import check_properties  # it builds on this module's StormModel
+
+    for res in check_properties(model):
+        checks.append(res)
     for fn in extra or ():
         t = time.perf_counter()
         res = fn(model)

@@ -1,0 +1,204 @@
+"""A mission's declared properties (``properties:``, :mod:`taskflow.mission.properties`) decided on its model.
+
+A property whose atoms are states, events and outcomes only (``Property.structural``) is decided on the model of
+:mod:`taskflow.verify.model`; one that compares metrics is left to the runtime monitor of every run
+(:mod:`taskflow.execution.monitors`), because the model does not interpret metrics.  In a configuration,
+``state(P)`` holds when ``P`` or a state below it is active, ``outcome(O)`` when the run has ended with ``O``, and
+``event(E)`` may hold or not — the environment's choice — when ``E`` can arrive there (the world's and the
+mission's events, an active task's, an active action's end events), and does not otherwise.  So each expression
+has a set of possible values in a configuration, and:
+
+* **absence** (``never: A``, ``while: B``) is violated when a reachable configuration lets ``A and B`` hold;
+* **universality** (``always: A``) when one lets ``A`` fail;
+* **precedence** (``only_after: A``, ``occurs: B``) when a path reaches a configuration that lets ``B`` hold
+  with ``A`` false, through configurations that all let ``A`` be false;
+* **response** (``after: A``, ``within: T``, ``then: B``) when, from a configuration that lets ``A`` hold and ``B``
+  fail, the model can keep ``B`` false until the run ends, or for more ticks than ``T`` spans (each tick is
+  :attr:`~taskflow.verify.model.Model.quantum` seconds: a deadline shorter than a tick is decided to within one).
+
+Absence, universality and precedence go to Storm (``Pmax=? [F bad]``, ``Pmax=? [notA U bad]``) on labels built
+here; a response is a search over (configuration, ticks elapsed) on the model.  A violation's counterexample is the
+shortest path of the model to it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable
+from itertools import product
+from typing import Any
+
+from taskflow.mission.guards import Node
+from taskflow.verify.checks import FAILS, HOLDS, CheckResult, StormModel
+from taskflow.verify.counterexample import Counterexample
+from taskflow.verify.model import TICK, Config, Model, _Explorer
+
+__all__ = ["MONITORED", "check_properties"]
+
+MONITORED = "monitored"
+"""The verdict of a property that compares metrics: the model cannot decide it; every run's monitor does."""
+
+
+def _values(n: Node, active: set[str], outcome: str | None, events: dict[str, bool], paths: dict[str, str]) -> bool:
+    if n.kind == "and":
+        return all(_values(c, active, outcome, events, paths) for c in n.children)
+    if n.kind == "or":
+        return any(_values(c, active, outcome, events, paths) for c in n.children)
+    if n.kind == "not":
+        return not _values(n.children[0], active, outcome, events, paths)
+    atom = getattr(n, "atom", None)
+    if atom is None:
+        raise ValueError("a structural property has no metric comparison")
+    if atom.kind == "state":
+        return paths.get(atom.name, atom.name) in active
+    if atom.kind == "outcome":
+        return bool(outcome == atom.name)
+    return events.get(atom.name, False)
+
+
+class _Evaluator:
+    """The possible values of a property's expressions in each configuration of a model."""
+
+    def __init__(self, model: Model, states: dict[str, str]) -> None:
+        self.model = model
+        self.states = states  # state(NAME) as written → path
+        self.explorer = _Explorer(model.mission, model.max_time, model.operator)
+        self._active: dict[int, set[str]] = {}
+        self._events: dict[int, set[str]] = {}
+
+    def active(self, s: int) -> set[str]:
+        got = self._active.get(s)
+        if got is None:
+            nodes = self.model.mission.states
+            got = {a.path for leaf in self.model.configs[s].leaves for a in nodes[leaf].ancestors()[1:]}
+            self._active[s] = got
+        return got
+
+    def events(self, s: int) -> set[str]:
+        got = self._events.get(s)
+        if got is None:
+            c: Config = self.model.configs[s]
+            world, ends = self.explorer.events_possible(c)
+            got = set() if c.outcome is not None else world | ends
+            self._events[s] = got
+        return got
+
+    def possible(self, s: int, exprs: list[Node], wanted: list[bool]) -> bool:
+        """Whether, in configuration ``s``, some choice of the arriving events gives each of ``exprs`` its
+        ``wanted`` value at once."""
+        names = sorted({a.name for e in exprs for a in _atoms(e) if a.kind == "event"} & self.events(s))
+        active, outcome = self.active(s), self.model.configs[s].outcome
+        for choice in product((False, True), repeat=len(names)):
+            ev = dict(zip(names, choice))
+            if all(_values(e, active, outcome, ev, self.states) == w for e, w in zip(exprs, wanted)):
+                return True
+        return False
+
+
+def _atoms(n: Node) -> Iterable[Any]:
+    atom = getattr(n, "atom", None)
+    if atom is not None:
+        yield atom
+    for c in n.children:
+        yield from _atoms(c)
+
+
+def _where(model: Model, ev: _Evaluator, pred: Any) -> list[int]:
+    return [s for s in range(model.n_states) if pred(s)]
+
+
+def check_property(model: Model, prop: Any) -> CheckResult:
+    name = f"property:{prop.name}"
+    if not prop.structural:
+        metrics = sorted({a.name for a in prop.atoms() if a.kind == "metric"})
+        return CheckResult(name, MONITORED, f"{prop.pattern}: compares {', '.join(metrics)} — decided in every run by "
+                           "its monitor, not on the model (which does not interpret metrics)")
+    ev = _Evaluator(model, prop.states)
+    e = {role: g.tree for role, g in prop.exprs.items()}
+    pattern = prop.pattern
+    if pattern in ("absence", "universality"):
+        if pattern == "absence":
+            exprs = [e["never"]] + ([e["while"]] if "while" in e else [])
+            bad = _where(model, ev, lambda s: ev.possible(s, exprs, [True] * len(exprs)))
+            what = "A and B can hold" if "while" in e else "A can hold"
+        else:
+            bad = _where(model, ev, lambda s: ev.possible(s, [e["always"]], [False]))
+            what = "A can fail"
+        return _reach_result(model, name, pattern, bad, what)
+    if pattern == "precedence":
+        a, b = e["only_after"], e["occurs"]
+        not_a = _where(model, ev, lambda s: ev.possible(s, [a], [False]))
+        bad = _where(model, ev, lambda s: ev.possible(s, [a, b], [False, True]))
+        storm = StormModel(model, extra_labels={"prop_not_a": not_a, "prop_bad": bad})
+        if storm.values('Pmax=? ["prop_not_a" U "prop_bad"]')[model.initial] <= 0.0:
+            return CheckResult(name, HOLDS, "precedence: B can hold only after A has (on every path of the model)")
+        path = [] if model.initial in bad else model.path_to(bad, avoid=set(range(model.n_states)) - set(not_a))
+        assert path is not None  # Storm found one
+        return CheckResult(name, FAILS, "precedence: B can hold before A ever has",
+                           Counterexample(model, path, "B holds here and A has not held on the way"))
+    return _response(model, name, prop, ev, e["after"], e["then"])
+
+
+def _reach_result(model: Model, name: str, pattern: str, bad: list[int], what: str) -> CheckResult:
+    storm = StormModel(model, extra_labels={"prop_bad": bad})
+    if storm.values('Pmax=? [F "prop_bad"]')[model.initial] <= 0.0:
+        return CheckResult(name, HOLDS, f"{pattern}: no reachable configuration where {what}")
+    path = model.path_to(bad) or []
+    end = path[-1][1].target if path else model.initial
+    return CheckResult(name, FAILS, f"{pattern}: {len(bad)} reachable configurations where {what}, e.g. "
+                       f"{model.configs[end].describe()}",
+                       Counterexample(model, path, f"here {what}", list(model.configs[end].leaves)))
+
+
+def _response(model: Model, name: str, prop: Any, ev: _Evaluator, a: Node, b: Node) -> CheckResult:
+    within = float(prop.within or 0.0)
+    limit = int(math.floor(within / model.quantum + 1e-9))  # ticks the deadline spans
+    triggers = _where(model, ev, lambda s: ev.possible(s, [a, b], [True, False]))
+    not_b = set(_where(model, ev, lambda s: ev.possible(s, [b], [False])))
+    for t in sorted(triggers, key=lambda s: len(model.path_to([s]) or [])):
+        # breadth first over (configuration, ticks elapsed) keeping B false
+        seen = {(t, 0)}
+        back: dict[tuple[int, int], tuple[tuple[int, int], Any]] = {}
+        queue = deque([(t, 0)])
+        found = None
+        while queue and found is None:
+            s, k = queue.popleft()
+            if model.configs[s].final:
+                found = ((s, k), "the run ends and B never held")
+                break
+            for step in model.steps[s]:
+                k2 = k + (1 if step.cause == TICK else 0)
+                n = step.target
+                if n not in not_b:
+                    continue
+                if k2 > limit:
+                    found = ((n, k2), f"B has not held {k2 * model.quantum:g} s later (deadline {within:g} s)")
+                    back[(n, k2)] = ((s, k), step)
+                    break
+                if (n, k2) not in seen:
+                    seen.add((n, k2))
+                    back[(n, k2)] = ((s, k), step)
+                    queue.append((n, k2))
+        if found is None:
+            continue
+        lead = model.path_to([t]) or []
+        tail: list[tuple[int, Any]] = []
+        node = found[0]
+        while node in back:
+            prev, step = back[node]
+            tail.append((prev[0], step))
+            node = prev
+        path = lead + tail[::-1]
+        return CheckResult(name, FAILS, f"response: A can hold in {model.configs[t].describe()} and then {found[1]}",
+                           Counterexample(model, path, found[1], list(model.configs[t].leaves)))
+    tol = "" if limit * model.quantum == within else f" (to within one tick of {model.quantum:g} s)"
+    return CheckResult(name, HOLDS, f"response: whenever A can hold, B follows within {within:g} s{tol}")
+
+
+def check_properties(model: Model) -> list[CheckResult]:
+    """One result per declared property of the model's mission (:func:`check_property`)."""
+    props = list(getattr(model.mission, "properties", []) or [])
+    if not props:
+        return []
+    return [check_property(model, p) for p in props]
