@@ -41,7 +41,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import reduce
 from typing import Any
 
@@ -91,6 +91,7 @@ class Config:
     outcome: str | None = None  # the run ended with it
     mission_ticks: int = 0  # ticks since the start (only with a max time)
     skipped: tuple[tuple[str, str], ...] = ()  # with the operator: rule state an operator left → its verdict then
+    grace: bool = False  # a firing just happened with a timer due: one tick may still pass before it fires
 
     @property
     def final(self) -> bool:
@@ -366,13 +367,14 @@ class _Explorer:
     # -- the working configuration (mutable while a step is computed) ----------------------------------------
     def thaw(self, c: Config) -> _Work:
         return _Work(list(c.leaves), list(c.clocks), dict(c.history), [list(x) for x in c.loops],
-                     {p: dict(o) for p, o in c.regions}, c.outcome, c.mission_ticks, skipped=dict(c.skipped))
+                     {p: dict(o) for p, o in c.regions}, c.outcome, c.mission_ticks, skipped=dict(c.skipped),
+                     grace=c.grace)
 
     def freeze(self, w: _Work) -> Config:
         leaves = tuple(sorted(w.leaves, key=self.order.__getitem__))
         return Config(leaves, tuple(w.clocks), tuple(sorted(w.history.items())), tuple((a, b) for a, b in w.loops),
                       tuple(sorted((p, tuple(sorted(o.items()))) for p, o in w.regions.items())), w.outcome,
-                      w.mission_ticks, tuple(w.skipped.items()))
+                      w.mission_ticks, tuple(w.skipped.items()), w.grace)
 
     def initial(self) -> tuple[Config, tuple[tuple[str, str], ...]]:
         w = _Work([], [-1] * len(self.clocks), {}, [[0, 0] for _ in self.loop_states], {}, None, 0)
@@ -612,9 +614,17 @@ class _Explorer:
                         out.append((tr, EVENT, True))
                     elif tr.event in events[0]:
                         out.append((tr, EVENT, False))
-        if self.max_ticks is not None and c.mission_ticks >= self.max_ticks:
-            due = True
         return out, due
+
+    def fired(self, w: _Work) -> Config:
+        """The configuration after a firing.  A timer due in it fires at the engine's next control period, not in
+        the one that fired (one firing per region and period): when that period lies past the next tick, the tick
+        comes first — a timer already due when its state is entered (``since: first_entry``, ``since: STATE``,
+        ``after: 0 s``), or one a firing of the same period went before.  So one tick may pass (``grace``)."""
+        c = self.freeze(w)
+        if c.outcome is None and self.enabled(c)[1]:
+            return replace(c, grace=True)
+        return c
 
     def successors(self, c: Config) -> list[tuple[Step, Config]]:
         if c.outcome is not None:
@@ -625,12 +635,12 @@ class _Explorer:
             w = self.thaw(c)
             self.fire(w, tr, cause)
             event = tr.event if isinstance(tr, EventTransition) else None
-            out.append((Step(cause, -1, tr.index, tr.label, event, tuple(w.records), action_end), self.freeze(w)))
+            out.append((Step(cause, -1, tr.index, tr.label, event, tuple(w.records), action_end), self.fired(w)))
         if self.operator:
             for path in self.m.outside_regions:
                 w = self.thaw(c)
                 self.preempt(w, self.states[path])
-                out.append((Step(OPERATOR, -1, None, f"preempt --to {path}", None, tuple(w.records)), self.freeze(w)))
+                out.append((Step(OPERATOR, -1, None, f"preempt --to {path}", None, tuple(w.records)), self.fired(w)))
             w = self.thaw(c)
             w.outcome = "aborted"
             out.append((Step(OPERATOR, -1, None, "abort"), self.freeze(w)))
@@ -638,8 +648,9 @@ class _Explorer:
             w = self.thaw(c)
             w.outcome = "timeout"
             out.append((Step(MAX_TIME, -1, None, f"max_time {self.max_ticks * self.q:g} s"), self.freeze(w)))
-        elif not due:
+        elif not due or c.grace:
             w = self.thaw(c)
+            w.grace = False
             for k, clk in enumerate(self.clocks):
                 if w.clocks[k] >= 0:
                     w.clocks[k] = min(w.clocks[k] + 1, clk.cap)
@@ -661,6 +672,7 @@ class _Work:
     records: list[tuple[str, str]] = field(default_factory=list)
     entered: list[str] = field(default_factory=list)  # the states the step entered, in order
     skipped: dict[str, str] = field(default_factory=dict)  # rule state → the verdict an operator left it with
+    grace: bool = False
 
 
 def entered_by(model: Model, source: int, step: Step) -> list[str]:
