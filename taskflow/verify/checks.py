@@ -24,35 +24,20 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from taskflow.mission.model import CompiledMission
 from taskflow.verify.counterexample import Counterexample, describe_step
-from taskflow.verify.export import label_name, labels
+from taskflow.verify.export import label_name
 from taskflow.verify.model import DEFAULT_BUDGET, TICK, Model, Step, build_model
+from taskflow.verify.properties import check_properties
+from taskflow.verify.results import FAILS, HOLDS, CheckResult
+from taskflow.verify.storm import StormModel
 
-__all__ = ["HOLDS", "FAILS", "CheckResult", "Verification", "StormModel", "verify_mission"]
+__all__ = ["FAILS", "HOLDS", "CheckResult", "StormModel", "Verification", "verify_mission"]
 
-HOLDS, FAILS = "holds", "fails"
 EPS = 1e-9
-
-
-@dataclass
-class CheckResult:
-    """One check's verdict (``holds`` | ``fails``), in words, with a counterexample when it fails."""
-
-    name: str
-    verdict: str
-    detail: str
-    counterexample: Counterexample | None = None
-    seconds: float = 0.0
-    data: dict[str, Any] = field(default_factory=dict)
-
-    def as_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "verdict": self.verdict, "detail": self.detail, "seconds": round(self.seconds, 4),
-                **({"counterexample": self.counterexample.as_dict()} if self.counterexample is not None else {}),
-                **self.data}
 
 
 @dataclass
@@ -90,55 +75,6 @@ class Verification:
                 "model": {"configurations": m.n_states, "steps": m.n_steps, "tick_s": m.quantum,
                           "clocks": [c.name for c in m.clocks], "build_s": round(self.build_seconds, 4)},
                 "checks": [c.as_dict() for c in self.checks]}
-
-
-class StormModel:
-    """The model in Storm's sparse engine: an MDP with one row group per configuration (Storm state ``i`` is
-    configuration ``i``), one row per step (``timed_only``: per step that needs no guard and no event; a
-    configuration left with none loops on itself), the labels of :func:`~taskflow.verify.export.labels` and the
-    time reward (``quantum`` seconds on every tick).  The same MDP as the PRISM text of
-    :func:`~taskflow.verify.export.prism_text` (``tests/verify/test_export.py`` checks that Storm gives the same
-    values on both); built here directly, because Storm's PRISM builder evaluates every command's guard in every
-    state, which is quadratic in an explicit model's size."""
-
-    def __init__(self, model: Model, *, timed_only: bool = False, extra_labels: dict[str, list[int]] | None = None) -> None:
-        import stormpy
-        import stormpy.developer as dev
-
-        st = dev.storage
-        n = model.n_states
-        builder = st.SparseMatrixBuilder(rows=0, columns=0, entries=0, force_dimensions=False,
-                                         has_custom_row_grouping=True, row_groups=0)
-        reward: list[float] = []
-        row = 0
-        for s in range(n):
-            builder.new_row_group(row)
-            kept = [(x.target, x.cause == TICK) for x in (model.timed_steps(s) if timed_only else model.steps[s])] or [(s, False)]
-            for target, tick in sorted(set(kept)):
-                builder.add_next_value(row, target, 1.0)
-                reward.append(model.quantum if tick else 0.0)
-                row += 1
-        matrix = builder.build(row, n, n)
-        labeling = st.StateLabeling(n)
-        labeling.add_label("init")
-        for s in (range(n) if timed_only else [model.initial]):
-            labeling.add_label_to_state("init", s)
-        for name, states in {**labels(model), **(extra_labels or {})}.items():
-            labeling.add_label(name)
-            for s in states:
-                labeling.add_label_to_state(name, s)
-        components = st.SparseModelComponents(
-            transition_matrix=matrix, state_labeling=labeling,
-            reward_models={"time": st.SparseRewardModel(optional_state_action_reward_vector=reward)})
-        self.model = model
-        self.sparse = st.SparseMdp(components)
-        self._stormpy = stormpy
-
-    def values(self, formula: str) -> list[float]:
-        """Storm's value of ``formula`` (a PRISM property over the labels) in every configuration."""
-        prop = self._stormpy.parse_properties(formula)[0]
-        result = self._stormpy.model_checking(self.sparse, prop, only_initial_states=False)
-        return [float(v) for v in result.get_value_vector()]
 
 
 def _leaves_named(model: Model, configs: set[int] | list[int]) -> list[str]:
@@ -339,8 +275,6 @@ def verify_mission(mission: CompiledMission, max_time: float | None = None, *, o
     res = check_region_conflicts(model)
     res.seconds = time.perf_counter() - t
     checks.append(res)
-    from taskflow.verify.properties import check_properties  # it builds on this module's StormModel
-
     for res in check_properties(model):
         checks.append(res)
     for fn in extra or ():

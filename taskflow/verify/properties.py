@@ -30,14 +30,12 @@ from itertools import product
 from typing import Any
 
 from taskflow.mission.guards import Node
-from taskflow.verify.checks import FAILS, HOLDS, CheckResult, StormModel
 from taskflow.verify.counterexample import Counterexample
 from taskflow.verify.model import TICK, Config, Model, _Explorer
+from taskflow.verify.results import FAILS, HOLDS, MONITORED, CheckResult
+from taskflow.verify.storm import StormModel
 
-__all__ = ["MONITORED", "check_properties"]
-
-MONITORED = "monitored"
-"""The verdict of a property that compares metrics: the model cannot decide it; every run's monitor does."""
+__all__ = ["check_properties"]
 
 
 def _values(n: Node, active: set[str], outcome: str | None, events: dict[str, bool], paths: dict[str, str]) -> bool:
