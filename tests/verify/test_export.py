@@ -15,7 +15,7 @@ import stormpy
 import stormpy.developer as dev
 
 from taskflow.mission.loader import load_mission
-from taskflow.verify.checks import StormModel
+from taskflow.verify.storm import StormModel
 from taskflow.verify.export import jani_text, prism_text
 from taskflow.verify.model import build_model
 
