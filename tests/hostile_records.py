@@ -143,6 +143,12 @@ RUN_CASES: dict[str, tuple[Callable[[Path], None], str]] = {
     "operator-args-not-strings": (_append("transitions.jsonl", '{"t": 9.0, "tick": 1, "cause": "operator", "action": '
                                                               '"preempt", "who": "x", "state": "s", "args": {"to": [1]}}'),
                                   "transitions.jsonl:"),
+    "property-atoms-a-list": (_append("transitions.jsonl", '{"t": 9.0, "cause": "property", "property": "p", '
+                                                          '"atoms": [1, 2]}'), "transitions.jsonl:"),
+    "property-atom-an-object": (_append("transitions.jsonl", '{"t": 9.0, "cause": "property", "property": "p", '
+                                                            '"atoms": {"x": {"y": 1}}}'), "transitions.jsonl:"),
+    "property-without-name": (_append("transitions.jsonl", '{"t": 9.0, "cause": "property", "atoms": {}}'),
+                              "transitions.jsonl:"),
     "summary-string-for-number": (_edit_json("summary.json", _set("sim_time_s", "long")), "summary.json"),
     "summary-list-for-dict": (_edit_json("summary.json", _set("metrics", [1, 2])), "summary.json"),
     "summary-a-list": (_edit_json("summary.json", lambda data: [data]), "summary.json"),

@@ -9,7 +9,8 @@ The batch directory is a campaign directory: one record per trial is written the
 finishes, and ``batch.json`` is rebuilt from the records; it holds every trial's summary and the
 aggregates, over all trials and per condition, with their 95 % intervals (:mod:`taskflow.campaigns.stats`):
 mission success (Wilson interval), item success for missions that loop over items (screws,
-waypoints), and mean/std/min/max with the t interval of the mean of every numeric final metric.
+waypoints), each declared property's violation rate (Wilson interval; over the trials that decided it), and
+mean/std/min/max with the t interval of the mean of every numeric final metric.
 ``batch.json`` depends on the mission and the seeds alone; wall-clock figures go to ``timing.json``.
 
 Ctrl-C or SIGTERM stops a batch at once: unfinished trials are cancelled, running workers are
@@ -161,8 +162,39 @@ def aggregate(summaries: list[dict[str, Any]]) -> dict[str, Any]:
         agg["success_rate"] = agg["succeeded"] / agg["attempted"] if agg["attempted"] else None
         agg["success_ci95"] = _wilson(agg["succeeded"], agg["attempted"])
     ok = outcomes.get("succeeded", 0)
-    return {"trials": n, "success_rate": ok / n if n else 0.0, "success_ci95": _wilson(ok, n),
-            "outcomes": outcomes, "items": items, "metrics": stats}
+    out = {"trials": n, "success_rate": ok / n if n else 0.0, "success_ci95": _wilson(ok, n),
+           "outcomes": outcomes, "items": items, "metrics": stats}
+    properties = property_rates(summaries)
+    if properties:
+        out["properties"] = properties
+    return out
+
+
+def property_rates(summaries: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Each declared property's verdicts over the trials (``summary.json``'s ``properties``): ``held``,
+    ``violated``, ``not_decided`` counts, ``violation_rate`` = violated / (held + violated) with its Wilson 95 %
+    interval ``violation_ci95`` (a trial cut short before deciding it does not count), and the earliest
+    violation time ``first_violation_t``.  Empty when no trial's mission declares properties."""
+    out: dict[str, dict[str, Any]] = {}
+    for s in summaries:
+        verdicts = s.get("properties")
+        if not isinstance(verdicts, dict):
+            continue
+        for name, v in verdicts.items():
+            if not isinstance(v, dict):
+                continue
+            agg = out.setdefault(name, {"pattern": v.get("pattern", ""), "held": 0, "violated": 0, "not_decided": 0})
+            verdict = v.get("verdict")
+            if verdict in ("held", "violated", "not_decided"):
+                agg[verdict] += 1
+            t = v.get("t")
+            if verdict == "violated" and isinstance(t, (int, float)):
+                agg["first_violation_t"] = min(agg.get("first_violation_t", t), t)
+    for agg in out.values():
+        decided = agg["held"] + agg["violated"]
+        agg["violation_rate"] = agg["violated"] / decided if decided else None
+        agg["violation_ci95"] = _wilson(agg["violated"], decided)
+    return out
 
 
 def run_batch(path: str, *, trials: int, workers: int | None = None, seed: int = 0,
@@ -336,6 +368,11 @@ def _aggregate_lines(agg: dict[str, Any]) -> list[str]:
     for loop, c in agg.get("items", {}).items():
         lines.append(f"items of {loop}: {_rate(c['succeeded'], c['attempted'], c['success_rate'], c.get('success_ci95'))}"
                      f" succeeded, rule per run: {c['rule']}")
+    for name, c in agg.get("properties", {}).items():
+        undecided = f", {c['not_decided']} not decided" if c["not_decided"] else ""
+        lines.append(f"property {name} ({c['pattern']}): violated in "
+                     f"{_rate(c['violated'], c['held'] + c['violated'], c['violation_rate'], c.get('violation_ci95'))}"
+                     f" (95 % Wilson){undecided}")
     lines.append(f"{'metric':34s} {'mean':>11s} {'95 % interval of the mean':>25s} {'std':>11s} {'min':>11s} {'max':>11s}")
     for k, m in agg["metrics"].items():
         ci = m.get("ci95")

@@ -10,14 +10,18 @@
                           ``item``, ``resumed``, ``who`` — :class:`TransitionRecord`; and one object per
                           operator action (``taskflow ctl``, an operator script): ``cause: operator``,
                           ``action``, ``who``, ``args``, ``t``, ``tick``, ``state`` (and ``refused``, why, when the
-                          run could not take it) — :class:`OperatorRecord`
+                          run could not take it) — :class:`OperatorRecord`; and one object per declared
+                          property a tick first violated: ``cause: property``, ``property``, ``pattern``,
+                          ``verdict`` (violated), ``t``, ``state``, ``atoms`` (each atom's value then),
+                          ``reason`` — :class:`PropertyRecord` (:mod:`taskflow.execution.monitors`)
   ``trace.csv``           one row per control tick: ``t``, ``state``, ``events``, metric columns
                           ``m.NAME``, command columns ``cmd.KEY[.i]``, ground truth ``gt.NAME``
                           (``pandas.read_csv`` / ``numpy.genfromtxt(names=True)`` read it; ``nan``
                           where a metric has no value that tick)
   ``summary.json``        outcome, final state, states visited, times, foreach items, final metrics, and
                           the versions of the packages that shape the result; after operator actions,
-                          ``preempted`` (``t``, ``who``, ``to``, ``from`` each) and ``held_s``
+                          ``preempted`` (``t``, ``who``, ``to``, ``from`` each) and ``held_s``; with declared
+                          properties, ``properties`` (name → ``pattern``, ``verdict``, ``t``, ``reason``)
   ``timing.json``         wall-clock figures only: real-time factor, per-tick loop time and the parts tasks
                           and worlds time (perception, control …) as n / mean / p50 / p95 / max in ms
   ``frames/``, ``frames.jsonl``  in rendered modes, the camera images the world observed, as PNG at a declared
@@ -27,7 +31,8 @@ Everything but ``timing.json`` depends only on the mission and the seed: two run
 the same bytes.
 
 Read back (:mod:`taskflow.readers.run_files`), every reader parses a ``transitions.jsonl`` line with
-``record_from_dict`` (the one parse: an :class:`OperatorRecord` or a :class:`TransitionRecord`), a trace row
+``record_from_dict`` (the one parse: an :class:`OperatorRecord`, a :class:`PropertyRecord` or a
+:class:`TransitionRecord`), a trace row
 with ``parse_trace_row`` (``read_trace``), through :mod:`taskflow.execution.record_io` (a record is untrusted
 input).
 
@@ -54,6 +59,8 @@ from taskflow.mission.data import clean_floats
 START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM = "start", "guard", "timeout", "event", "done", "next_item"
 OPERATOR = "operator"
 CAUSES = (START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM, OPERATOR)
+PROPERTY = "property"
+"""The ``cause`` of a :class:`PropertyRecord` (no state change: not one of :data:`CAUSES`)."""
 
 
 @dataclass
@@ -118,6 +125,30 @@ class OperatorRecord:
                "state": self.state, "args": dict(self.args)}
         if self.refused is not None:
             out["refused"] = self.refused
+        return out
+
+
+@dataclass
+class PropertyRecord:
+    """A declared property's first violation (``transitions.jsonl``, ``cause: property``, no ``from``/``to``):
+    the ``property`` and its ``pattern``, the sim time ``t`` of the tick that violated it, the configuration
+    ``state`` that tick ran in, the value of each of its ``atoms`` then (a state, event or outcome atom true or
+    false; a metric its number, None when not published) and, for a response or precedence, the ``reason``."""
+
+    t: float
+    property: str
+    pattern: str
+    state: str
+    atoms: dict[str, Any]
+    reason: str = ""
+    verdict: str = "violated"
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"t": round(self.t, 9), "cause": PROPERTY, "property": self.property,
+                               "pattern": self.pattern, "verdict": self.verdict, "state": self.state,
+                               "atoms": dict(self.atoms)}
+        if self.reason:
+            out["reason"] = self.reason
         return out
 
 

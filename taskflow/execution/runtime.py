@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 from taskflow.api import World
 from taskflow.execution.executor import Executor, TaskFactory
 from taskflow.execution.frames import DEFAULT_HZ, FrameRecorder
+from taskflow.execution.monitors import monitor_for
 from taskflow.execution.provenance import versions
 from taskflow.execution.records import RunRecorder, TimingRecord, TransitionRecord
 from taskflow.execution.summary import RunResult, build_summary, recorded_file
@@ -165,6 +166,7 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             recorder.transition(rec.as_dict())
 
     executor = Executor(mission, world, robot, task_factory=task_factory, on_transition=on_transition)
+    monitor = monitor_for(mission.properties, mission.states, recorder.transition if recorder is not None else None)
     if channel is not None:
         channel.on_record = recorder.transition if recorder is not None else None
         channel.on_wait = recorder.flush if recorder is not None else None
@@ -216,6 +218,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
                     continue
             leaf = executor.state
             command, metrics, events = executor.tick(obs)
+            if monitor is not None:  # the declared properties, on the configuration this tick ran in
+                monitor.tick(t, leaf, metrics, events, executor.memory)
             sensors = executor.step_sensors
             if sensors is not None and sensors != selected:  # the world hears of a change only
                 world.select_sensors(sensors)
@@ -253,6 +257,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             signal.signal(sig, handler)
     executor.outcome, executor.reason = outcome, reason
     t_end = t
+    if monitor is not None:
+        monitor.finish(t, executor.state, outcome)
     if channel is not None:
         channel.finish(executor, t_end)
     wall_run = time.perf_counter() - wall0
@@ -267,6 +273,8 @@ def run_mission(mission: CompiledMission, *, seed: int | None = None, out_dir: s
             final_metrics["summary_error"] = f"{type(exc).__name__}: {exc}"
         summary = build_summary(mission, seed, executor, t_end, final_metrics, k)
         summary["stopped_at_s"] = t
+        if monitor is not None:
+            summary["properties"] = monitor.verdicts()
         timing_summary = timing.summary(t_end, wall_run, k)
         if recorder is not None:
             recorder.summary(summary)

@@ -35,7 +35,10 @@ class RunResult:
       ``succeeded``, ``failed``, ``success_rate``, ``required``, ``rule``);
     - ``metrics`` (the last value of every metric published on the last tick, then the world's
       ``summary_metrics()``: ground truth such as ``gt_x_m``, ``final_error_m``), ``outputs`` (the final
-      mission data the mission declares as outputs), ``versions`` (the packages the run used).
+      mission data the mission declares as outputs), ``versions`` (the packages the run used);
+    - ``properties``, only when the mission declares some: name → ``pattern``, ``verdict`` (``held``,
+      ``violated``, ``not_decided``), ``t`` (the first violation, None) and ``reason``
+      (:mod:`taskflow.execution.monitors`).
     """
 
     #: ``"succeeded"``, ``"failed"``, ``"timeout"`` (``max_time`` reached) or ``"aborted"`` (an error,

@@ -11,6 +11,15 @@ Grammar (keywords are lower case)::
     metric     := NAME ("." NAME)* ["[" INDEX "]"]
     quantity   := NUMBER [UNIT]                   e.g. 2 px, 1 cm, 3 deg, 0.5 m/s
 
+A property's expression (:mod:`taskflow.mission.properties`, parsed with ``atoms=True``) may also use
+three atoms a transition's guard may not::
+
+    primary    := ... | atom
+    atom       := ("state" | "event" | "outcome") "(" NAME ("." NAME)* ")"
+
+``state(operate.screw)`` holds while that state is active (a leaf, or an ancestor of an active leaf),
+``event(target_lost)`` in the tick the event arrives, ``outcome(failed)`` once the run ended with it.
+
 Parentheses and ``not`` nest at most :data:`MAX_DEPTH` levels deep (a deeper guard is a load-time
 error, not a stack overflow).
 
@@ -68,6 +77,8 @@ _OPS: dict[str, Callable[[float, float], bool]] = {
 }
 _FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
 KEYWORDS = {"and", "or", "not", "abs"}
+ATOM_KINDS = ("state", "event", "outcome")
+"""The atoms of a property's expression (``state(PATH)``, ``event(NAME)``, ``outcome(NAME)``)."""
 MAX_DEPTH = 32
 """Deepest nesting of parentheses and ``not`` a guard may have."""
 
@@ -84,10 +95,24 @@ class Comparison:
 
 
 @dataclass
+class Atom:
+    """``state(PATH)``, ``event(NAME)`` or ``outcome(NAME)`` in a property's expression."""
+
+    kind: str  # one of ATOM_KINDS
+    name: str
+    offset: int
+
+    @property
+    def text(self) -> str:
+        return f"{self.kind}({self.name})"
+
+
+@dataclass
 class Node:
-    kind: str  # "and" | "or" | "not" | "cmp"
+    kind: str  # "and" | "or" | "not" | "cmp" | "atom"
     children: list[Node] = field(default_factory=list)
     cmp: Comparison | None = None
+    atom: Atom | None = None
 
 
 @dataclass
@@ -103,6 +128,19 @@ class Guard:
         def visit(n: Node) -> None:
             if n.cmp is not None:
                 out.append(n.cmp)
+            for c in n.children:
+                visit(c)
+
+        visit(self.tree)
+        return out
+
+    def atoms(self) -> list[Atom]:
+        """Its ``state``/``event``/``outcome`` atoms in the order written (none in a transition's guard)."""
+        out: list[Atom] = []
+
+        def visit(n: Node) -> None:
+            if n.atom is not None:
+                out.append(n.atom)
             for c in n.children:
                 visit(c)
 
@@ -148,8 +186,9 @@ def _tokenize(text: str) -> list[tuple[str, str, int]]:
 
 
 class _Parser:
-    def __init__(self, text: str) -> None:
+    def __init__(self, text: str, atoms: bool = False) -> None:
         self.text = text
+        self.atoms = atoms
         self.toks = _tokenize(text)
         self.i = 0
         self.depth = 0
@@ -215,7 +254,25 @@ class _Parser:
                 raise GuardSyntaxError(f"expected ')' but found {close[1]!r}", close[2])
             self.depth -= 1
             return node
+        if tok is not None and tok[0] == "name" and tok[1] in ATOM_KINDS and self.i + 1 < len(self.toks) \
+                and self.toks[self.i + 1][1] == "(":
+            return self.atom()
         return self.comparison()
+
+    def atom(self) -> Node:
+        """``state(PATH)`` / ``event(NAME)`` / ``outcome(NAME)``: only in a property's expression."""
+        _, kind, off = self.take()
+        if not self.atoms:
+            raise GuardSyntaxError(f"{kind}( ) is an atom of a mission property, not of a transition's guard", off,
+                                   "a guard compares metrics (e.g. 'pos_error < 1 cm'); use `on: EVENT` for an event")
+        self.take()  # "("
+        k2, name, o2 = self.take()
+        if k2 != "name" or name in KEYWORDS or name.endswith("]"):
+            raise GuardSyntaxError(f"{kind}( ) takes a name", o2, f"write e.g. '{kind}(NAME)'")
+        close = self.take()
+        if close[1] != ")":
+            raise GuardSyntaxError(f"expected ')' after {kind}({name}", close[2])
+        return Node("atom", atom=Atom(kind, name, off))
 
     def operand(self) -> tuple[str, object, int]:
         """('metric', (name, abs), off) | ('qty', (value, unit), off) | ('param', name, off)."""
@@ -272,9 +329,10 @@ class _Parser:
         return Node("cmp", cmp=cmp)
 
 
-def parse_guard(text: str) -> Guard:
-    """Parse ``text``; raises :class:`GuardSyntaxError` with the offending offset."""
-    return Guard(text, _Parser(text).parse())
+def parse_guard(text: str, *, atoms: bool = False) -> Guard:
+    """Parse ``text``; raises :class:`GuardSyntaxError` with the offending offset.  ``atoms`` admits the
+    ``state()``/``event()``/``outcome()`` atoms of a property's expression (never a transition's guard)."""
+    return Guard(text, _Parser(text, atoms).parse())
 
 
 def bind_units(guard: Guard, metric_units: Mapping[str, str], params: Mapping[str, tuple[float, str]],
@@ -352,10 +410,15 @@ def _data_comparison(c: Comparison) -> Predicate:
     return pred
 
 
-def compile_guard(guard: Guard) -> Predicate:
-    """A closure over plain floats: ``pred(metrics, data) -> bool``; missing or NaN metrics compare false."""
+def compile_guard(guard: Guard, atom: Callable[[Atom], Predicate] | None = None) -> Predicate:
+    """A closure over plain floats: ``pred(metrics, data) -> bool``; missing or NaN metrics compare false.
+    ``atom`` gives the predicate of each ``state``/``event``/``outcome`` atom (a property's monitor:
+    :mod:`taskflow.execution.monitors`)."""
 
     def build(n: Node) -> Predicate:
+        if n.kind == "atom":
+            assert n.atom is not None and atom is not None, "a guard with atoms is compiled with their predicates"
+            return atom(n.atom)
         if n.kind == "cmp":
             c = n.cmp
             assert c is not None and c.value is not None, "bind_units() must run first"

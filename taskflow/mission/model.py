@@ -20,6 +20,7 @@ from taskflow.api import Robot, Task, World
 from taskflow.mission.data import DataCatalogue, json_value
 from taskflow.mission.distributions import sample, world_rng
 from taskflow.mission.guards import DATA_PREFIX, Guard, Predicate
+from taskflow.mission.properties import Property
 from taskflow.mission.schema import Mission
 
 YPath = tuple[Any, ...]
@@ -209,6 +210,7 @@ class CompiledMission:
     metric_units: dict[str, str]  # every metric any task or the world publishes
     events: set[str]
     data: DataCatalogue = field(default_factory=DataCatalogue)  # the mission data its tasks declare
+    properties: list[Property] = field(default_factory=list)  # its declared properties (taskflow.mission.properties)
 
     @property
     def name(self) -> str:

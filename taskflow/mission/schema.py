@@ -205,6 +205,55 @@ class Machine(_Model):
     bind: dict[str, str | dict[str, Any]] = Field(default_factory=dict)
 
 
+PROPERTY_PATTERNS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "absence": (("never",), ("while",)),
+    "universality": (("always",), ()),
+    "response": (("after", "within", "then"), ()),
+    "precedence": (("only_after", "occurs"), ()),
+}
+"""A property's specification pattern → (the keys it requires, those it may add)."""
+
+
+class Property(_Model):
+    """One declared property of the mission (``properties: NAME: …``), in one specification pattern:
+    absence (``never: A`` [``while: B``]), universality (``always: A``), response (``after: A``, ``within: T``,
+    ``then: B``) or precedence (``only_after: A``, ``occurs: B``).  A, B: expressions over ``state(PATH)``,
+    ``event(NAME)``, ``outcome(NAME)`` and metric comparisons with units, joined by and/or/not."""
+
+    description: str = ""
+    never: str | None = Field(None, description="absence: this never holds (while `while` holds, if given)")
+    while_: str | None = Field(None, alias="while", description="absence: the condition under which `never` is forbidden")
+    always: str | None = Field(None, description="universality: this holds at every tick")
+    after: str | None = Field(None, description="response: once this holds, `then` must hold within `within`")
+    within: str | float | int | None = Field(None, description="response: the deadline, a time with its unit ('0.05 s')")
+    then: str | None = Field(None, description="response: what must follow `after`")
+    only_after: str | None = Field(None, description="precedence: `occurs` may hold only once this has held")
+    occurs: str | None = Field(None, description="precedence: what may happen only after `only_after`")
+
+    @model_validator(mode="after")
+    def _one_pattern(self) -> Property:
+        given = {k for k in ("never", "while", "always", "after", "within", "then", "only_after", "occurs")
+                 if getattr(self, "while_" if k == "while" else k) is not None}
+        forms = "never [+ while] | always | after + within + then | only_after + occurs"
+        for need, may in PROPERTY_PATTERNS.values():
+            if need[0] in given:
+                missing = [k for k in need if k not in given]
+                extra = sorted(given - set(need) - set(may))
+                if missing or extra:
+                    parts = [f"missing {', '.join(map(repr, missing))}"] if missing else []
+                    if extra:
+                        parts.append(f"{', '.join(map(repr, extra))} {'does' if len(extra) == 1 else 'do'} not belong to it")
+                    what = "; ".join(parts)
+                    raise ValueError(f"a property in the form {need[0]!r}: {what} — one pattern per property: {forms}")
+                return self
+        raise ValueError(f"a property needs one pattern: {forms}")
+
+    @property
+    def pattern(self) -> str:
+        """Its pattern's name (one of :data:`PROPERTY_PATTERNS`)."""
+        return next(k for k, (need, _) in PROPERTY_PATTERNS.items() if getattr(self, need[0]) is not None)
+
+
 class Mission(_Model):
     """A whole mission file."""
 
@@ -224,9 +273,12 @@ class Mission(_Model):
                                                             "operator_confirmed")
     data: dict[str, Any] = Field(default_factory=dict, description="mission-data key (declared by a task of the "
                                  "mission, e.g. viki.object) → the value it holds from the start of the run")
+    properties: dict[str, Property] = Field(
+        default_factory=dict, description="property name → one specification pattern (never/while, always, "
+        "after/within/then, only_after/occurs), checked at load and monitored in every run")
     machine: Machine
 
-    @field_validator("parameters", "data", "profiles", "machine", mode="before")
+    @field_validator("parameters", "data", "profiles", "machine", "properties", mode="before")
     @classmethod
     def _keys_are_names(cls, value: Any) -> Any:
         """``1: 2`` or ``~: x`` under a block of names: say so (pydantic says "Input should be a valid string")."""

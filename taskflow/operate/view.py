@@ -38,7 +38,7 @@ from typing import Any
 from taskflow.execution.frames import INDEX as FRAMES_INDEX
 from taskflow.execution.frames import FrameRecord, frames_from, nearest, read_frame
 from taskflow.execution.record_io import RunDirError, check_summary, lines, read_json
-from taskflow.execution.records import OperatorRecord, TransitionRecord
+from taskflow.execution.records import OperatorRecord, PropertyRecord, TransitionRecord
 from taskflow.markers import Marker
 from taskflow.mission import model
 from taskflow.mission.guards import Guard, Node
@@ -169,7 +169,7 @@ class RecordReader:
         self.dir = Path(run_dir)
         self.columns: list[str] = []
         self.rows: list[list[Any]] = []
-        self.records: list[TransitionRecord | OperatorRecord] = []
+        self.records: list[TransitionRecord | OperatorRecord | PropertyRecord] = []
         self.frames: list[FrameRecord] = []
         self._offsets = {"trace.csv": 0, "transitions.jsonl": 0, FRAMES_INDEX: 0}
         self._lines = {"trace.csv": 1, "transitions.jsonl": 1, FRAMES_INDEX: 1}

@@ -19,7 +19,7 @@ from pydantic import BaseModel
 from taskflow.errors import MissionError
 from taskflow.execution.frames import FrameRecord, read_frames
 from taskflow.execution.record_io import MAX_FRAME_BYTES, RunDirError, check_summary, inside, read_bytes, read_json
-from taskflow.execution.records import OperatorRecord, TransitionRecord
+from taskflow.execution.records import OperatorRecord, PropertyRecord, TransitionRecord
 from taskflow.mission.guards import Comparison
 from taskflow.mission.model import CompiledMission, EventTransition, GuardTransition
 from taskflow.readers.run_files import read_trace, read_transitions
@@ -49,7 +49,7 @@ class RecordedRun:
     ``trace`` maps column → array (:func:`~taskflow.readers.run_files.read_trace`); ``transitions`` are the records of
     ``transitions.jsonl`` in order that change the active leaf (the operator's pre-emptions included),
     ``operator`` its operator actions (pause, hold, resume, preempt, inject: :class:`OperatorRecord`) in
-    order; ``frames`` the camera frames ``frames.jsonl`` indexes (:mod:`taskflow.execution.frames`, each file
+    order; ``properties`` the first violation of each declared property (:class:`PropertyRecord`); ``frames`` the camera frames ``frames.jsonl`` indexes (:mod:`taskflow.execution.frames`, each file
     inside the run directory); ``summary`` is ``summary.json``; ``mission`` the recompiled mission,
     ``scene`` its markers and control points; ``metric_units`` metric → base unit; ``command_labels``
     trace column ``cmd.KEY[.i]`` → (component name, unit)."""
@@ -65,6 +65,7 @@ class RecordedRun:
     command_labels: dict[str, tuple[str, str]] = field(default_factory=dict)
     operator: list[OperatorRecord] = field(default_factory=list)
     frames: list[FrameRecord] = field(default_factory=list)
+    properties: list[PropertyRecord] = field(default_factory=list)
 
     @property
     def seed(self) -> int:
@@ -206,4 +207,5 @@ def load_run(run_dir: str | Path) -> RecordedRun:
     scene = mission_scene(mission, world_params)
     return RecordedRun(d, trace, [r for r in records if isinstance(r, TransitionRecord)], summary, mission,
                        world_params, scene, dict(mission.metric_units), _command_labels(mission),
-                       [r for r in records if isinstance(r, OperatorRecord)], read_frames(d))
+                       [r for r in records if isinstance(r, OperatorRecord)], read_frames(d),
+                       [r for r in records if isinstance(r, PropertyRecord)])

@@ -1,7 +1,8 @@
 """The terminal summary of a run, from its record (:class:`~taskflow.readers.recorded.RecordedRun`).
 
 What it prints, in order: the outcome and its reason; times; ``foreach`` item counts; the operator's
-actions (pause, hold, resume, inject, preempt: who, when, in which state), whatever the outcome; for a run that
+actions (pause, hold, resume, inject, preempt: who, when, in which state), whatever the outcome; each declared
+property's verdict (``summary.json``'s ``properties``) with its first violation's atom values; for a run that
 did not succeed, the chain of transitions that led to the final state, each with its cause (the guard
 with the metric values it fired on, the event, the timeout, the sub-machine's outcome); then every metric
 with its unit in two groups, each saying how many it holds (``-``: dimensionless; ``(no unit)``: a
@@ -25,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from taskflow.execution.records import OperatorRecord, TransitionRecord
+from taskflow.execution.records import OperatorRecord, PropertyRecord, TransitionRecord
 from taskflow.readers.recorded import RecordedRun
 from taskflow.units import suffix_unit
 
@@ -81,6 +82,16 @@ def describe_operator(rec: OperatorRecord) -> str:
     return f"t = {rec.t:8.2f} s  {rec.action}{arg} by {rec.who} (tick {rec.tick}, in {rec.state or '-'}){refused}"
 
 
+def describe_property(name: str, verdict: dict[str, Any], rec: PropertyRecord | None) -> str:
+    """One line: the property, its verdict, and for a violation when, in which state, with its atoms' values."""
+    head = f"{name} ({verdict.get('pattern', '')}): {verdict.get('verdict', '')}"
+    if rec is None:
+        return head + (f" — {verdict['reason']}" if verdict.get("reason") else "")
+    values = ", ".join(f"{k} = {_value(v) if v is not None else 'none'}" for k, v in rec.atoms.items())
+    return f"{head} at t = {rec.t:.2f} s in {rec.state or '-'}" + (f": {values}" if values else "") + \
+        (f" — {rec.reason}" if rec.reason else "")
+
+
 def _last_values(run: RecordedRun) -> list[tuple[str, float, str, float]]:
     """(metric, last finite value, state that published it, t) for every metric in the trace."""
     t, states = run.trace["t"], run.trace["state"]
@@ -105,6 +116,11 @@ def format_report(run: RecordedRun, timing: dict[str, Any] | None = None) -> str
     if run.operator:
         lines.append(f"operator actions ({len(run.operator)}):")
         lines += [f"  {describe_operator(r)}" for r in run.operator]
+    verdicts = s.get("properties")
+    if isinstance(verdicts, dict) and verdicts:
+        first = {r.property: r for r in run.properties}
+        lines.append(f"properties ({len(verdicts)}):")
+        lines += [f"  {describe_property(k, v, first.get(k))}" for k, v in verdicts.items() if isinstance(v, dict)]
     units = run.metric_units
     if s.get("outcome") != "succeeded" and run.transitions:
         chain = run.transitions

@@ -1,7 +1,8 @@
 """A run directory's ``trace.csv`` and ``transitions.jsonl`` parsed back (the formats
 :mod:`taskflow.execution.records` writes), as untrusted input through :mod:`taskflow.execution.record_io`:
 one parse of a ``transitions.jsonl`` line (:func:`record_from_dict`: an
-:class:`~taskflow.execution.records.OperatorRecord` or a :class:`~taskflow.execution.records.TransitionRecord`),
+:class:`~taskflow.execution.records.OperatorRecord`, a :class:`~taskflow.execution.records.PropertyRecord` or a
+:class:`~taskflow.execution.records.TransitionRecord`),
 one of a trace row (:func:`parse_trace_row`, :func:`read_trace`)."""
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from taskflow.execution.record_io import RunDirError, json_line, lines
-from taskflow.execution.records import CAUSES, OPERATOR, OperatorRecord, TransitionRecord
+from taskflow.execution.records import CAUSES, OPERATOR, PROPERTY, OperatorRecord, PropertyRecord, TransitionRecord
 
 TRACE_FIXED = ("t", "state", "events")
 """The first three columns of every ``trace.csv``."""
@@ -92,19 +93,35 @@ _NUMBER = (int, float)
 OPERATOR_ACTIONS = ("pause", "hold", "resume", "preempt", "inject")
 
 
-def record_from_dict(d: Any) -> TransitionRecord | OperatorRecord:
+Record = TransitionRecord | OperatorRecord | PropertyRecord
+"""What one line of ``transitions.jsonl`` holds."""
+RECORD_CAUSES = (*CAUSES, PROPERTY)
+_ATOM_VALUE = (bool, int, float, str)
+
+
+def record_from_dict(d: Any) -> Record:
     """One line of ``transitions.jsonl`` (parsed JSON) as the record that wrote it: an
-    :class:`OperatorRecord` (``cause: operator`` with an ``action``) or a :class:`TransitionRecord`
-    (every other line, the operator's pre-emption included).  The one parse of that file every reader
-    uses; a line of other shape or types is a :class:`ValueError` saying what is wrong."""
+    :class:`OperatorRecord` (``cause: operator`` with an ``action``), a :class:`PropertyRecord` (``cause:
+    property``: a declared property's first violation) or a :class:`TransitionRecord` (every other line, the
+    operator's pre-emption included).  The one parse of that file every reader uses; a line of other shape
+    or types is a :class:`ValueError` saying what is wrong."""
     if not isinstance(d, dict):
         raise ValueError(f"a JSON object was expected, got {type(d).__name__}")
-    cause = _typed(d, "cause", (str,), "one of " + ", ".join(CAUSES))
-    if cause not in CAUSES:
-        raise ValueError(f"cause {cause[:40]!r} — valid: {', '.join(CAUSES)}")
+    cause = _typed(d, "cause", (str,), "one of " + ", ".join(RECORD_CAUSES))
+    if cause not in RECORD_CAUSES:
+        raise ValueError(f"cause {cause[:40]!r} — valid: {', '.join(RECORD_CAUSES)}")
     t = float(_typed(d, "t", _NUMBER, "a sim time in s"))
     if not math.isfinite(t):
         raise ValueError(f"'t' is {t} — a finite sim time in s was expected")
+    if cause == PROPERTY:
+        atoms = _typed(d, "atoms", (dict,), "an object of atom values", {})
+        if not all(v is None or isinstance(v, _ATOM_VALUE) for v in atoms.values()):
+            raise ValueError("'atoms' holds a value that is no number, truth value or text — atom → value was expected")
+        return PropertyRecord(t=t, property=_typed(d, "property", (str,), "a property name"),
+                              pattern=_typed(d, "pattern", (str,), "a property pattern", ""),
+                              state=_typed(d, "state", (str,), "a state path", ""), atoms=dict(atoms),
+                              reason=_typed(d, "reason", (str,), "why", ""),
+                              verdict=_typed(d, "verdict", (str,), "a verdict", "violated"))
     if cause == OPERATOR and "action" in d:
         action = _typed(d, "action", (str,), "an operator action")
         if action not in OPERATOR_ACTIONS:
@@ -132,7 +149,7 @@ def record_from_dict(d: Any) -> TransitionRecord | OperatorRecord:
 
 
 def read_transitions(run_dir: str | Path, *, offset: int = 0, first_line: int = 1,
-                     complete_only: bool = False) -> Iterator[tuple[TransitionRecord | OperatorRecord, int, int]]:
+                     complete_only: bool = False) -> Iterator[tuple[Record, int, int]]:
     """The records of ``transitions.jsonl`` (:func:`record_from_dict`) from byte ``offset``, each with
     its line number and the offset after its line; a malformed line is a
     :class:`~taskflow.execution.record_io.RunDirError` naming it."""

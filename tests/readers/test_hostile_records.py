@@ -65,6 +65,32 @@ def test_the_base_record_is_readable_by_every_reader(base: Path, batch: Path, tm
     capsys.readouterr()
 
 
+PROPERTY_LINE = ('{"t": 0.5, "cause": "property", "property": "far", "pattern": "absence", "verdict": "violated", '
+                 '"state": "operate.home", "atoms": {"state(operate.home)": true, "pos_error": 0.25, "data.n": null}}')
+
+
+def test_a_property_record_is_read_by_every_reader(base: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A ``cause: property`` line (a declared property's first violation) in the middle of the record: every reader
+    takes it, and the "how it got there" chain and the page's transitions stay those of the state changes."""
+    def add(d: Path) -> None:
+        lines = (d / "transitions.jsonl").read_text().splitlines()
+        (d / "transitions.jsonl").write_text("\n".join([lines[0], PROPERTY_LINE, *lines[1:]]) + "\n")
+        summary = json.loads((d / "summary.json").read_text())
+        summary["properties"] = {"far": {"pattern": "absence", "verdict": "violated", "t": 0.5}}
+        (d / "summary.json").write_text(json.dumps(summary))
+
+    d = make_case(base, tmp_path, "with-property", add)
+    assert main(["plot", str(d)]) == 0 and main(["export", str(d)]) == 0
+    run = load_run(d)
+    assert [r.property for r in run.properties] == ["far"] and all(r.cause != "property" for r in run.transitions)
+    assert "far (absence): violated at t = 0.50 s in operate.home: state(operate.home) = true, pos_error = 0.25, " \
+           "data.n = none" in format_report(run)
+    view = open_run(d)
+    recs = view.reader.transitions(0)["records"]
+    assert sum(r["cause"] == "property" for r in recs) == 1
+    capsys.readouterr()
+
+
 @pytest.mark.parametrize("reader", ["plot", "export", "report", "view"])
 @pytest.mark.parametrize("case", sorted(RUN_CASES))
 def test_every_reader_refuses_a_hostile_run_record(case: str, reader: str, base: Path, tmp_path: Path,

@@ -9,7 +9,8 @@ stops after a pass that found problems, so later passes see a consistent tree):
 4. ``bindings`` — profiles, task and action parameters for every ``foreach`` item, loop rules;
 5. ``transitions`` — typed transition records, guards, events, clocks;
 6. ``structure`` — ``done`` coverage, a way to end, reachability, ways out;
-7. ``dataflow`` — every mission-data key a state reads is written on every path into it.
+7. ``dataflow`` — every mission-data key a state reads is written on every path into it;
+8. ``properties`` — the declared properties (:mod:`taskflow.mission.properties`) checked and compiled.
 """
 
 from __future__ import annotations
@@ -21,9 +22,10 @@ from taskflow.mission.compile.components import resolve_components
 from taskflow.mission.compile.context import Compilation
 from taskflow.mission.compile.dataflow import check_dataflow, data_catalogue
 from taskflow.mission.compile.structure import check_structure, finishing_outcomes
-from taskflow.mission.compile.transitions import compile_transitions
+from taskflow.mission.compile.transitions import compile_transitions, guard_params
 from taskflow.mission.compile.tree import build_tree, catalogue, check_region_metrics, check_region_names
 from taskflow.mission.model import CompiledMission
+from taskflow.mission.properties import Scope, compile_properties
 from taskflow.mission.schema import Mission
 from taskflow.mission.yamlsrc import SourceMap
 
@@ -49,7 +51,12 @@ def compile_document(data: dict[str, Any], spec: Mission, smap: SourceMap) -> Co
     c.fail_if_problems()
     check_dataflow(c, root)
     c.fail_if_problems()
+    quantities, not_quantities = guard_params(c)
+    scope = Scope(c.states, events, metric_units, c.mission_data.guard_units(), quantities, not_quantities)
+    properties = compile_properties(spec.properties, scope, c.err)
+    c.fail_if_problems()
     return CompiledMission(
         file=smap.file, raw=data, spec=spec, root=root, states=c.states, transitions=c.transitions,
         robot_cls=c.robot_cls, robot_params=c.robot_params, world_cls=c.world_cls,
-        world_params_raw=c.world_params_raw, metric_units=metric_units, events=events, data=mission_data)
+        world_params_raw=c.world_params_raw, metric_units=metric_units, events=events, data=mission_data,
+        properties=properties)

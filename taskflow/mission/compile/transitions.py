@@ -29,7 +29,7 @@ from taskflow.units import UnitError, parse_quantity
 
 
 def compile_transitions(c: Compilation, root: StateNode, events: set[str]) -> None:
-    quantities, not_quantities = _guard_params(c)
+    quantities, not_quantities = guard_params(c)
     for n in root.walk():
         if n.parent is None:
             continue
@@ -162,7 +162,7 @@ def _enclosing(n: StateNode, name: str) -> StateNode | None:
     return None
 
 
-def _guard_params(c: Compilation) -> tuple[dict[str, tuple[float, str]], dict[str, str]]:
+def guard_params(c: Compilation) -> tuple[dict[str, tuple[float, str]], dict[str, str]]:
     """Parameters usable in guards (quantities), and why each other parameter is not."""
     out: dict[str, tuple[float, str]] = {}
     bad: dict[str, str] = {}

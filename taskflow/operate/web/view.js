@@ -100,7 +100,7 @@ function enteredAt(path, i, first) {
   const t = S.rows[i][0];
   let best = null;
   for (const r of S.recs) {
-    if (r.cause === "operator" && !r.to) continue;
+    if (!r.to) continue;  // an operator action or a property's violation: no change of state
     if (r.t >= t) break;
     const fromOut = r.from === "__start__" || !within(r.from, path) || (r.from === r.to && r.to === path);
     if (within(r.to, path) && fromOut) {
@@ -255,6 +255,10 @@ function renderGuards(leaves, i) {
 }
 
 function recordText(r) {
+  if (r.cause === "property") {
+    const atoms = Object.entries(r.atoms || {}).map(([k, v]) => `${k}=${typeof v === "number" ? fmt(v) : v}`).join(", ");
+    return `${r.t.toFixed(2)} s  property ${r.property} violated (${r.pattern}, in ${r.state})${atoms ? " [" + atoms + "]" : ""}`;
+  }
   if (r.cause === "operator" && r.action) {
     const args = Object.entries(r.args || {}).map(([k, v]) => `${k}=${v}`).join(" ");
     return `${r.t.toFixed(2)} s  operator ${r.action}${args ? " " + args : ""} by ${r.who} (in ${r.state})`;
@@ -286,6 +290,7 @@ function renderTransitions(t) {
     const past = r.t < t || (r.t === t && r.cause === "operator");
     if (!past) li.classList.add("future");
     if (r.cause === "operator") li.classList.add("op");
+    if (r.cause === "property") li.classList.add("prop");
     if (past && current === null) current = li;
     ol.appendChild(li);
   }
