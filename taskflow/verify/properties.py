@@ -15,6 +15,9 @@ has a set of possible values in a configuration, and:
 * **response** (``after: A``, ``within: T``, ``then: B``) when, from a configuration that lets ``A`` hold and ``B``
   fail, the model can keep ``B`` false until the run ends, or for more ticks than ``T`` spans (each tick is
   :attr:`~taskflow.verify.model.Model.quantum` seconds: a deadline shorter than a tick is decided to within one).
+  An event that makes ``A`` hold is taken as the engine takes it: where an active state has a transition on it,
+  that transition (or one checked before it) fires in the same control period — time does not pass first; where
+  none has, the event is ignored.
 
 Absence, universality and precedence go to Storm (``Pmax=? [F bad]``, ``Pmax=? [notA U bad]``) on labels built
 here; a response is a search over (configuration, ticks elapsed) on the model.  A violation's counterexample is the
@@ -24,14 +27,16 @@ shortest path of the model to it.
 from __future__ import annotations
 
 import math
+import time
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from itertools import product
 from typing import Any
 
 from taskflow.mission.guards import Node
+from taskflow.mission.model import EventTransition
 from taskflow.verify.counterexample import Counterexample
-from taskflow.verify.model import TICK, Config, Model, _Explorer
+from taskflow.verify.model import TICK, Config, Model, Step, _Explorer
 from taskflow.verify.results import FAILS, HOLDS, MONITORED, CheckResult
 from taskflow.verify.storm import StormModel
 
@@ -85,13 +90,37 @@ class _Evaluator:
     def possible(self, s: int, exprs: list[Node], wanted: list[bool]) -> bool:
         """Whether, in configuration ``s``, some choice of the arriving events gives each of ``exprs`` its
         ``wanted`` value at once."""
+        return next(self.choices(s, exprs, wanted), None) is not None
+
+    def choices(self, s: int, exprs: list[Node], wanted: list[bool]) -> Iterator[frozenset[str]]:
+        """Each set of arriving events (among those the expressions name) that gives each of ``exprs`` its ``wanted``
+        value in configuration ``s``."""
         names = sorted({a.name for e in exprs for a in _atoms(e) if a.kind == "event"} & self.events(s))
         active, outcome = self.active(s), self.model.configs[s].outcome
         for choice in product((False, True), repeat=len(names)):
             ev = dict(zip(names, choice))
             if all(_values(e, active, outcome, ev, self.states) == w for e, w in zip(exprs, wanted)):
-                return True
-        return False
+                yield frozenset(n for n, v in ev.items() if v)
+
+    def first_steps(self, s: int, arriving: frozenset[str]) -> list[Step]:
+        """The steps the machine can take in the control period ``arriving`` events arrive in configuration ``s``:
+        where an active leaf's table has a transition on one of them, that transition or one checked before it
+        fires (no time passes first); where none has, the events are ignored and anything may happen."""
+        allowed: set[int] = set()
+        handled = False
+        for leaf in self.model.configs[s].leaves:
+            table = self.explorer.tables.get(leaf, [])
+            first = next((k for k, tr in enumerate(table) if isinstance(tr, EventTransition) and tr.event in arriving),
+                         None)
+            if first is None:
+                allowed.update(tr.index for tr in table)
+            else:
+                handled = True
+                allowed.update(tr.index for tr in table[:first + 1])
+        steps = self.model.steps[s]
+        if not handled:
+            return steps
+        return [st for st in steps if st.cause != TICK and st.transition is not None and st.transition in allowed]
 
 
 def _atoms(n: Node) -> Iterable[Any]:
@@ -152,46 +181,55 @@ def _reach_result(model: Model, name: str, pattern: str, bad: list[int], what: s
 def _response(model: Model, name: str, prop: Any, ev: _Evaluator, a: Node, b: Node) -> CheckResult:
     within = float(prop.within or 0.0)
     limit = int(math.floor(within / model.quantum + 1e-9))  # ticks the deadline spans
-    triggers = _where(model, ev, lambda s: ev.possible(s, [a, b], [True, False]))
     not_b = set(_where(model, ev, lambda s: ev.possible(s, [b], [False])))
-    for t in sorted(triggers, key=lambda s: len(model.path_to([s]) or [])):
-        # breadth first over (configuration, ticks elapsed) keeping B false
-        seen = {(t, 0)}
-        back: dict[tuple[int, int], tuple[tuple[int, int], Any]] = {}
-        queue = deque([(t, 0)])
-        found = None
-        while queue and found is None:
-            s, k = queue.popleft()
-            if model.configs[s].final:
-                found = ((s, k), "the run ends and B never held")
-                break
-            for step in model.steps[s]:
-                k2 = k + (1 if step.cause == TICK else 0)
-                n = step.target
-                if n not in not_b:
-                    continue
-                if k2 > limit:
-                    found = ((n, k2), f"B has not held {k2 * model.quantum:g} s later (deadline {within:g} s)")
-                    back[(n, k2)] = ((s, k), step)
-                    break
-                if (n, k2) not in seen:
-                    seen.add((n, k2))
-                    back[(n, k2)] = ((s, k), step)
-                    queue.append((n, k2))
+    triggers = [(s, arriving) for s in range(model.n_states) for arriving in ev.choices(s, [a, b], [True, False])]
+    triggers.sort(key=lambda x: len(model.path_to([x[0]]) or []))
+    for t, arriving in triggers:
+        found = _escape(model, t, ev.first_steps(t, arriving), not_b, limit, within)
         if found is None:
             continue
+        tail, why = found
         lead = model.path_to([t]) or []
-        tail: list[tuple[int, Any]] = []
-        node = found[0]
-        while node in back:
-            prev, step = back[node]
-            tail.append((prev[0], step))
-            node = prev
-        path = lead + tail[::-1]
-        return CheckResult(name, FAILS, f"response: A can hold in {model.configs[t].describe()} and then {found[1]}",
-                           Counterexample(model, path, found[1], list(model.configs[t].leaves)))
+        when = f" with {', '.join(sorted(arriving))} arriving" if arriving else ""
+        return CheckResult(name, FAILS, f"response: A can hold in {model.configs[t].describe()}{when}, and then {why}",
+                           Counterexample(model, lead + tail, why, list(model.configs[t].leaves)))
     tol = "" if limit * model.quantum == within else f" (to within one tick of {model.quantum:g} s)"
     return CheckResult(name, HOLDS, f"response: whenever A can hold, B follows within {within:g} s{tol}")
+
+
+def _escape(model: Model, t: int, first: list[Step], not_b: set[int], limit: int,
+            within: float) -> tuple[list[tuple[int, Step]], str] | None:
+    """A path from ``t`` (its first step among ``first``) that keeps B false past the deadline or to the run's end,
+    breadth first over (configuration, ticks elapsed): the steps and why it violates, or None."""
+    if model.configs[t].final:
+        return [], "the run has ended and B does not hold"
+    back: dict[tuple[int, int], tuple[tuple[int, int], Step]] = {}
+    seen = {(t, 0)}
+    queue = deque([(t, 0)])
+    while queue:
+        s, k = queue.popleft()
+        for step in (first if (s, k) == (t, 0) else model.steps[s]):
+            k2 = k + (1 if step.cause == TICK else 0)
+            n = step.target
+            if n not in not_b or (n, k2) in seen:
+                continue
+            back[(n, k2)] = ((s, k), step)
+            why = None
+            if k2 > limit:
+                why = f"B has not held {k2 * model.quantum:g} s later (deadline {within:g} s)"
+            elif model.configs[n].final:
+                why = "the run ends and B never held"
+            if why is not None:
+                path: list[tuple[int, Step]] = []
+                node = (n, k2)
+                while node in back:
+                    prev, st = back[node]
+                    path.append((prev[0], st))
+                    node = prev
+                return path[::-1], why
+            seen.add((n, k2))
+            queue.append((n, k2))
+    return None
 
 
 def check_properties(model: Model) -> list[CheckResult]:
@@ -199,4 +237,10 @@ def check_properties(model: Model) -> list[CheckResult]:
     props = list(getattr(model.mission, "properties", []) or [])
     if not props:
         return []
-    return [check_property(model, p) for p in props]
+    out = []
+    for p in props:
+        t0 = time.perf_counter()
+        res = check_property(model, p)
+        res.seconds = time.perf_counter() - t0
+        out.append(res)
+    return out

@@ -15,9 +15,9 @@ import stormpy
 import stormpy.developer as dev
 
 from taskflow.mission.loader import load_mission
-from taskflow.verify.storm import StormModel
 from taskflow.verify.export import jani_text, prism_text
 from taskflow.verify.model import build_model
+from taskflow.verify.storm import StormModel
 
 pytestmark = pytest.mark.machine
 
