@@ -90,8 +90,11 @@ class _Node:
 
 
 class _Generator:
-    def __init__(self, seed: int, size: int | None, p_parallel: float, p_history: float) -> None:
+    def __init__(self, seed: int, size: int | None, p_parallel: float, p_history: float, p_foreach: float,
+                 p_since: float) -> None:
         self.rng = random.Random(seed)
+        self.p_foreach = p_foreach
+        self.p_since = p_since
         self.p_parallel = p_parallel
         self.p_history = p_history
         self.seed = seed
@@ -151,7 +154,7 @@ class _Generator:
         inside = parent.kind == "region" or parent.in_region()
         if r < self.p_parallel and not inside:
             return "parallel"
-        return "foreach" if r < self.p_parallel + 0.25 else "plain"
+        return "foreach" if r < self.p_parallel + self.p_foreach else "plain"
 
     def fill_parallel(self, node: _Node, budget: int, depth: int) -> None:
         rng = self.rng
@@ -216,9 +219,9 @@ class _Generator:
             tr = {"after": f"{rng.choice(AFTERS)} s"}
             enclosing = [a for a in node.ancestors() if a.parent is not None and a.kind != "region"]
             s = rng.random()
-            if s < 0.1:  # (a first_entry clock runs on while its state is left: it multiplies the model most)
+            if s < self.p_since:  # (a first_entry clock runs on while its state is left: it multiplies the model most)
                 tr["since"] = "first_entry"
-            elif s < 0.2 and enclosing:
+            elif s < 2 * self.p_since and enclosing:
                 tr["since"] = rng.choice(enclosing).name
             return tr
         tr = {"on": rng.choice(WORLD_EVENTS + MISSION_EVENTS)}
@@ -313,11 +316,15 @@ class _Generator:
         return yaml.safe_dump(doc, sort_keys=False, width=200)
 
 
-def generate(seed: int, size: int | None = None, *, p_parallel: float = 0.15, p_history: float = 0.3) -> str:
-    """A valid mission YAML text drawn from ``seed``: about ``size`` states (default: 3 to 50, drawn); a composite
-    is a parallel state with probability ``p_parallel`` (outside regions), a ``history: true`` one with
-    ``p_history`` — the two that multiply the model's configurations most."""
-    return _Generator(seed, size, p_parallel, p_history).text()
+def generate(seed: int, size: int | None = None, *, p_parallel: float = 0.15, p_history: float = 0.3,
+             p_foreach: float = 0.25, p_since: float = 0.1) -> str:
+    """A valid mission YAML text drawn from ``seed``: about ``size`` states (default: 3 to 50, drawn).  A composite
+    is a parallel state with probability ``p_parallel`` (outside regions), a ``foreach`` with ``p_foreach``, and
+    has ``history: true`` with ``p_history``; a timeout counts ``since: first_entry`` with ``p_since`` (and since an
+    enclosing state with ``p_since`` again).  Those multiply the model's configurations (a region's clocks and
+    leaves, a history's resume point, a loop's counters, a first-entry clock: each is kept while its state is
+    not active), so a large machine keeps them rare."""
+    return _Generator(seed, size, p_parallel, p_history, p_foreach, p_since).text()
 
 
 # -- driving a generated (or any) machine at random ------------------------------------------------------------

@@ -1,0 +1,86 @@
+"""How long ``taskflow verify`` takes: every shipped mission, and a generated mission of 1,000 states.
+
+For each ``missions/*.yaml``: the model's size (configurations, steps, time step), the time to build it, and
+each check's time (``verify_mission``: Storm answers ``no_trap``, ``timed_exit``, ``duration`` and ``outcomes``;
+``region_conflicts`` is read off the model), and the total.  Then the same for a machine of ``--size`` states
+drawn by ``tests/verify/machines.py`` (``generate(seed, size, ...)`` on the toy robot and world), whose
+state-multiplying features are set by ``--p-parallel``, ``--p-history``, ``--p-foreach`` and ``--p-since``
+(default 0: plain nested composites with guards, timeouts, events, action ends and ``done`` by outcome; each
+of the four, even at a few per cent of 1,000 states, takes the model past its 2,000,000-configuration budget —
+see BENCHMARKS.md).  Targets (issue 22): each shipped mission < 2 s, the 1,000-state machine < 30 s.
+
+Usage: ``python benchmarks/verify.py [--size 1000] [--seed 0] [--p-history 0.0] ...``.  The last line is JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tests" / "verify")]
+
+import toys  # the toy robot, world and tasks the generated machine names
+from machines import generate
+
+from taskflow.execution.provenance import versions
+from taskflow.mission.loader import load_mission, load_mission_text
+from taskflow.mission.model import CompiledMission
+from taskflow.verify import verify_mission
+
+CHECKS = ("no_trap", "timed_exit", "duration", "outcomes", "region_conflicts")
+
+
+def measure(name: str, mission: CompiledMission, load_s: float) -> dict[str, Any]:
+    t = time.perf_counter()
+    v = verify_mission(mission)
+    total = time.perf_counter() - t
+    m = v.model
+    return {"mission": name, "states": len(mission.states), "configurations": m.n_states, "steps": m.n_steps,
+            "tick_s": m.quantum, "load_s": load_s, "build_s": v.build_seconds, "verify_s": total,
+            "checks_s": {c.name: c.seconds for c in v.checks}, "verdicts": {c.name: c.verdict for c in v.checks}}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--size", type=int, default=1000, help="states of the generated machine")
+    ap.add_argument("--seed", type=int, default=0)
+    for knob in ("parallel", "history", "foreach", "since"):
+        ap.add_argument(f"--p-{knob}", type=float, default=0.0)
+    args = ap.parse_args()
+    toys.register()
+    rows = []
+    for path in sorted((ROOT / "missions").glob("*.yaml")):
+        t = time.perf_counter()
+        mission = load_mission(path)
+        rows.append(measure(path.stem, mission, time.perf_counter() - t))
+    text = generate(args.seed, args.size, p_parallel=args.p_parallel, p_history=args.p_history,
+                    p_foreach=args.p_foreach, p_since=args.p_since)
+    t = time.perf_counter()
+    mission = load_mission_text(text, f"generated_{args.seed}_{args.size}.yaml")
+    generated = measure(f"generated (seed {args.seed}, {args.size} states)", mission, time.perf_counter() - t)
+    rows.append(generated)
+
+    width = max(len(r["mission"]) for r in rows)
+    head = f"{'mission':{width}s} {'states':>6s} {'configs':>8s} {'steps':>8s} {'tick':>5s} {'build':>7s} " + \
+        " ".join(f"{c[:10]:>10s}" for c in CHECKS) + f" {'total':>7s}"
+    print(head)
+    for r in rows:
+        fails = [c for c in CHECKS if r["verdicts"].get(c) != "holds"]
+        print(f"{r['mission']:{width}s} {r['states']:6d} {r['configurations']:8d} {r['steps']:8d} {r['tick_s']:5g} "
+              f"{r['build_s']:7.3f} " + " ".join(f"{r['checks_s'][c]:10.3f}" for c in CHECKS) +
+              f" {r['verify_s']:7.3f}" + (f"  fails: {', '.join(fails)}" if fails else ""))
+    shipped = rows[:-1]
+    worst = max(shipped, key=lambda r: r["verify_s"])
+    print(f"slowest shipped mission: {worst['mission']} {worst['verify_s']:.2f} s (target < 2 s); "
+          f"generated: {generated['verify_s']:.2f} s for {generated['configurations']} configurations (target < 30 s)")
+    print(json.dumps({"shipped": shipped, "generated": generated, "shipped_max_s": worst["verify_s"],
+                      "generated_s": generated["verify_s"], "knobs": vars(args), "versions": versions()}))
+
+
+if __name__ == "__main__":
+    main()
