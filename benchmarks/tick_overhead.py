@@ -16,6 +16,10 @@ Three figures, measured in one process on the same 3-level machine carrying the 
   divided by the transitions its table holds (five over three levels: a guard, a guard with dwell, two
   event guards and a time guard): what checking one transition costs.
 
+* ``idle_tick_properties_us`` — the idle tick plus the property monitor (:mod:`taskflow.execution.monitors`)
+  on the same machine declaring four properties (one per pattern: states, an event, metrics), none decided
+  early: ``properties_ratio`` is it over ``idle_tick_us`` (a mission without properties runs no monitor).
+
 ``fired_ratio`` is ``fired_transition_us / baseline_fired_us`` (the issue's bound: ≤ 1.5).
 
 Usage: ``python benchmarks/tick_overhead.py [--ticks N]``.  The last line is JSON (medians, µs).
@@ -99,12 +103,21 @@ machine:
 """
 
 
-def build() -> CompiledMission:
+PROPERTIES = """properties:
+  near_in_c: {never: "state(a.b.c) and err > 5 m", while: "yaw > 1 rad"}
+  small_yaw: {always: "yaw < 2 rad"}
+  ping_reply: {after: "event(ping)", within: 1 s, then: "state(a.d)"}
+  d_after_never: {only_after: "event(never)", occurs: "state(fail)"}
+"""
+
+
+def build(properties: bool = False) -> CompiledMission:
     for reg, name, cls in ((ROBOTS, "bench_robot", BenchRobot), (WORLDS, "bench_world", BenchWorld),
                            (TASKS, "bench_task", BenchTask)):
         if name not in reg:
             reg.add(name, cls)
-    return load_mission_text(MISSION, "bench.yaml")
+    text = MISSION.replace("machine:\n", PROPERTIES + "machine:\n", 1) if properties else MISSION
+    return load_mission_text(text, "bench.yaml")
 
 
 def measure(fn: Any, n: int) -> list[float]:
@@ -143,6 +156,25 @@ def main() -> None:
         idle()
     idle_us = measure(idle, n)
     assert ex.state == "a.b.c", ex.state
+
+    # -- idle with the property monitor: four properties, each evaluated every tick -------------------------
+    from taskflow.execution.monitors import PropertyMonitor
+
+    with_props = build(properties=True)
+    monitor = PropertyMonitor(with_props.properties, with_props.states, rec.transition)
+
+    def idle_monitored() -> None:
+        k[0] += 1
+        obs.t = k[0] * 0.01
+        leaf = ex.state
+        command, metrics, events = ex.tick(obs)
+        monitor.tick(obs.t, leaf, metrics, events, ex.memory)
+        rec.tick(obs.t, leaf, events, metrics, command, {})
+
+    for _ in range(1000):
+        idle_monitored()
+    idle_props_us = measure(idle_monitored, n)
+    assert all(c.verdict == "held" and c.open for c in monitor.checks)
 
     # -- the guards alone: the idle leaf's table checked, nothing firing ------------------------------------
     checked = sum(1 for a in mission.states["a.b.c"].ancestors() for tr in a.transitions
@@ -223,6 +255,8 @@ def main() -> None:
         "idle_tick_mean_us": statistics.fmean(idle_us),
         "fired_transition_us": statistics.median(fired_us),
         "fired_transition_mean_us": statistics.fmean(fired_us),
+        "idle_tick_properties_us": statistics.median(idle_props_us),
+        "properties_ratio": statistics.median(idle_props_us) / statistics.median(idle_us),
         "idle_check_us": statistics.median(check_us),
         "idle_check_ns_per_transition": 1000.0 * statistics.median(check_us) / checked,
         "baseline_trigger_us": statistics.median(base_us),
@@ -234,6 +268,8 @@ def main() -> None:
         "machine": platform.machine(),
     }
     print(f"idle tick (guards + dispatch + trace): median {res['idle_tick_us']:.2f} µs, mean {res['idle_tick_mean_us']:.2f} µs")
+    print(f"idle tick + 4 properties monitored:   median {res['idle_tick_properties_us']:.2f} µs "
+          f"({res['properties_ratio']:.2f}x the idle tick)")
     print(f"fired nested transition:              median {res['fired_transition_us']:.1f} µs, mean {res['fired_transition_mean_us']:.1f} µs")
     print(f"guards alone ({checked} transitions):       median {res['idle_check_us']:.2f} µs, "
           f"{res['idle_check_ns_per_transition']:.0f} ns per transition")

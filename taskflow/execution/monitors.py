@@ -3,7 +3,7 @@
 Every control tick the run hands the monitor what the tick saw — its sim time, the configuration the tick ran
 in (the active leaves before the tick's transition, as ``trace.csv``'s ``state`` column: the configuration
 whose tasks produced the tick's metrics), the tick's metrics and events, the run's mission data — and each
-property still undecided is evaluated on it:
+property still undecided is evaluated on it (ticks under an operator's hold run no task and are not evaluated):
 
 * absence (``never: A``, ``while: B``) and universality (``always: A``) are violated at the first tick where A
   (and B) holds, or A does not;

@@ -135,7 +135,8 @@ def machine_json(mission: CompiledMission, scene: Scene, gt_names: list[str]) ->
     ``control_points``: leaf state path → ``{offset: [ahead, left], label}``, the point of the robot its
     guards measure (:class:`~taskflow.markers.ControlPoint`; a state not listed measures the pose itself;
     a row of parallel leaves ``a|b`` takes the first leaf's that declares one, as
-    :meth:`taskflow.readers.scene.Scene.control_point`)."""
+    :meth:`taskflow.readers.scene.Scene.control_point`); ``properties`` the declared properties (``{name, pattern,
+    description, text}``, in order: :mod:`taskflow.mission.properties`), whose verdicts the page shows."""
     recorded = {name: _pose_columns(keys, gt_names) for name, keys in scene.poses.items()}
     pose = next(iter(recorded.values()), None)
     bodies = [{"name": name, "x": c[0], "y": c[1]} for name, c in list(recorded.items())[1:] if c is not None]
@@ -143,7 +144,11 @@ def machine_json(mission: CompiledMission, scene: Scene, gt_names: list[str]) ->
             "metric_units": dict(sorted(mission.metric_units.items())),
             "xy": pose, "bodies": bodies, "markers": [marker_json(m) for m in scene.markers],
             "control_points": {state: {"offset": list(cp.offset), "label": cp.label}
-                               for state, cp in sorted(scene.control_points.items())}}
+                               for state, cp in sorted(scene.control_points.items())},
+            "properties": [{"name": p.name, "pattern": p.pattern, "description": p.description,
+                            "text": "; ".join(f"{role}: {g.text}" for role, g in p.exprs.items())
+                            + (f"; within: {p.within:g} s" if p.within is not None else "")}
+                           for p in mission.properties]}
 
 
 # -- the record, read as it is written ------------------------------------------------------------------

@@ -141,6 +141,10 @@ def check_property(model: Model, prop: Any) -> CheckResult:
         metrics = sorted({a.name for a in prop.atoms() if a.kind == "metric"})
         return CheckResult(name, MONITORED, f"{prop.pattern}: compares {', '.join(metrics)} — decided in every run by "
                            "its monitor, not on the model (which does not interpret metrics)")
+    if all(a.kind == "event" for a in prop.atoms()):
+        events = sorted({a.name for a in prop.atoms()})
+        return CheckResult(name, MONITORED, f"{prop.pattern}: reads only the events {', '.join(events)}, which the world "
+                           "sends whatever the machine does — decided in every run by its monitor")
     ev = _Evaluator(model, prop.states)
     e = {role: g.tree for role, g in prop.exprs.items()}
     pattern = prop.pattern
@@ -182,19 +186,72 @@ def _response(model: Model, name: str, prop: Any, ev: _Evaluator, a: Node, b: No
     within = float(prop.within or 0.0)
     limit = int(math.floor(within / model.quantum + 1e-9))  # ticks the deadline spans
     not_b = set(_where(model, ev, lambda s: ev.possible(s, [b], [False])))
+    longest, ends = _delays(model, not_b, limit)
     triggers = [(s, arriving) for s in range(model.n_states) for arriving in ev.choices(s, [a, b], [True, False])]
-    triggers.sort(key=lambda x: len(model.path_to([x[0]]) or []))
+    depth = _depths(model)
+    triggers.sort(key=lambda x: depth.get(x[0], model.n_states))  # the nearest first: the shortest counterexample
     for t, arriving in triggers:
-        found = _escape(model, t, ev.first_steps(t, arriving), not_b, limit, within)
-        if found is None:
+        first = ev.first_steps(t, arriving)
+        if not (model.configs[t].final or any(
+                st.target in not_b and (ends.get(st.target, False) or
+                                        (1 if st.cause == TICK else 0) + longest[st.target] > limit) for st in first)):
             continue
+        found = _escape(model, t, first, not_b, limit, within)
+        assert found is not None  # the delays above say there is one
         tail, why = found
         lead = model.path_to([t]) or []
         when = f" with {', '.join(sorted(arriving))} arriving" if arriving else ""
         return CheckResult(name, FAILS, f"response: A can hold in {model.configs[t].describe()}{when}, and then {why}",
                            Counterexample(model, lead + tail, why, list(model.configs[t].leaves)))
-    tol = "" if limit * model.quantum == within else f" (to within one tick of {model.quantum:g} s)"
+    tol = "" if limit * model.quantum == within else f" (decided to within one tick of {model.quantum:g} s)"
     return CheckResult(name, HOLDS, f"response: whenever A can hold, B follows within {within:g} s{tol}")
+
+
+def _depths(model: Model) -> dict[int, int]:
+    """Steps from the initial configuration to each configuration (breadth first)."""
+    depth = {model.initial: 0}
+    queue = deque([model.initial])
+    while queue:
+        s = queue.popleft()
+        for st in model.steps[s]:
+            if st.target not in depth:
+                depth[st.target] = depth[s] + 1
+                queue.append(st.target)
+    return depth
+
+
+def _delays(model: Model, not_b: set[int], limit: int) -> tuple[dict[int, int], dict[int, bool]]:
+    """For each configuration where B can be false: the most ticks the model can keep it false from there (capped
+    at ``limit + 1``), and whether it can reach the run's end with B false — a fixpoint over the steps between
+    such configurations (each value only grows, at most ``limit + 1`` times)."""
+    preds: dict[int, list[tuple[int, int]]] = {s: [] for s in not_b}
+    for s in not_b:
+        for st in model.steps[s]:
+            if st.target in not_b:
+                preds[st.target].append((s, 1 if st.cause == TICK else 0))
+    cap = limit + 1
+    longest = {s: 0 for s in not_b}
+    work = deque(not_b)
+    queued = set(not_b)
+    while work:
+        n = work.popleft()
+        queued.discard(n)
+        for s, w in preds[n]:
+            v = min(cap, w + longest[n])
+            if v > longest[s]:
+                longest[s] = v
+                if s not in queued:
+                    queued.add(s)
+                    work.append(s)
+    ends = {s: model.configs[s].final for s in not_b}
+    stack = [s for s in not_b if ends[s]]
+    while stack:
+        n = stack.pop()
+        for s, _ in preds[n]:
+            if not ends[s]:
+                ends[s] = True
+                stack.append(s)
+    return longest, ends
 
 
 def _escape(model: Model, t: int, first: list[Step], not_b: set[int], limit: int,

@@ -310,3 +310,29 @@ def test_an_after_countdown_does_not_count_the_time_held(browser, tmp_path):
         assert "0.20 s left of 0.5 s" in text and "0.90 s held" in text, text
     finally:
         server.stop()
+
+
+def test_the_page_lists_each_property_with_its_verdict_at_the_cursor(browser, tmp_path):
+    from taskflow.mission.loader import load_mission_text
+
+    props = ('properties:\n  no_settle: {never: "state(operate.visit.settle)"}\n'
+             '  near: {always: "pos_error < 0.5 m"}\nmachine:\n')
+    mission = load_mission_text(TOY.read_text().replace("machine:\n", props, 1), str(TOY))
+    out = tmp_path / "props"
+    result = drive(mission, _script(slow=False), max_time=120, out_dir=out)
+    assert result.summary["properties"]["no_settle"]["verdict"] == "violated"
+    trace = read_trace(out)
+    server = serve_replay(out, "127.0.0.1:0")
+    try:
+        _open(browser, server.url)
+
+        def verdicts() -> dict[str, str]:
+            return browser.execute_script("const o = {}; document.querySelectorAll('#properties li')"
+                                          ".forEach(li => { o[li.dataset.property] = li.dataset.verdict; }); return o;")
+
+        browser.execute_script("taskflowView.seek(0)")
+        assert verdicts() == {"no_settle": "open", "near": "open"}
+        browser.execute_script("taskflowView.seek(arguments[0])", len(trace["t"]) - 1)
+        assert verdicts() == {"no_settle": "violated", "near": "held"}
+    finally:
+        server.stop()

@@ -143,6 +143,7 @@ function render() {
   renderChart(leaves);
   renderGuards(leaves, i);
   renderTransitions(t);
+  renderProperties(t);
   renderPlots(i);
   renderPath(i);
   renderCameras(t, S.follow && S.live);
@@ -270,6 +271,36 @@ function recordText(r) {
     : r.cause === "next_item" ? `next item ${r.item} (after ${r.outcome})`
     : r.cause === "operator" ? `pre-empted by ${r.who}` : r.cause;
   return `${r.t.toFixed(2)} s  ${r.from} → ${r.to}  ${why}${r.resumed ? " (history)" : ""}`;
+}
+
+// each declared property's verdict as of the cursor's time: violated once its record's tick is past; at the end of
+// a finished run, the summary's verdict (held, violated, not_decided)
+function renderProperties(t) {
+  const props = (S.machine && S.machine.properties) || [];
+  const ul = $("properties");
+  ul.hidden = $("properties-head").hidden = props.length === 0;
+  ul.textContent = "";
+  const ended = S.summary && S.summary.properties;
+  const atEnd = !S.rows.length || S.cursor >= S.rows.length - 1;
+  for (const p of props) {
+    const rec = S.recs.find((r) => r.cause === "property" && r.property === p.name);
+    let verdict = "holds so far";
+    let cls = "";
+    if (rec && rec.t <= t + 1e-9) {
+      verdict = `violated at ${rec.t.toFixed(2)} s in ${rec.state}`;
+      cls = "violated";
+    } else if (ended && ended[p.name] && atEnd) {
+      verdict = ended[p.name].verdict + (ended[p.name].t != null ? ` at ${(+ended[p.name].t).toFixed(2)} s` : "");
+      cls = ended[p.name].verdict;
+    }
+    const li = document.createElement("li");
+    li.dataset.property = p.name;
+    li.dataset.verdict = cls || "open";
+    li.className = cls;
+    li.textContent = `${p.name} (${p.pattern}): ${verdict}`;
+    li.title = (p.description ? p.description + " — " : "") + p.text;
+    ul.appendChild(li);
+  }
 }
 
 function renderTransitions(t) {
