@@ -355,6 +355,8 @@ class _Explorer:
         self.clocks = tuple(Clock(p, f, c) for (p, f), c in sorted(caps.items()))
         self.clock_index = {(c.state, c.first): i for i, c in enumerate(self.clocks)}
         self.loop_states = tuple(p for p, n in mission.states.items() if n.loop is not None)
+        # a state a history resume can re-enter with its data kept: one with a history state at or above it
+        self.resumable = {p: any(a.history for a in n.ancestors()[1:]) for p, n in mission.states.items()}
         self.loop_index = {p: i for i, p in enumerate(self.loop_states)}
         self.tables: dict[str, list[Transition]] = {
             p: [t for a in n.ancestors() for t in a.transitions if not isinstance(t, DoneTransition)]
@@ -434,6 +436,7 @@ class _Explorer:
                 w.history[path] = self.resume_point(w, node)
         for path in exited:
             self._stop_entry_clock(w, path)
+            self._drop_dead(w, path, exited)
         w.leaves = [p for p in w.leaves if p not in set(under)]
         chain = dest.ancestors()[keep + 1:]
         for node in chain:
@@ -480,6 +483,22 @@ class _Explorer:
         for k, c in enumerate(self.clocks):
             if c.first and c.state.startswith(prefix):
                 w.clocks[k] = -1
+
+    def _drop_dead(self, w: _Work, path: str, exited: set[str]) -> None:
+        """Forget what a state left for good holds that nothing can read again: without a history state at or
+        above it, its loop counters are reset and (its parent left too) its first-entry clock is forgotten before
+        it is next entered, and a parallel state's finished regions are cleared on every entry.  Same behaviour,
+        fewer configurations (the engine keeps the stale values, unread)."""
+        node = self.states[path]
+        if node.parallel:
+            w.regions.pop(path, None)
+        if self.resumable[path]:
+            return
+        if node.loop is not None:
+            w.loops[self.loop_index[path]] = [0, 0]
+        j = self.clock_index.get((path, True))
+        if j is not None and node.parent is not None and node.parent.path in exited:
+            w.clocks[j] = -1
 
     def _stop_entry_clock(self, w: _Work, path: str) -> None:
         i = self.clock_index.get((path, False))

@@ -60,7 +60,8 @@ def test_a_sound_mission_verifies_with_exit_0_and_json() -> None:
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
     assert doc["ok"] is True and {c["name"] for c in doc["checks"]} == {
-        "no_trap", "timed_exit", "duration", "outcomes", "region_conflicts"}
+        "no_trap", "timed_exit", "duration", "outcomes", "region_conflicts",
+        "property:rear_after_turn", "property:placed_after_backward"}  # the mission's declared properties
     assert doc["model"]["configurations"] > 1
 
 

@@ -9,6 +9,7 @@ from taskflow.mission.model import DoneTransition, StateNode
 
 def check_structure(c: Compilation, root: StateNode) -> None:
     _check_done_coverage(c, root)
+    _check_done_cascades(c, root)
     if not any(ch.final for ch in root.children.values()):
         c.err(("machine",), "the machine has no final state, so a run can only end by timeout",
               "add e.g. `done: {final: succeeded}`")
@@ -71,6 +72,35 @@ def _check_done_coverage(c: Compilation, root: StateNode) -> None:
         if n.children and not finals and dones:
             c.err(n.ypath, f"state {n.path!r} waits for `done` but none of its sub-states is final",
                   "mark the last sub-state `final: succeeded`")
+
+
+def _check_done_cascades(c: Compilation, root: StateNode) -> None:
+    """A `done` transition must not lead, at the same instant, back to its own firing: into a final state that
+    finishes its source again (directly, or through further `done` transitions) — the run would never leave that
+    instant.  Followed as the engine follows it: entering a final leaf finishes its parent (a plain composite: the
+    first `done` transition that handles the outcome fires)."""
+    for n in root.walk():
+        for k, tr in enumerate(n.transitions):
+            if not isinstance(tr, DoneTransition):
+                continue
+            seen: list[DoneTransition] = []
+            cur: DoneTransition | None = tr
+            while cur is not None and cur not in seen:
+                seen.append(cur)
+                leaf = cur.target.entry_point()
+                parent = leaf.parent
+                if not leaf.final or parent is None or parent.parent is None or parent.loop or parent.owns is not None:
+                    cur = None  # the cascade ends: a state to wait in, the run's end, a loop's next item, a region
+                    break
+                outcome = leaf.final
+                cur = next((t for t in parent.transitions if isinstance(t, DoneTransition) and t.handles(outcome)),
+                           None)
+            if cur is not None and cur is tr:
+                via = "" if len(seen) == 1 else f" (through {', '.join(t.source.path for t in seen[1:])})"
+                c.err(n.ypath + ("transitions", k), f"this `done` transition enters {tr.target.path!r}, a final state "
+                      f"that finishes {n.path!r} again at once{via}: the run would never leave that instant",
+                      "target a state that is not final, or a final state outside the composite it finishes")
+                return
 
 
 def _check_reachable(c: Compilation, root: StateNode) -> None:
