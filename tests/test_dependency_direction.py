@@ -44,7 +44,7 @@ MACHINERY: dict[str, frozenset[str]] = {
     "catalogue": frozenset({"mission"}),  # what is registered, described
     "campaigns": frozenset({"mission", "execution", "readers", "catalogue"}),  # many runs, their statistics
     # the finite model, its checks (Storm), counterexamples replayed on the scripted backend, campaign predictions
-    "verify": frozenset({"mission", "execution", "readers", "catalogue", "campaigns", "testing"}),
+    "verify": frozenset({"mission", "execution", "readers", "catalogue", "campaigns"}),
     "cli": frozenset({"mission", "execution", "readers", "operate", "catalogue", "campaigns", "verify"}),  # the command
     "testing": frozenset({"mission", "execution"}),  # the pytest plugin (a top-level module)
 }

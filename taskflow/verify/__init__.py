@@ -4,7 +4,7 @@ person can read and the engine can replay (``counterexample``), and a campaign's
 prediction (``campaign``).
 
 May import: the public plugin API, ``taskflow.mission``, ``taskflow.execution``, ``taskflow.readers``,
-``taskflow.catalogue``, ``taskflow.campaigns`` and ``taskflow.testing``; never ``operate`` or ``cli``
+``taskflow.catalogue`` and ``taskflow.campaigns``; never ``operate`` or ``cli``
 (``tests/test_dependency_direction.py`` enforces it).
 """
 

@@ -4,9 +4,9 @@ A :class:`Counterexample` is a path of the model (:mod:`taskflow.verify.model`) 
 the start, with the cause of every step, and a sentence for what happens at its end ("no final state can be
 reached from here", "waits in ``searching`` forever").  :meth:`Counterexample.render` prints it like the
 "how it got there" chain of a run's report; :meth:`Counterexample.script` turns it into a
-:class:`~taskflow.testing.Script` for the scripted backend — metric values that make each step's guard true
+:class:`~taskflow.execution.scripted.Script` for the scripted backend — metric values that make each step's guard true
 (and the guards checked before it false) while its state is active, its events at their times — so that
-``taskflow.testing.drive`` runs the real engine along it and records the run the replay page shows
+``taskflow.execution.scripted.drive`` runs the real engine along it and records the run the replay page shows
 (``taskflow verify MISSION --replay DIR``).
 """
 
@@ -20,10 +20,10 @@ from pathlib import Path
 from typing import Any
 
 from taskflow.execution.records import EVENT, START_CAUSE
+from taskflow.execution.scripted import Script, ScriptState
 from taskflow.execution.summary import RunResult
 from taskflow.mission.guards import DATA_PREFIX, Guard, Node
 from taskflow.mission.model import EventTransition, GuardTransition, TimeoutTransition, Transition
-from taskflow.testing import Script, ScriptState
 from taskflow.verify.model import MAX_TIME, TICK, Model, Step, entered_by
 
 __all__ = ["Counterexample", "Replay", "satisfying_metrics"]
@@ -150,7 +150,7 @@ class Counterexample:
     def replay(self, out_dir: str | Path | None = None) -> Replay:
         """Drive the real engine (the scripted backend) along the path, recording into ``out_dir`` when given
         (``taskflow view OUT_DIR`` shows it), and compare the records it writes with the path's."""
-        from taskflow.testing import drive
+        from taskflow.execution.scripted import drive
 
         m = self.model
         _, _, t_end = self.schedule()
