@@ -103,7 +103,7 @@ class _FailingCamera(ScriptedWorld):
 
 def test_a_failed_run_keeps_the_frames_written_before_it_failed(tmp_path: Path) -> None:
     from taskflow.execution.runtime import run_mission
-    from taskflow.testing import _IdleTask
+    from taskflow.execution.scripted import _IdleTask
 
     mission = load_mission(TOY)
     robot = mission.build_robot()
