@@ -16,14 +16,22 @@ if TYPE_CHECKING:  # the verb imports the machinery when it runs (a bad flag ans
 CHECKS = ("no_trap", "timed_exit", "duration", "outcomes", "region_conflicts")
 
 
+def _limits(args: argparse.Namespace) -> tuple[float | None, int]:
+    """``--max-time`` and ``--max-states`` checked before anything loads (the model's budget by default)."""
+    from taskflow.verify.model import DEFAULT_BUDGET
+
+    max_time = max_time_flag(args.max_time)
+    return max_time, positive_flag("--max-states", args.max_states) or DEFAULT_BUDGET
+
+
 def _verification(args: argparse.Namespace, file: str) -> Verification:
     from taskflow.verify import verify_mission
     from taskflow.verify.model import StateBudgetExceeded
 
+    max_time, budget = _limits(args)
     mission = load(file, args.set)
     try:
-        return verify_mission(mission, max_time_flag(args.max_time), operator=args.operator, budget=positive_flag("--max-states", args.max_states)
-                              or 2_000_000)
+        return verify_mission(mission, max_time, operator=args.operator, budget=budget)
     except StateBudgetExceeded as exc:
         raise UsageError(f"{exc} — valid: a larger --max-states, or fewer clocks (a coarser `after`)") from None
 
@@ -56,10 +64,10 @@ def _export(args: argparse.Namespace) -> int:
 
     if len(args.files) != 1:
         raise UsageError("--export: give one mission file")
+    max_time, budget = _limits(args)
     mission = load(args.files[0], args.set)
     try:
-        model = build_model(mission, max_time_flag(args.max_time), operator=args.operator, budget=positive_flag("--max-states", args.max_states)
-                            or 2_000_000)
+        model = build_model(mission, max_time, operator=args.operator, budget=budget)
     except StateBudgetExceeded as exc:
         raise UsageError(f"{exc} — valid: a larger --max-states") from None
     text = (prism_text if args.export == "prism" else jani_text)(model, timed_only=args.sensor_loss)
@@ -116,5 +124,5 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
                    help="predict P(outcome) and the expected time from a campaign's records and set them beside "
                         "its measured rates")
     v.add_argument("--max-states", type=int, default=None, metavar="N",
-                   help="most configurations the model may have (default 2000000)")
+                   help="most configurations the model may have (default: taskflow.verify.model.DEFAULT_BUDGET, 2,000,000)")
     v.set_defaults(fn=cmd_verify)

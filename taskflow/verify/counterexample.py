@@ -22,7 +22,7 @@ from typing import Any
 from taskflow.execution.records import EVENT, START_CAUSE
 from taskflow.execution.scripted import Script, ScriptState
 from taskflow.execution.summary import RunResult
-from taskflow.mission.guards import DATA_PREFIX, Guard, Node
+from taskflow.mission.guards import DATA_PREFIX
 from taskflow.mission.model import EventTransition, GuardTransition, TimeoutTransition, Transition
 from taskflow.verify.model import MAX_TIME, TICK, Model, Step, entered_by
 
@@ -121,11 +121,11 @@ class Counterexample:
                 t = _on_grid(max(t + dt, ticks * q), dt)
                 earlier = _checked_before(m, src, tr)
                 if isinstance(tr, GuardTransition):
-                    windows.append((t - dt / 2, t + tr.dwell + dt / 2, satisfying_metrics(tr.guard, earlier)))
+                    windows.append((t - dt / 2, t + tr.dwell + dt / 2, satisfying_metrics(tr, earlier)))
                     t = _on_grid(t + tr.dwell, dt)
                 elif isinstance(tr, EventTransition):
                     if tr.guard is not None:
-                        windows.append((t - dt / 2, t + dt / 2, satisfying_metrics(tr.guard, earlier)))
+                        windows.append((t - dt / 2, t + dt / 2, satisfying_metrics(tr, earlier)))
                     events.append((t, tr.event))
             for p in entered_by(m, src, step):
                 entered_at[p] = t
@@ -201,44 +201,26 @@ def describe_step(model: Model, step: Step) -> str:
     return f"{step.cause} `{tr.label}`{where}{then}"
 
 
-def _checked_before(model: Model, src: int, tr: Transition) -> list[Guard]:
-    """The guards the engine checks before ``tr`` in the tables of the configuration ``src`` (they must be false
-    for ``tr`` to be the one that fires)."""
-    out: list[Guard] = []
+def _checked_before(model: Model, src: int, tr: Transition) -> list[GuardTransition]:
+    """The guard transitions the engine checks before ``tr`` in the tables of the configuration ``src`` (their
+    guards must be false for ``tr`` to be the one that fires)."""
+    out: list[GuardTransition] = []
     states = model.mission.states
     for leaf in model.configs[src].leaves:
         table = [t for a in states[leaf].ancestors() for t in a.transitions]
         if tr not in table:
             continue
-        for t in table[:table.index(tr)]:
-            if isinstance(t, GuardTransition):
-                out.append(t.guard)
+        out += [t for t in table[:table.index(tr)] if isinstance(t, GuardTransition)]
     return out
 
 
-def _holds(n: Node, values: Mapping[str, float | None]) -> bool:
-    if n.kind == "and":
-        return all(_holds(x, values) for x in n.children)
-    if n.kind == "or":
-        return any(_holds(x, values) for x in n.children)
-    if n.kind == "not":
-        return not _holds(n.children[0], values)
-    c = n.cmp
-    assert c is not None
-    v = values.get(c.metric)
-    if v is None or c.value is None:
-        return False  # a metric with no value this tick: the comparison is false, as in the engine
-    x = abs(v) if c.absolute else v
-    return {"<": x < c.value, "<=": x <= c.value, ">": x > c.value, ">=": x >= c.value,
-            "==": x == c.value, "!=": x != c.value}[c.op]
-
-
-def satisfying_metrics(target: Guard | None, false: list[Guard]) -> dict[str, float]:
-    """Metric values under which ``target`` holds and every guard of ``false`` does not — by trying, for each
-    metric involved, no value at all (a comparison on a metric without a value is false) and points just
-    around each threshold it is compared with.  ``data.`` atoms are the run's mission data, not metrics: they are
-    left out.  An empty dict when no candidate works (the step is then left to the run)."""
-    guards = ([target] if target is not None else []) + false
+def satisfying_metrics(target: GuardTransition | EventTransition, false: list[GuardTransition]) -> dict[str, float]:
+    """Metric values under which ``target``'s guard holds and the guard of every transition of ``false`` does not —
+    by trying, for each metric involved, no value at all (a comparison on a metric without a value is false) and
+    points just around each threshold it is compared with, on the transitions' own compiled predicates.  ``data.``
+    atoms are the run's mission data, not metrics: they are left out (the predicates see no data).  An empty dict
+    when no candidate works (the step is then left to the run)."""
+    guards = [g for g in [target.guard, *(t.guard for t in false)] if g is not None]
     candidates: dict[str, set[float | None]] = {}
     for g in guards:
         for c in g.comparisons():
@@ -251,11 +233,12 @@ def satisfying_metrics(target: Guard | None, false: list[Guard]) -> dict[str, fl
                 opts.update({v - step, v, v + step, -v - step, -v + step})
     names = sorted(candidates)
     choices = [sorted(candidates[n], key=lambda x: (x is not None, x or 0.0)) for n in names]
+    holds, fails = target.predicate, [t.predicate for t in false]
     for combo in itertools.islice(itertools.product(*choices), 20_000):
-        values = dict(zip(names, combo))
-        if target is not None and not _holds(target.tree, values):
+        values = {k: v for k, v in zip(names, combo) if v is not None}
+        if holds is not None and not holds(values, {}):
             continue
-        if any(_holds(g.tree, values) for g in false):
+        if any(f(values, {}) for f in fails):
             continue
-        return {k: v for k, v in values.items() if v is not None}
+        return values
     return {}

@@ -29,11 +29,11 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from itertools import product
 from typing import Any
 
-from taskflow.mission.guards import Node
+from taskflow.mission.guards import Atom, Guard, Predicate, compile_guard
 from taskflow.mission.model import EventTransition
 from taskflow.verify.counterexample import Counterexample
 from taskflow.verify.model import TICK, Config, Model, Step, _Explorer
@@ -41,23 +41,6 @@ from taskflow.verify.results import FAILS, HOLDS, MONITORED, CheckResult
 from taskflow.verify.storm import StormModel
 
 __all__ = ["check_properties"]
-
-
-def _values(n: Node, active: set[str], outcome: str | None, events: dict[str, bool], paths: dict[str, str]) -> bool:
-    if n.kind == "and":
-        return all(_values(c, active, outcome, events, paths) for c in n.children)
-    if n.kind == "or":
-        return any(_values(c, active, outcome, events, paths) for c in n.children)
-    if n.kind == "not":
-        return not _values(n.children[0], active, outcome, events, paths)
-    atom = getattr(n, "atom", None)
-    if atom is None:
-        raise ValueError("a structural property has no metric comparison")
-    if atom.kind == "state":
-        return paths.get(atom.name, atom.name) in active
-    if atom.kind == "outcome":
-        return bool(outcome == atom.name)
-    return events.get(atom.name, False)
 
 
 class _Evaluator:
@@ -69,6 +52,25 @@ class _Evaluator:
         self.explorer = _Explorer(model.mission, model.max_time, model.operator)
         self._active: dict[int, set[str]] = {}
         self._events: dict[int, set[str]] = {}
+        self._preds: dict[int, Predicate] = {}  # id(guard) → its predicate over the facts below
+        self.facts_active: set[str] = set()  # what the atoms read: the configuration's active states, its
+        self.facts_outcome: str | None = None  # outcome, and the events chosen to arrive
+        self.facts_events: frozenset[str] = frozenset()
+
+    def _pred(self, g: Guard) -> Predicate:
+        """``g`` compiled once by the guards' own compiler, its atoms reading the facts of the configuration."""
+        pred = self._preds.get(id(g))
+        if pred is None:
+            def atom(a: Atom) -> Predicate:
+                if a.kind == "state":
+                    path = self.states.get(a.name, a.name)
+                    return lambda m, d: path in self.facts_active
+                if a.kind == "outcome":
+                    return lambda m, d: self.facts_outcome == a.name
+                return lambda m, d: a.name in self.facts_events
+
+            pred = self._preds[id(g)] = compile_guard(g, atom)
+        return pred
 
     def active(self, s: int) -> set[str]:
         got = self._active.get(s)
@@ -87,20 +89,21 @@ class _Evaluator:
             self._events[s] = got
         return got
 
-    def possible(self, s: int, exprs: list[Node], wanted: list[bool]) -> bool:
+    def possible(self, s: int, exprs: list[Guard], wanted: list[bool]) -> bool:
         """Whether, in configuration ``s``, some choice of the arriving events gives each of ``exprs`` its
         ``wanted`` value at once."""
         return next(self.choices(s, exprs, wanted), None) is not None
 
-    def choices(self, s: int, exprs: list[Node], wanted: list[bool]) -> Iterator[frozenset[str]]:
+    def choices(self, s: int, exprs: list[Guard], wanted: list[bool]) -> Iterator[frozenset[str]]:
         """Each set of arriving events (among those the expressions name) that gives each of ``exprs`` its ``wanted``
         value in configuration ``s``."""
-        names = sorted({a.name for e in exprs for a in _atoms(e) if a.kind == "event"} & self.events(s))
-        active, outcome = self.active(s), self.model.configs[s].outcome
+        names = sorted({a.name for e in exprs for a in e.atoms() if a.kind == "event"} & self.events(s))
+        preds = [self._pred(e) for e in exprs]
         for choice in product((False, True), repeat=len(names)):
-            ev = dict(zip(names, choice))
-            if all(_values(e, active, outcome, ev, self.states) == w for e, w in zip(exprs, wanted)):
-                yield frozenset(n for n, v in ev.items() if v)
+            self.facts_active, self.facts_outcome = self.active(s), self.model.configs[s].outcome
+            self.facts_events = frozenset(n for n, v in zip(names, choice) if v)
+            if all(p({}, {}) == w for p, w in zip(preds, wanted)):
+                yield self.facts_events
 
     def first_steps(self, s: int, arriving: frozenset[str]) -> list[Step]:
         """The steps the machine can take in the control period ``arriving`` events arrive in configuration ``s``:
@@ -123,14 +126,6 @@ class _Evaluator:
         return [st for st in steps if st.cause != TICK and st.transition is not None and st.transition in allowed]
 
 
-def _atoms(n: Node) -> Iterable[Any]:
-    atom = getattr(n, "atom", None)
-    if atom is not None:
-        yield atom
-    for c in n.children:
-        yield from _atoms(c)
-
-
 def _where(model: Model, ev: _Evaluator, pred: Any) -> list[int]:
     return [s for s in range(model.n_states) if pred(s)]
 
@@ -146,7 +141,7 @@ def check_property(model: Model, prop: Any) -> CheckResult:
         return CheckResult(name, MONITORED, f"{prop.pattern}: reads only the events {', '.join(events)}, which the world "
                            "sends whatever the machine does — decided in every run by its monitor")
     ev = _Evaluator(model, prop.states)
-    e = {role: g.tree for role, g in prop.exprs.items()}
+    e = dict(prop.exprs)
     pattern = prop.pattern
     if pattern in ("absence", "universality"):
         if pattern == "absence":
@@ -182,7 +177,7 @@ def _reach_result(model: Model, name: str, pattern: str, bad: list[int], what: s
                        Counterexample(model, path, f"here {what}", list(model.configs[end].leaves)))
 
 
-def _response(model: Model, name: str, prop: Any, ev: _Evaluator, a: Node, b: Node) -> CheckResult:
+def _response(model: Model, name: str, prop: Any, ev: _Evaluator, a: Guard, b: Guard) -> CheckResult:
     within = float(prop.within or 0.0)
     limit = int(math.floor(within / model.quantum + 1e-9))  # ticks the deadline spans
     not_b = set(_where(model, ev, lambda s: ev.possible(s, [b], [False])))
