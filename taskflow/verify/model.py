@@ -46,7 +46,7 @@ from functools import reduce
 from typing import Any
 
 from taskflow.execution.outcomes import loop_verdict, parallel_outcome, parallel_verdict
-from taskflow.execution.records import DONE, EVENT, GUARD, NEXT_ITEM, OPERATOR, START_CAUSE, TIMEOUT
+from taskflow.execution.records import DONE, EVENT, GUARD, NEXT_ITEM, OPERATOR, PROPERTY, START_CAUSE, TIMEOUT
 from taskflow.mission.model import (
     CompiledMission,
     DoneTransition,
@@ -225,12 +225,12 @@ class Model:
 
     # -- a run's records as a path of the model ---------------------------------------------------------
     def path_of(self, records: Sequence[Mapping[str, Any]], outcome: str | None = None) -> list[int]:
-        """The configurations a run passes through, from its ``transitions.jsonl`` records (the transition
-        records, as written; an operator's pre-emption only in a model built with ``operator=True``; the operator's
-        other records are not firings, and the time between a ``hold`` and its ``resume`` does not count).  Between
-        two records the model takes exactly the ticks of operating time that lie between their times.  ``outcome``: the run's, checked
-        against the configuration it ends in when the machine ended it.  Raises :class:`NotAPath` naming the
-        first record the model cannot take."""
+        """The configurations a run passes through, from its ``transitions.jsonl`` records (as written).  An
+        operator's pre-emption is taken only by a model built with ``operator=True``; the operator's other records
+        and a property's violation are not firings, and the time between a ``hold`` and its ``resume`` does not
+        count.  Between two records the model takes exactly the ticks of operating time that lie between their
+        times.  ``outcome``: the run's, checked against the configuration it ends in when the machine ended it.
+        Raises :class:`NotAPath` naming the first record the model cannot take."""
         recs = [r for r in records]
         if not recs:
             raise NotAPath("no records")
@@ -253,6 +253,9 @@ class Model:
         while i < len(recs):
             r = recs[i]
             cause = str(r.get("cause"))
+            if cause == PROPERTY:  # a declared property's first violation: a record, not a firing
+                i += 1
+                continue
             if cause == OPERATOR and "to" not in r:  # hold, resume, pause, inject, abort: not a firing
                 action = r.get("action")
                 if action == "hold" and hold_from is None:

@@ -38,6 +38,9 @@ def test_the_real_run_is_a_path_and_each_forgery_is_refused() -> None:
     model = build_model(mission)
     assert [r["cause"] for r in records] == ["start", "guard", "timeout"], records
     model.path_of(records, outcome=outcome)  # the run itself
+    violated = {"t": records[1]["t"], "cause": "property", "property": "p", "pattern": "absence", "verdict": "violated",
+                "state": "forward", "atoms": {}}
+    model.path_of([records[0], records[1], violated, *records[2:]], outcome=outcome)  # a violation is no firing
 
     early = copy.deepcopy(records)
     early[2]["t"] -= model.quantum  # the rotation's timeout one tick early

@@ -73,3 +73,19 @@ def test_a_response_to_an_event_is_taken_in_the_same_control_period() -> None:
     machine is in `searching` — not after a tick of the model (5 s here)."""
     got = check('  p:\n    after: "event(target_lost)"\n    within: 0.05 s\n    then: "state(searching)"')["p"]
     assert got.verdict == "holds", got.detail  # type: ignore[attr-defined]
+
+
+def test_a_recorded_run_that_violates_a_property_is_still_a_path_of_the_model(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The monitor's violation record sits among the transitions in `transitions.jsonl`; the model follows the run
+    through it, and the property the model refuted is the one the run's monitor reports violated."""
+    import json
+
+    from taskflow.testing import Script, drive
+    from taskflow.verify.model import build_model
+
+    mission = load_mission_text(HEAD.replace("PROPS", '  p:\n    always: "state(approach)"'), "props.yaml")
+    result = drive(mission, Script(events=[(1.0, "target_lost"), (2.0, "target_found")]), max_time=4.0, out_dir=tmp_path)
+    records = [json.loads(line) for line in (tmp_path / "transitions.jsonl").read_text().splitlines()]
+    assert any(r["cause"] == "property" for r in records) and result.summary["properties"]["p"]["verdict"] == "violated"
+    build_model(mission).path_of(records, outcome=result.outcome)
+    assert verify_mission(mission).check("property:p").verdict == "fails"
