@@ -44,7 +44,10 @@ def cmd_graph(args: argparse.Namespace) -> int:
     if args.counterexample is not None:
         from taskflow.verify import verify_mission
 
-        check = verify_mission(m).check(args.counterexample)
+        try:
+            check = verify_mission(m).check(args.counterexample)
+        except KeyError as exc:
+            raise UsageError(f"--counterexample {exc.args[0]}") from None
         if check.counterexample is None:
             raise UsageError(f"--counterexample {args.counterexample}: the check {check.verdict} on {args.file}, so it "
                              "has no counterexample to draw")
@@ -76,8 +79,8 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     g.add_argument("file")
     g.add_argument("--format", choices=["mermaid", "dot"], default="mermaid")
     g.add_argument("--counterexample", default=None, metavar="CHECK",
-                   choices=["no_trap", "timed_exit", "duration", "outcomes", "region_conflicts"],
-                   help="highlight the path of a failing `taskflow verify` check's counterexample")
+                   help="highlight the path of a failing `taskflow verify` check's counterexample (no_trap, timed_exit, "
+                        "duration, outcomes, region_conflicts or property:NAME)")
     g.set_defaults(fn=cmd_graph)
 
     s = sub.add_parser("schema", help="print the JSON Schema of mission files (registered names and their "

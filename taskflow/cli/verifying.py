@@ -13,7 +13,6 @@ from taskflow.cli.common import UsageError, load, max_time_flag, positive_flag
 if TYPE_CHECKING:  # the verb imports the machinery when it runs (a bad flag answers before it loads)
     from taskflow.verify.checks import Verification
 
-CHECKS = ("no_trap", "timed_exit", "duration", "outcomes", "region_conflicts")
 
 
 def _limits(args: argparse.Namespace) -> tuple[float | None, int]:
@@ -79,8 +78,9 @@ def _replay(v: Verification, args: argparse.Namespace) -> None:
     name = args.check
     failing = [c for c in v.checks if c.counterexample is not None and (name is None or c.name == name)]
     if not failing:
-        raise UsageError(f"--replay: {'check ' + repr(name) if name else 'no check'} has a counterexample to replay"
-                         f" — checks with one: {', '.join(c.name for c in v.checks if c.counterexample) or '(none)'}")
+        what = f"--check {name}: no such check has a counterexample" if name else "no check has a counterexample"
+        raise UsageError(f"--replay: {what} to replay — checks with one: "
+                         f"{', '.join(c.name for c in v.checks if c.counterexample) or '(none)'}")
     check = failing[0]
     assert check.counterexample is not None
     out = Path(args.replay)
@@ -119,7 +119,9 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     v.add_argument("--replay", default=None, metavar="DIR",
                    help="drive the engine (scripted backend) along the first counterexample (or --check's) and record "
                         "the run in DIR, for `taskflow view DIR`")
-    v.add_argument("--check", default=None, choices=CHECKS, help="the check whose counterexample --replay drives")
+    v.add_argument("--check", default=None, metavar="NAME",
+                   help="the check whose counterexample --replay drives: no_trap, timed_exit, duration, outcomes, "
+                        "region_conflicts or property:NAME (default: the first that has one)")
     v.add_argument("--campaign", default=None, metavar="BATCH_DIR",
                    help="predict P(outcome) and the expected time from a campaign's records and set them beside "
                         "its measured rates")

@@ -55,7 +55,12 @@ class Verification:
         return all(c.verdict != FAILS for c in self.checks)
 
     def check(self, name: str) -> CheckResult:
-        return next(c for c in self.checks if c.name == name)
+        """The check called ``name`` (``property:NAME`` for a declared property); a :class:`KeyError` naming the
+        checks there are otherwise."""
+        for c in self.checks:
+            if c.name == name:
+                return c
+        raise KeyError(f"{name!r} — valid: {', '.join(c.name for c in self.checks)}")
 
     def render(self) -> str:
         m = self.model

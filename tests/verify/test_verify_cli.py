@@ -90,6 +90,20 @@ def test_the_counterexample_is_drawn_and_both_formats_parse(planted: Path) -> No
     assert mermaid_errors([mer.stdout]) == [None]
 
 
+def test_a_property_counterexample_is_drawn_and_replayed_by_name(tmp_path: Path) -> None:
+    f = tmp_path / "prop.yaml"
+    f.write_text(PLANTED.replace("machine:\n", 'properties:\n  never_search:\n    never: "state(searching)"\nmachine:\n', 1))
+    dot = taskflow("graph", str(f), "--format", "dot", "--counterexample", "property:never_search")
+    assert dot.returncode == 0 and 'color="#d62728"' in dot.stdout, dot.stderr
+    r = taskflow("verify", str(f), "--replay", str(tmp_path / "cex"), "--check", "property:never_search")
+    assert "the engine followed the counterexample" in r.stdout, r.stdout + r.stderr
+    bad = taskflow("graph", str(f), "--counterexample", "nope")
+    assert bad.returncode == 1 and "--counterexample 'nope' — valid: no_trap," in bad.stderr
+    assert "property:never_search" in bad.stderr and "Traceback" not in bad.stderr
+    bad = taskflow("verify", str(f), "--replay", str(tmp_path / "x"), "--check", "outcomes")
+    assert "--check outcomes: no such check has a counterexample" in bad.stderr and "property:never_search" in bad.stderr
+
+
 def test_validate_verify_reports_both(planted: Path) -> None:
     r = taskflow("validate", "--verify", str(planted), str(POSE))
     assert r.returncode == 1
