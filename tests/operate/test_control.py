@@ -66,14 +66,14 @@ def test_pause_freezes_the_sim_clock_without_spinning_and_resume_advances_it(liv
 
 
 def test_hold_stops_the_robot_while_the_world_goes_on(live, tmp_path):
-    run = toy_run(live, tmp_path)
+    # the script pauses the held run again at 3 s: a held run runs flat out, and a live "pause" sent once the
+    # snapshot showed 3 s could land after the mission's own 60 s limit on a fast machine (CI did)
+    run = toy_run(live, tmp_path, operator=[*PAUSE_AT_1, {"t": 3.0, "action": "pause", "who": "script"}])
     paused = run.wait(lambda s: s["paused"])
     assert paused["state"] == "operate.visit.approach"  # the toy point is driving to its first goal
     run.client.send("hold", who="bob")
-    held = run.wait(lambda s: s["t"] >= 3.0)
-    assert held["state"] == paused["state"]  # no task step, no transition while held
-    run.client.send("pause", who="bob")
-    run.wait(lambda s: s["paused"])
+    held = run.wait(lambda s: s["paused"] and s["t"] >= 3.0)
+    assert held["state"] == paused["state"] and held["held"] is False  # no task step, no transition while held
     run.client.send("preempt", who="bob")
     run.finish()
     tr = read_trace(tmp_path / "run")

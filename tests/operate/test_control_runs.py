@@ -86,12 +86,12 @@ def test_operator_preemption_of_viki_hyco_aborts_with_the_car_stopped(viki, live
 @pytest.mark.mission
 def test_hold_brings_the_viki_car_to_rest_while_sim_time_advances(viki, live, tmp_path):
     out = tmp_path / "viki"
-    run = live(lambda: run_mission(viki, seed=0, out_dir=out, control=ControlServer("127.0.0.1:0"), operator=PAUSE_AT_1), out)
+    pause_at_3 = {"t": 3.0, "action": "pause", "who": "script"}  # a held run runs flat out: the script stops it
+    run = live(lambda: run_mission(viki, seed=0, out_dir=out, control=ControlServer("127.0.0.1:0"),
+                                   operator=[*PAUSE_AT_1, pause_at_3]), out)
     run.wait(lambda s: s["paused"], timeout=30)
     run.client.send("hold", who="hank")
-    run.wait(lambda s: s["t"] >= 3.0)
-    run.client.send("pause", who="hank")
-    run.wait(lambda s: s["paused"])
+    run.wait(lambda s: s["paused"] and s["t"] >= 3.0)
     run.client.send("preempt", who="hank")
     run.finish()
     tr = read_trace(out)
