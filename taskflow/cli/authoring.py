@@ -67,7 +67,7 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 
 def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """The verbs validate, graph, schema."""
+    """The verbs validate, graph, schema, lsp."""
     v = sub.add_parser("validate", help="check mission files; exit 1 if any is invalid")
     v.add_argument("files", nargs="+")
     v.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
@@ -86,3 +86,14 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     s = sub.add_parser("schema", help="print the JSON Schema of mission files (registered names and their "
                                       "parameters included, for editors)")
     s.set_defaults(fn=cmd_schema)
+
+    lsp = sub.add_parser("lsp", help="serve the Language Server Protocol on stdin/stdout for an editor: diagnostics as "
+                                     "you type, completion, hover, navigation, rename, code actions (docs/editors.md)")
+    lsp.add_argument("--stdio", action="store_true", help="accepted for editors that pass it; stdio is the only transport")
+    lsp.set_defaults(fn=cmd_lsp)
+
+
+def cmd_lsp(args: argparse.Namespace) -> int:
+    from taskflow.lsp.server import main as serve
+
+    return serve()

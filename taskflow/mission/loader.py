@@ -10,6 +10,7 @@ callers that load missions.
 from __future__ import annotations
 
 import copy
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -109,10 +110,13 @@ def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap 
     return data
 
 
-def compile_mission(data: Any, smap: SourceMap, overrides: list[str] | None = None) -> CompiledMission:
+def compile_mission(data: Any, smap: SourceMap, overrides: list[str] | None = None,
+                    sources: Mapping[Path, str] | None = None) -> CompiledMission:
+    """The load path after YAML: ``use:`` expanded (``sources``: resolved path → unsaved text to read instead of
+    that sub-mission file), ``--set`` applied, the shape check, the compile passes."""
     file = smap.file
     if isinstance(data, dict):
-        data = expand_uses(data, smap)  # `use:` sub-missions spliced in; `--set` applies to the result
+        data = expand_uses(data, smap, sources)  # `use:` sub-missions spliced in; `--set` applies to the result
     if overrides:
         data = apply_overrides(data, overrides, file, smap)
     if not isinstance(data, dict):

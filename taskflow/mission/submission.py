@@ -38,6 +38,7 @@ from __future__ import annotations
 import copy
 import itertools
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +46,7 @@ from taskflow.errors import MissionError, Problem
 from taskflow.mission.model import YPath, has_refs
 from taskflow.mission.statetree import MAX_STATE_DEPTH, count_states, loop_items, state_level, sub_machines, too_deep
 from taskflow.mission.submission_file import Submission, check_submission, with_via
-from taskflow.mission.yamlsrc import Graft, SourceMap, load_yaml_file
+from taskflow.mission.yamlsrc import Graft, SourceMap, load_yaml_file, load_yaml_text
 from taskflow.registry import describe_choices
 
 MAX_USE_DEPTH = 8
@@ -80,8 +81,9 @@ class _Scope:
 class _Expander:
     """One expansion of one document: the problems found, the files read (each read once)."""
 
-    def __init__(self, data: dict[str, Any], smap: SourceMap) -> None:
+    def __init__(self, data: dict[str, Any], smap: SourceMap, sources: Mapping[Path, str] | None = None) -> None:
         self.data, self.smap = data, smap
+        self.sources = sources or {}  # resolved path → text to read instead of the file (an editor's unsaved buffer)
         self.problems: list[Problem] = []
         self.files: dict[Path, tuple[Any, SourceMap] | MissionError] = {}
         self.root = (Path(smap.file).resolve().parent if not smap.file.startswith("<") else Path.cwd().resolve())
@@ -276,7 +278,10 @@ class _Expander:
         """The sub-mission at ``path``, shape-checked (problems recorded, None when unusable)."""
         if path not in self.files:
             try:
-                data, inner_map, _ = load_yaml_file(path)
+                if path in self.sources:
+                    data, inner_map = load_yaml_text(self.sources[path], str(path))
+                else:
+                    data, inner_map, _ = load_yaml_file(path)
                 self.files[path] = (data, inner_map)
             except MissionError as exc:
                 self.files[path] = exc
@@ -346,9 +351,10 @@ class _Expander:
         return env if ok else None
 
 
-def expand_uses(data: dict[str, Any], smap: SourceMap) -> dict[str, Any]:
+def expand_uses(data: dict[str, Any], smap: SourceMap, sources: Mapping[Path, str] | None = None) -> dict[str, Any]:
     """``data`` with every ``use:`` resolved into its state tree (a copy; ``data`` is left as it was).
-    Grafts and uses are recorded in ``smap``; every problem found is raised together."""
+    Grafts and uses are recorded in ``smap``; every problem found is raised together.  ``sources`` maps a
+    resolved file path to the text to read for it instead of the file (the language server's open buffers)."""
     machine = data.get("machine")
     if not isinstance(machine, dict):
         return data
@@ -359,7 +365,7 @@ def expand_uses(data: dict[str, Any], smap: SourceMap) -> dict[str, Any]:
     if not _has_use(machine.get("states")):
         return data
     data = copy.deepcopy(data)
-    ex = _Expander(data, smap)
+    ex = _Expander(data, smap, sources)
     if ex.params is not data.get("parameters"):
         data["parameters"] = ex.params
     top = Path(smap.file).resolve() if not smap.file.startswith("<") else Path.cwd() / smap.file

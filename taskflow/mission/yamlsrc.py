@@ -84,6 +84,15 @@ def _compose(text: str) -> tuple[Any, yaml.Node | None]:
     return slow, slow.get_single_node()
 
 
+def compose_text(text: str) -> yaml.Node | None:
+    """The node tree of ``text``'s one document (None when empty), composed with the mission reader's safe
+    resolvers; raises ``yaml.YAMLError`` as :func:`load_yaml_text` would see it.  For tools that need every
+    node's start and end (the language server); the loader itself goes through :func:`load_yaml_text`."""
+    loader, node = _compose(text)
+    loader.dispose()
+    return node
+
+
 @dataclass(frozen=True)
 class Graft:
     """Values spliced into a document from elsewhere (a used sub-mission, :mod:`taskflow.mission.submission`):

@@ -1,0 +1,3 @@
+"""(being written)"""
+def complete(ctx, file, line, col):
+    return None

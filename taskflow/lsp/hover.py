@@ -1,0 +1,3 @@
+"""(being written)"""
+def hover(ctx, file, line, col):
+    return None
