@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from conftest import BROKEN, MISSIONS, change_doc, open_doc
+from conftest import MISSIONS, change_doc, open_doc
 
 pytestmark = [pytest.mark.machine, pytest.mark.asyncio]
 
