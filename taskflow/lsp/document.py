@@ -17,7 +17,7 @@ from typing import Any
 import yaml
 
 from taskflow.mission.model import YPath
-from taskflow.mission.yamlsrc import MAX_NODES, compose_text
+from taskflow.mission.yamlsrc import MAX_BYTES, MAX_NODES, compose_text, too_many_nodes
 
 
 @dataclass(frozen=True, order=True)
@@ -61,30 +61,38 @@ class DocumentIndex:
     @classmethod
     def build(cls, text: str) -> DocumentIndex:
         index = cls(text)
+        if len(text) > MAX_BYTES or too_many_nodes(text, MAX_NODES):
+            index.error = "too big to index"  # the loader refuses it with its own message
+            return index
         try:
             node = compose_text(text)
         except (yaml.YAMLError, ValueError, TypeError, RecursionError) as exc:
             index.error = str(exc)
             return index
         if node is not None:
-            index._walk(node, (), None, [MAX_NODES])
+            index._walk(node)
         return index
 
-    def _walk(self, node: yaml.Node, path: YPath, key: Span | None, budget: list[int]) -> None:
-        budget[0] -= 1
-        if budget[0] < 0 or path in self.entries:
-            return
-        if isinstance(node, yaml.MappingNode):
-            self.entries[path] = Entry(path, key, Span.of(node), "mapping")
-            for k, v in node.value:
-                name = k.value if isinstance(k, yaml.ScalarNode) else str(k.value)
-                self._walk(v, path + (name,), Span.of(k), budget)
-        elif isinstance(node, yaml.SequenceNode):
-            self.entries[path] = Entry(path, key, Span.of(node), "sequence")
-            for i, item in enumerate(node.value):
-                self._walk(item, path + (i,), None, budget)
-        else:
-            self.entries[path] = Entry(path, key, Span.of(node), "scalar", str(node.value))
+    def _walk(self, root: yaml.Node) -> None:
+        """Every node under ``root`` (depth first, no recursion: a deeply nested text is fine), at most
+        :data:`~taskflow.mission.yamlsrc.MAX_NODES` of them; an alias's node is indexed where it first appears."""
+        stack: list[tuple[yaml.Node, YPath, Span | None]] = [(root, (), None)]
+        budget = MAX_NODES
+        while stack and budget > 0:
+            node, path, key = stack.pop()
+            budget -= 1
+            if path in self.entries:
+                continue
+            if isinstance(node, yaml.MappingNode):
+                self.entries[path] = Entry(path, key, Span.of(node), "mapping")
+                for k, v in reversed(node.value):
+                    name = k.value if isinstance(k, yaml.ScalarNode) else str(k.value)
+                    stack.append((v, path + (name,), Span.of(k)))
+            elif isinstance(node, yaml.SequenceNode):
+                self.entries[path] = Entry(path, key, Span.of(node), "sequence")
+                stack.extend((item, path + (i,), None) for i, item in reversed(list(enumerate(node.value))))
+            else:
+                self.entries[path] = Entry(path, key, Span.of(node), "scalar", str(node.value))
 
     def get(self, path: YPath) -> Entry | None:
         return self.entries.get(tuple(path))

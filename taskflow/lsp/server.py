@@ -127,12 +127,22 @@ def _unique(diags: list[types.Diagnostic]) -> list[types.Diagnostic]:
     return out
 
 
+_SERVER: list[TaskflowServer] = []  # the running server, for _guard's report to the client
+
+
 def _guard(fn: Callable[[], T], default: T) -> T:
-    """``fn()``, or ``default`` (the error logged to stderr) if it raises: no request crashes the server."""
+    """``fn()``, or ``default`` if it raises: no request crashes the server.  The error goes to stderr and to the
+    client's log (``window/logMessage``, type Error), where a test or a user sees it."""
     try:
         return fn()
     except Exception:
-        print(f"taskflow lsp: internal error:\n{traceback.format_exc()}", file=sys.stderr)
+        report = f"taskflow lsp: internal error:\n{traceback.format_exc()}"
+        print(report, file=sys.stderr)
+        for server in _SERVER:
+            try:
+                server.window_log_message(types.LogMessageParams(type=types.MessageType.Error, message=report))
+            except Exception:  # noqa: S110 - the report itself failed: stderr has it
+                pass
         return default
 
 
@@ -140,6 +150,7 @@ def build_server() -> TaskflowServer:
     from taskflow.lsp import actions, completion, hover, navigation
 
     server = TaskflowServer()
+    _SERVER[:] = [server]
     ctx = server.ctx
 
     @server.feature(types.TEXT_DOCUMENT_DID_OPEN)

@@ -201,7 +201,7 @@ def _bad_scalar(node: yaml.Node, loader: yaml.SafeLoader, budget: list[int]) -> 
 _NODE_EVENTS = (yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent, yaml.AliasEvent)
 
 
-def _too_many_nodes(text: str, limit: int) -> bool:
+def too_many_nodes(text: str, limit: int) -> bool:
     """Whether the document has more than ``limit`` nodes as written (aliases counted once), found with
     libyaml's event parser before anything is built — composing a huge document in Python would take
     seconds and hundreds of MB only to be refused.  A syntax error stops the count (the loader reports it)."""
@@ -237,7 +237,7 @@ def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
     smap = SourceMap(file)
     if len(text) > MAX_BYTES:
         raise MissionError([Problem(file, 1, 1, f"file is {len(text)} bytes", f"a mission must be under {MAX_BYTES} bytes")])
-    if _too_many_nodes(text, MAX_NODES):
+    if too_many_nodes(text, MAX_NODES):
         raise _node_limit_problem(file)
     loader: Any = None
     node: yaml.Node | None = None
