@@ -149,6 +149,54 @@ def test_a_user_drives_the_installed_wheel_from_a_scratch_directory(venv: Path, 
     assert batch["aggregate"]["trials"] == 2 and batch["aggregate"]["success_rate"] == 1.0
 
 
+def test_the_installed_wheel_serves_the_language_server(venv: Path, tmp_path: Path) -> None:
+    """``taskflow lsp`` of the installed wheel, driven over stdio by the tests' LSP client: a shipped mission with
+    its sub-mission (both in the wheel) has no diagnostics, a typo gets one at its line, completion offers the
+    registered tasks the wheel's entry points declare."""
+    import asyncio
+
+    from lsprotocol import types
+    from pytest_lsp import client_capabilities, make_test_lsp_client
+
+    site = subprocess.run([str(venv / "bin" / "python"), "-c", "import taskflow_missions, pathlib;"
+                           "print(pathlib.Path(taskflow_missions.__file__).parent)"],
+                          cwd=tmp_path, capture_output=True, text=True, env=_clean_env(), check=True).stdout.strip()
+    mission = Path(site) / "screw_fastening.yaml"
+    text = mission.read_text()
+    uri = mission.as_uri()
+
+    async def session() -> tuple[list[types.Diagnostic], list[types.Diagnostic], list[str]]:
+        client = make_test_lsp_client()
+        await client.start_io(str(venv / "bin" / "taskflow"), "lsp", env=_clean_env(), cwd=str(tmp_path))
+        await client.initialize_session(types.InitializeParams(capabilities=client_capabilities("neovim")))
+        client.text_document_did_open(types.DidOpenTextDocumentParams(text_document=types.TextDocumentItem(
+            uri=uri, language_id="yaml", version=1, text=text)))
+        while uri not in client.diagnostics:
+            await asyncio.sleep(0.01)
+        clean = list(client.diagnostics.pop(uri))
+        bad = text.replace("task: {name: arm_home", "task: {name: arm_hom", 1)
+        client.text_document_did_change(types.DidChangeTextDocumentParams(
+            text_document=types.VersionedTextDocumentIdentifier(uri=uri, version=2),
+            content_changes=[types.TextDocumentContentChangeWholeDocument(text=bad)]))
+        while uri not in client.diagnostics:
+            await asyncio.sleep(0.01)
+        typo = list(client.diagnostics[uri])
+        at = bad.index("arm_hom") + len("arm_hom")
+        position = types.Position(line=bad.count("\n", 0, at), character=at - (bad.rfind("\n", 0, at) + 1))
+        result = await client.text_document_completion_async(types.CompletionParams(
+            text_document=types.TextDocumentIdentifier(uri=uri), position=position))
+        items = result.items if isinstance(result, types.CompletionList) else list(result or [])
+        await client.shutdown_session()
+        await client.stop()
+        return clean, typo, [i.label for i in items]
+
+    clean, typo, labels = asyncio.run(asyncio.wait_for(session(), 120))
+    assert clean == []
+    assert len(typo) == 1 and "unknown task 'arm_hom'" in typo[0].message
+    assert typo[0].range.start.line == text[:text.index("name: arm_home")].count("\n")
+    assert "arm_home" in labels and "pbvs_arm" in labels
+
+
 def test_the_installed_wheel_runs_beside_a_users_own_tasks_and_sim(venv: Path, tmp_path: Path) -> None:
     project = tmp_path / "user_project"  # a user's project with packages of the names we must not capture
     for name in ("tasks", "sim", "robots"):
