@@ -45,7 +45,8 @@ MACHINERY: dict[str, frozenset[str]] = {
     "campaigns": frozenset({"mission", "execution", "readers", "catalogue"}),  # many runs, their statistics
     # the finite model, its checks (Storm), counterexamples replayed on the scripted backend, campaign predictions
     "verify": frozenset({"mission", "execution", "readers", "catalogue", "campaigns"}),
-    "cli": frozenset({"mission", "execution", "readers", "operate", "catalogue", "campaigns", "verify"}),  # the command
+    "lsp": frozenset({"mission", "catalogue"}),  # the language server: the load path and the catalogue in the editor
+    "cli": frozenset({"mission", "execution", "readers", "operate", "catalogue", "campaigns", "verify", "lsp"}),  # the command
     "testing": frozenset({"mission", "execution"}),  # the pytest plugin (a top-level module)
 }
 """Framework package → the machinery packages it may import (the public modules, :data:`PUBLIC_API`, it
