@@ -9,9 +9,11 @@ stdio, the server a separate ``taskflow lsp`` process).
 - **hover**: the round trip of a ``textDocument/hover`` at the same places.
 
 On the largest shipped mission (``missions/screw_fastening.yaml``, 27 states with its sub-mission) and on
-``missions/viki_hyco.yaml``.  Targets (issue 23): diagnostics within 300 ms of a change, completion within 100 ms.
+``missions/viki_hyco.yaml``; then, past the shipped sizes, diagnostics on a generated machine of ``--states``
+states (``tests/verify/machines.py``, the toy plugins: the server is ``tests/lsp/toy_server.py``).  Targets
+(issue 23): diagnostics within 300 ms of a change, completion within 100 ms, on the shipped missions.
 
-Usage: ``python benchmarks/lsp.py [--repeat 30]``.  The last line is JSON.
+Usage: ``python benchmarks/lsp.py [--repeat 30] [--states 1000]``.  The last line is JSON.
 """
 
 from __future__ import annotations
@@ -56,12 +58,15 @@ def _summary(xs: list[float]) -> dict[str, float]:
             "max_ms": round(1000 * xs[-1], 1), "n": len(xs)}
 
 
-async def _measure(name: str, repeat: int) -> dict[str, Any]:
+async def _measure(name: str, repeat: int, text: str | None = None) -> dict[str, Any]:
     path = ROOT / "missions" / name
-    text = path.read_text()
+    text = path.read_text() if text is None else text
     uri = path.resolve().as_uri()
     client = make_test_lsp_client()
-    await client.start_io(sys.executable, "-m", "taskflow.cli", "lsp")
+    if name in PLACES:
+        await client.start_io(sys.executable, "-m", "taskflow.cli", "lsp")
+    else:  # a generated machine on the toy robot, world and tasks
+        await client.start_io(sys.executable, str(ROOT / "tests" / "lsp" / "toy_server.py"))
     await client.initialize_session(types.InitializeParams(capabilities=client_capabilities("visual-studio-code"),
                                                            root_uri=path.parent.as_uri()))
     client.text_document_did_open(types.DidOpenTextDocumentParams(text_document=types.TextDocumentItem(
@@ -84,7 +89,7 @@ async def _measure(name: str, repeat: int) -> dict[str, Any]:
     completion: dict[str, list[float]] = {}
     hover: list[float] = []
     items: dict[str, int] = {}
-    for what, before in PLACES[name]:
+    for what, before in PLACES.get(name, []):
         p = _pos(text, before)
         if p is None:
             continue
@@ -100,16 +105,29 @@ async def _measure(name: str, repeat: int) -> dict[str, Any]:
     await client.shutdown_session()
     await client.stop()
     every = [x for xs in completion.values() for x in xs]
-    return {"mission": name, "lines": text.count("\n"), "diagnostics": _summary(diag_times),
-            "completion": _summary(every), "completion_by_place": {k: _summary(v) for k, v in completion.items()},
-            "completion_items": items, "hover": _summary(hover)}
+    out: dict[str, Any] = {"mission": name, "lines": text.count("\n"), "diagnostics": _summary(diag_times),
+                           "published": len(client.diagnostics.get(uri, []))}
+    if every:
+        out.update(completion=_summary(every), completion_by_place={k: _summary(v) for k, v in completion.items()},
+                   completion_items=items, hover=_summary(hover))
+    return out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=30)
+    ap.add_argument("--states", type=int, default=1000, help="states of the generated machine (0: none)")
     args = ap.parse_args()
     results = []
+    if args.states:
+        sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tests" / "verify")]
+        from machines import generate
+
+        text = generate(0, args.states, p_parallel=0.0, p_history=0.0, p_foreach=0.0, p_since=0.0)
+        r = asyncio.run(_measure(f"generated_{args.states}.yaml", max(3, args.repeat // 5), text))
+        results.append(r)
+        print(f"a generated machine ({text.count(chr(10))} lines, {args.states} states): diagnostics after a change "
+              f"median {r['diagnostics']['median_ms']} ms, max {r['diagnostics']['max_ms']} ms")
     for name in PLACES:
         r = asyncio.run(_measure(name, args.repeat))
         results.append(r)

@@ -52,12 +52,13 @@ class Analysis:
 def analyse(text: str, file: str, sources: dict[Path, str] | None = None) -> Analysis:
     """``text`` (the buffer of ``file``) through the load path; ``sources``: other open buffers by resolved path,
     read instead of their files when the mission uses them.  Never raises for any text."""
-    out = Analysis(file, text, DocumentIndex.build(text))
+    nodes: list[Any] = []
     try:
-        data, smap = load_yaml_text(text, file)
+        data, smap = load_yaml_text(text, file, nodes)
     except MissionError as exc:
-        out.problems = list(exc.problems)
-        return out
+        index = DocumentIndex.of_node(text, nodes[0]) if nodes else DocumentIndex.build(text)
+        return Analysis(file, text, index, problems=list(exc.problems))
+    out = Analysis(file, text, DocumentIndex.of_node(text, nodes[0]) if nodes else DocumentIndex.build(text))
     out.data, out.smap = data, smap
     if isinstance(data, dict) and "submission" in data and "mission" not in data:
         out.kind = "submission"

@@ -73,6 +73,13 @@ class DocumentIndex:
             index._walk(node)
         return index
 
+    @classmethod
+    def of_node(cls, text: str, node: yaml.Node) -> DocumentIndex:
+        """The index of ``text`` whose node tree ``node`` is already composed (by the loader)."""
+        index = cls(text)
+        index._walk(node)
+        return index
+
     def _walk(self, root: yaml.Node) -> None:
         """Every node under ``root`` (depth first, no recursion: a deeply nested text is fine), at most
         :data:`~taskflow.mission.yamlsrc.MAX_NODES` of them; an alias's node is indexed where it first appears."""

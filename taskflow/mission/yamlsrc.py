@@ -233,7 +233,9 @@ def _node_limit_problem(file: str) -> MissionError:
                                  "nested aliases")])
 
 
-def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
+def load_yaml_text(text: str, file: str, nodes: list[yaml.Node] | None = None) -> tuple[Any, SourceMap]:
+    """``text``'s data and source map; ``nodes``, when given, receives the composed node tree (for a tool that
+    needs every node's extent too: the language server, which then composes the text once)."""
     smap = SourceMap(file)
     if len(text) > MAX_BYTES:
         raise MissionError([Problem(file, 1, 1, f"file is {len(text)} bytes", f"a mission must be under {MAX_BYTES} bytes")])
@@ -245,6 +247,8 @@ def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
         loader, node = _compose(text)
         if node is None:
             raise MissionError([Problem(file, 1, 1, "the file is empty", "a mission needs at least `mission`, `robot`, `world`, `rate_hz` and `machine`")])
+        if nodes is not None:
+            nodes.append(node)
         try:
             _walk(node, (), smap, [MAX_NODES])
         except _TooBig:

@@ -129,6 +129,9 @@ def _written_on_entry(starts: set[str], leaves: list[StateNode], preds: dict[str
     """Leaf path → the keys written on every path into it (greatest fixed point; unreachable leaves keep all)."""
     by_path = {leaf.path: leaf for leaf in leaves}
     written = {leaf.path: universe for leaf in leaves}
+    if not universe:  # nothing is written or read: every leaf's set is empty already
+        return written
+    writes = {p: _writes(leaf) for p, leaf in by_path.items()}  # once per leaf, not once per edge and pass
     succs: dict[str, set[str]] = {p: set() for p in by_path}
     for d, ps in preds.items():
         for p in ps:
@@ -136,7 +139,7 @@ def _written_on_entry(starts: set[str], leaves: list[StateNode], preds: dict[str
     work = deque(by_path)
     while work:
         p = work.popleft()
-        ins = [written[q] | _writes(by_path[q]) for q in preds[p]]
+        ins = [written[q] | writes[q] for q in preds[p]]
         if p in starts:
             ins.append(defaults)
         new = frozenset.intersection(*ins) if ins else universe
