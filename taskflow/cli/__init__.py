@@ -1,5 +1,5 @@
-"""``taskflow`` command line: run, view, ctl, validate, graph, schema, verify, batch, compare, teach, plot, export, check, list,
-describe.
+"""``taskflow`` command line: run, view, ctl, validate, graph, schema, lsp, verify, batch, compare, teach, plot, export, check,
+list, describe.
 
 Exit codes: 0 success; 1 the mission did not succeed / a file is invalid; 2 bad usage;
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM) — ``run`` and ``batch`` alike, once the record is written.

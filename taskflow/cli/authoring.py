@@ -1,4 +1,5 @@
-"""``validate``, ``graph`` and ``schema``: what a mission's author checks and looks at."""
+"""``validate``, ``graph``, ``schema`` and ``lsp``: what a mission's author checks and looks at, on the command line
+and in the editor."""
 
 from __future__ import annotations
 
