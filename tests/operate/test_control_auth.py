@@ -58,15 +58,17 @@ def records(run_dir: Path) -> list[dict[str, Any]]:
     return [json.loads(line) for line in (run_dir / "transitions.jsonl").read_text().splitlines()]
 
 
-def start_toy(out: Path, control: str | ControlServer = "127.0.0.1:0") -> tuple[threading.Thread, dict[str, Any]]:
-    """The toy mission in a thread, paused by its script at t = 1 s; returns the thread and a box for its result."""
+def start_toy(out: Path, control: str | ControlServer = "127.0.0.1:0",
+              operator: list[dict[str, Any]] = PAUSE_AT_1) -> tuple[threading.Thread, dict[str, Any]]:
+    """The toy mission in a thread, paused by its script at t = 1 s (or run with ``operator``); returns the thread
+    and a box for its result."""
     mission = load_mission(TOY)
     box: dict[str, Any] = {}
 
     def target() -> None:
         try:
             endpoint = ControlServer(control) if isinstance(control, str) else control
-            box["result"] = run_mission(mission, out_dir=out, control=endpoint, max_time=3600, operator=PAUSE_AT_1)
+            box["result"] = run_mission(mission, out_dir=out, control=endpoint, max_time=3600, operator=operator)
         except BaseException as exc:
             box["error"] = exc
 
@@ -96,7 +98,8 @@ def _end(thread: threading.Thread, url: str, token: str, box: dict[str, Any]) ->
 
 def test_an_action_without_the_runs_token_is_refused_changes_nothing_and_is_logged(tmp_path, capsys):
     out = tmp_path / "run"
-    thread, box = start_toy(out)
+    # a held run runs flat out: the script pauses it again at 3 s, before the toy mission's own 60 s limit ends it
+    thread, box = start_toy(out, operator=[*PAUSE_AT_1, {"t": 3.0, "action": "pause", "who": "script"}])
     info = json.loads((out / "control.json").read_text())
     url, token = info["url"], info["token"]
     try:
@@ -120,12 +123,13 @@ def test_an_action_without_the_runs_token_is_refused_changes_nothing_and_is_logg
         assert "--token goes with --url" in capsys.readouterr().err
         assert main(["ctl", str(out), "hold", "--who", "trent"]) == 0  # RUN_DIR: the token from control.json
         assert "hold queued by trent" in capsys.readouterr().out
-        _until(lambda: request(url + "/state")[1]["held"], "the hold")
+        _until(lambda: (s := request(url + "/state")[1])["paused"] and s["t"] >= 3.0, "the hold, then the script's pause")
     finally:
         result = _end(thread, url, token, box)
     assert result.outcome == "aborted" and result.summary["reason"] == "pre-empted by teardown (operator)"
     ops = [(r["action"], r["who"]) for r in records(out) if r["cause"] == "operator" and "action" in r]
-    assert ops == [("pause", "script"), ("hold", "trent"), ("preempt", "teardown")]  # mallory: nothing recorded
+    assert ops == [("pause", "script"), ("hold", "trent"), ("pause", "script"),
+                   ("preempt", "teardown")]  # mallory: nothing recorded
     refused = [json.loads(line) for line in (out / "refused.jsonl").read_text().splitlines()]
     assert [(r["method"], r["path"], r["status"], r["why"]) for r in refused] == [
         ("POST", "/preempt", 401, "no token"), ("POST", "/preempt", 403, "wrong token"),
