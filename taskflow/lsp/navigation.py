@@ -520,7 +520,8 @@ _KINDS = {"composite": types.SymbolKind.Module, "parallel": types.SymbolKind.Str
 """The symbol kind of each role a state plays."""
 
 
-def _children_map(index: DocumentIndex) -> dict[YPath, list[Entry]]:
+def children_map(index: DocumentIndex) -> dict[YPath, list[Entry]]:
+    """The entries of the document by the path of the collection holding them, in document order."""
     out: dict[YPath, list[Entry]] = {}
     for e in index.entries.values():
         if e.path:
@@ -538,7 +539,7 @@ def _outline(ctx: Context, file: str, index: DocumentIndex, container: YPath, ro
     """The states under ``container`` (a ``states:`` or ``regions:`` mapping of ``file``) as symbols of the
     document ``shown_in``; ``at``: the (range, selection) every symbol takes there (a sub-mission's states shown
     at the state that uses it)."""
-    kids = _children_map(index)
+    kids = children_map(index)
     out: list[types.DocumentSymbol] = []
     for e in kids.get(container, []):
         if not isinstance(e.path[-1], str) or e.key is None:
