@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 import pytest
-from conftest import MISSIONS, change_doc, open_doc, pos
+from conftest import BROKEN, MISSIONS, change_doc, open_doc, pos
 from lsprotocol import types
 
 pytestmark = [pytest.mark.machine, pytest.mark.asyncio]
@@ -244,3 +244,27 @@ async def test_navigation_on_half_typed_text(client):
     assert await definition(client, SCREW, types.Position(line=0, character=3)) == []
     assert await client.text_document_rename_async(types.RenameParams(
         text_document=doc(SCREW), position=types.Position(line=0, character=3), new_name="x")) is None
+
+
+async def test_a_data_key_goes_to_the_task_class_that_declares_it(toy_client):
+    path = BROKEN / "guard_number_without_unit.yaml"
+    head = path.read_text().split("machine:")[0]
+    text = head + """machine:
+  initial: mark
+  states:
+    mark:
+      task: toy_mark
+      transitions: [{to: away, when: "data.toy.mark > 20 cm"}]
+    away:
+      task: {name: toy_goto, params: {target: $data.toy.mark}}
+      bind: {gains: slow}
+      transitions: [{to: done, when: "pos_error < 1 cm"}]
+    done: {final: succeeded}
+"""
+    assert await open_doc(toy_client, path, text) == []
+    for at in (pos(text, '"data.toy.ma'), pos(text, "$data.to")):
+        [loc] = await definition(toy_client, path, at)
+        source = Path(loc.uri[len("file://"):])
+        assert source.name == "toys.py"
+        line = source.read_text().split("\n")[loc.range.start.line]
+        assert line.startswith("class ToyMark")
