@@ -72,6 +72,11 @@ def word_at(text: str, line: int, col: int) -> tuple[str, Span] | None:
     return None
 
 
+def _in_comment(line_text: str, col: int) -> bool:
+    """Whether column ``col`` of a line is in a comment (a ``#`` at the line's start or after a blank)."""
+    return any(ch == "#" and (i == 0 or line_text[i - 1].isspace()) for i, ch in enumerate(line_text[:col]))
+
+
 def _spot(ctx: Context, file: str, line: int, col: int) -> Spot | None:
     text = ctx.ws.text_of(file)
     if text is None:
@@ -86,6 +91,8 @@ def _spot(ctx: Context, file: str, line: int, col: int) -> Spot | None:
         entry, on_key = hit
         path = entry.path
     else:  # half-typed text: the path from the lines above
+        if _in_comment(text.split("\n")[line], span.col):
+            return None
         cur = cursor_at(text, line, span.col)
         on_key = cur.role == "key"
         path = cur.path + (word,) if on_key else cur.path

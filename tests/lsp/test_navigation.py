@@ -189,7 +189,7 @@ async def test_rename_a_state_updates_targets_initial_and_dotted_paths(client):
                                                                           new_name=bad)) is None
 
 
-async def test_rename_a_sub_mission_state_and_a_dotted_target(client):
+async def test_rename_a_sub_mission_state_and_a_property_state_path(client):
     text, lib = SCREW.read_text(), LIB.read_text()
     await open_doc(client, SCREW)
     await open_doc(client, LIB)
