@@ -33,8 +33,8 @@ from pytest_lsp import client_capabilities, make_test_lsp_client
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from taskflow.execution.provenance import versions  # noqa: E402
-from taskflow.lsp.server import DEBOUNCE_S  # noqa: E402
+from taskflow.execution.provenance import versions
+from taskflow.lsp.server import DEBOUNCE_S
 
 PLACES = {  # file → (what, text just before the cursor) — each at the end of the first occurrence
     "screw_fastening.yaml": [("state key", "  cell:\n      "), ("event", "on: target_l"),

@@ -141,7 +141,7 @@ def _guard(fn: Callable[[], T], default: T) -> T:
         for server in _SERVER:
             try:
                 server.window_log_message(types.LogMessageParams(type=types.MessageType.Error, message=report))
-            except Exception:  # noqa: S110 - the report itself failed: stderr has it
+            except Exception:
                 pass
         return default
 
