@@ -307,7 +307,8 @@ def cursor_at(text: str, line: int, col: int) -> Cursor:
     after = _AFTER.match(current, col)
     span = Span(line, col - len(prefix), line, col + (len(after.group(0)) if after else 0))
     ln = _parse_line(before + "x")  # the `x` stands for what is typed next, so a blank line has a column
-    assert ln is not None
+    if ln is None:  # inside a comment (or a `---`): the cursor is in no key or value
+        return Cursor((), "comment", prefix, span)
     if ln.dashes:
         path = list(_block_parents(lines, line, ln.indent, item_at=ln.indent)) + [0] * (ln.dashes - 1)
     else:
