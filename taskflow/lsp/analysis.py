@@ -114,10 +114,6 @@ class Workspace:
         self._disk: dict[str, tuple[float, DocumentIndex]] = {}
 
     # -- buffers -------------------------------------------------------------------------------------------
-    def open(self, file: str, text: str) -> Analysis:
-        self.texts[file] = text
-        return self.update(file)
-
     def close(self, file: str) -> None:
         self.texts.pop(file, None)
         self.analyses.pop(file, None)

@@ -188,38 +188,31 @@ def build_server() -> TaskflowServer:
             server.analyse_and_publish(file)
         return file
 
+    def _at(params: Any, answer: Callable[[str, int, int], T]) -> T | None:
+        """``answer(file, line, code point)`` for a request at ``params.position`` (guarded: None if it raises)."""
+        def run() -> T | None:
+            file = _sync(params.text_document.uri)
+            line, col = ctx.position(file, params.position)
+            return answer(file, line, col)
+        return _guard(run, None)
+
     @server.feature(types.TEXT_DOCUMENT_COMPLETION,
                     types.CompletionOptions(trigger_characters=[":", " ", "$", ".", "{", ",", "/"]))
     def on_completion(ls: TaskflowServer, params: types.CompletionParams) -> types.CompletionList | None:
-        def run() -> types.CompletionList | None:
-            file = _sync(params.text_document.uri)
-            line, col = ctx.position(file, params.position)
-            return completion.complete(ctx, file, line, col)
-        return _guard(run, None)
+        return _at(params, lambda file, line, col: completion.complete(ctx, file, line, col))
 
     @server.feature(types.TEXT_DOCUMENT_HOVER)
     def on_hover(ls: TaskflowServer, params: types.HoverParams) -> types.Hover | None:
-        def run() -> types.Hover | None:
-            file = _sync(params.text_document.uri)
-            line, col = ctx.position(file, params.position)
-            return hover.hover(ctx, file, line, col)
-        return _guard(run, None)
+        return _at(params, lambda file, line, col: hover.hover(ctx, file, line, col))
 
     @server.feature(types.TEXT_DOCUMENT_DEFINITION)
     def on_definition(ls: TaskflowServer, params: types.DefinitionParams) -> list[types.Location] | None:
-        def run() -> list[types.Location] | None:
-            file = _sync(params.text_document.uri)
-            line, col = ctx.position(file, params.position)
-            return navigation.definition(ctx, file, line, col)
-        return _guard(run, None)
+        return _at(params, lambda file, line, col: navigation.definition(ctx, file, line, col))
 
     @server.feature(types.TEXT_DOCUMENT_REFERENCES)
     def on_references(ls: TaskflowServer, params: types.ReferenceParams) -> list[types.Location] | None:
-        def run() -> list[types.Location] | None:
-            file = _sync(params.text_document.uri)
-            line, col = ctx.position(file, params.position)
-            return navigation.references(ctx, file, line, col, params.context.include_declaration)
-        return _guard(run, None)
+        return _at(params, lambda file, line, col: navigation.references(ctx, file, line, col,
+                                                                       params.context.include_declaration))
 
     @server.feature(types.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
     def on_symbols(ls: TaskflowServer, params: types.DocumentSymbolParams) -> list[types.DocumentSymbol] | None:
@@ -227,19 +220,11 @@ def build_server() -> TaskflowServer:
 
     @server.feature(types.TEXT_DOCUMENT_PREPARE_RENAME)
     def on_prepare_rename(ls: TaskflowServer, params: types.PrepareRenameParams) -> types.Range | None:
-        def run() -> types.Range | None:
-            file = _sync(params.text_document.uri)
-            line, col = ctx.position(file, params.position)
-            return navigation.prepare_rename(ctx, file, line, col)
-        return _guard(run, None)
+        return _at(params, lambda file, line, col: navigation.prepare_rename(ctx, file, line, col))
 
     @server.feature(types.TEXT_DOCUMENT_RENAME)
     def on_rename(ls: TaskflowServer, params: types.RenameParams) -> types.WorkspaceEdit | None:
-        def run() -> types.WorkspaceEdit | None:
-            file = _sync(params.text_document.uri)
-            line, col = ctx.position(file, params.position)
-            return navigation.rename(ctx, file, line, col, params.new_name)
-        return _guard(run, None)
+        return _at(params, lambda file, line, col: navigation.rename(ctx, file, line, col, params.new_name))
 
     @server.feature(types.TEXT_DOCUMENT_CODE_ACTION,
                     types.CodeActionOptions(code_action_kinds=[types.CodeActionKind.QuickFix]))
