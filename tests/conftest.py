@@ -4,6 +4,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parent))
 
 import toys
+from lsp_session import client, toy_client  # noqa: F401  the language server's fixtures (tests/lsp)
 
 toys.register()
 

@@ -25,7 +25,7 @@ from taskflow.lsp.navigation import children_map
 from taskflow.mission.model import YPath
 
 if TYPE_CHECKING:
-    from taskflow.lsp.server import Context
+    from taskflow.lsp.context import Context
 
 TIMEOUT = "10 s"
 """The ``after:`` of an added timeout transition: a placeholder for the author to tune."""

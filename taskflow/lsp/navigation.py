@@ -28,7 +28,7 @@ from taskflow.mission.model import CompiledMission, StateNode, YPath
 from taskflow.mission.yamlsrc import SourceMap
 
 if TYPE_CHECKING:
-    from taskflow.lsp.server import Context
+    from taskflow.lsp.context import Context
 
 _NAME_CHARS = re.compile(r"[A-Za-z0-9_.$\-]+")
 _STATE_CONTAINERS = ("states", "regions")

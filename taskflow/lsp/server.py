@@ -22,11 +22,10 @@ from typing import Any, TypeVar
 
 from lsprotocol import types
 from pygls.lsp.server import LanguageServer
-from pygls.uris import from_fs_path, to_fs_path
-from pygls.workspace.position_codec import ServerTextPosition, ServerTextRange
 
 import taskflow
 from taskflow.lsp.analysis import Diagnostic, Workspace
+from taskflow.lsp.context import Context
 from taskflow.lsp.document import Span
 
 DEBOUNCE_S = 0.05
@@ -36,48 +35,13 @@ log = logging.getLogger("taskflow.lsp")
 T = TypeVar("T")
 
 
-class Context:
-    """What a feature reads: the workspace of buffers, and conversions between files and URIs and between
-    code-point spans and the client's ranges."""
-
-    def __init__(self, server: TaskflowServer) -> None:
-        self.server = server
-        self.ws = server.buffers
-
-    @staticmethod
-    def file_of(uri: str) -> str:
-        return to_fs_path(uri) or uri
-
-    @staticmethod
-    def uri_of(file: str) -> str:
-        return from_fs_path(str(Path(file).resolve())) or file
-
-    def _lines(self, file: str) -> list[str]:
-        text = self.ws.text_of(file) or ""
-        return text.splitlines(True) or [""]
-
-    def range(self, file: str, span: Span) -> types.Range:
-        codec = self.server.workspace.position_codec
-        return codec.range_to_client_units(self._lines(file), ServerTextRange(
-            ServerTextPosition(span.line, span.col), ServerTextPosition(span.end_line, span.end_col)))
-
-    def location(self, file: str, span: Span) -> types.Location:
-        return types.Location(uri=self.uri_of(file), range=self.range(file, span))
-
-    def position(self, file: str, pos: types.Position) -> tuple[int, int]:
-        """A client position as (line, code point)."""
-        codec = self.server.workspace.position_codec
-        p = codec.position_from_client_units(self._lines(file), pos)
-        return p.line, p.character
-
-
 class TaskflowServer(LanguageServer):
     def __init__(self) -> None:
         super().__init__("taskflow", taskflow.__version__ if hasattr(taskflow, "__version__") else "0")
         self.buffers = Workspace()
         self.pending: dict[str, asyncio.Task[None]] = {}
         self.by_buffer: dict[str, dict[str, list[Diagnostic]]] = {}  # buffer → file → what its analysis found there
-        self.ctx = Context(self)
+        self.ctx = Context(self.buffers, lambda: self.workspace.position_codec)
 
     def analyse_and_publish(self, file: str) -> None:
         self.buffers.update(file)

@@ -4,7 +4,7 @@ then loads without the problem it fixed."""
 from __future__ import annotations
 
 import pytest
-from conftest import BROKEN, MISSIONS, change_doc, open_doc
+from lsp_session import BROKEN, MISSIONS, change_doc, open_doc
 from lsprotocol import types
 from test_navigation import apply, doc
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import MISSIONS, change_doc, open_doc, pos
+from lsp_session import MISSIONS, change_doc, open_doc, pos
 from lsprotocol import types
 
 from taskflow.registry import TASKS, WORLDS

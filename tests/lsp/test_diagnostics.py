@@ -12,7 +12,7 @@ import shutil
 from pathlib import Path
 
 import pytest
-from conftest import BROKEN, MISSIONS, change_doc, open_doc
+from lsp_session import BROKEN, MISSIONS, change_doc, open_doc
 from lsprotocol import types
 
 from taskflow.errors import MissionError, Problem

@@ -13,7 +13,7 @@ from __future__ import annotations
 import random
 
 import pytest
-from conftest import BROKEN, MISSIONS, change_doc, open_doc
+from lsp_session import BROKEN, MISSIONS, change_doc, open_doc
 from lsprotocol import types
 
 pytestmark = [pytest.mark.machine, pytest.mark.asyncio]

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import MISSIONS, change_doc, open_doc, pos
+from lsp_session import MISSIONS, change_doc, open_doc, pos
 from lsprotocol import types
 
 from taskflow.registry import TASKS, WORLDS

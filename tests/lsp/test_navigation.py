@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 import pytest
-from conftest import BROKEN, MISSIONS, change_doc, open_doc, pos
+from lsp_session import BROKEN, MISSIONS, change_doc, open_doc, pos
 from lsprotocol import types
 
 pytestmark = [pytest.mark.machine, pytest.mark.asyncio]

@@ -1,6 +1,8 @@
-"""The language server under test, driven as a real LSP client over stdio (pytest-lsp): ``client`` starts
-``taskflow lsp`` (the real command, shipped missions), ``toy_client`` the same server with the test suite's toy
-plugins registered (the broken-mission corpus).  Helpers open a document and wait for its diagnostics."""
+"""The language server under test (tests/lsp), driven as a real LSP client over stdio (pytest-lsp): ``client``
+starts ``taskflow lsp`` (the real command, shipped missions), ``toy_client`` the same server with the test suite's
+toy plugins registered (the broken-mission corpus); tests/conftest.py makes both fixtures.  Helpers open a
+document and wait for its diagnostics.  Not a conftest.py of tests/lsp: a second module named ``conftest`` would
+stand in for tests/conftest.py where other tests import from it."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import pytest_lsp
 from lsprotocol import types
 from pytest_lsp import ClientServerConfig, LanguageClient
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parent / "lsp"
 ROOT = HERE.parents[1]
 MISSIONS = ROOT / "missions"
 BROKEN = ROOT / "tests" / "broken"
