@@ -55,9 +55,13 @@ def _class(registry: Any, name: str | None) -> Any:
 
 
 def _written(k: Knowledge, path: tuple[Any, ...]) -> str | None:
-    """The scalar written at ``path`` of the document (of its latest analysis; None when not there)."""
-    entry = k.analysis.index.get(path) if k.analysis is not None else None
-    return entry.text if entry is not None else None
+    """The scalar written at ``path`` of the text as it is now (else of its latest analysis; None when not
+    there)."""
+    for index in (k.written, k.analysis.index if k.analysis is not None else None):
+        entry = index.get(path) if index is not None else None
+        if entry is not None:
+            return entry.text
+    return None
 
 
 def _task_name(k: Knowledge, cur: Cursor, text: str) -> str | None:
@@ -68,16 +72,34 @@ def _task_name(k: Knowledge, cur: Cursor, text: str) -> str | None:
         m = re.search(r"task:\s*\{?\s*(?:name:\s*)?([A-Za-z0-9_]+)", text.split("\n")[cur.span.line])
         if m:
             return m.group(1)
+        task_path = cur.path[:cur.path.index("task") + 1]
+        written = _written(k, task_path + ("name",)) or _written(k, task_path)  # block `name:` or `task: NAME`
+        if written:
+            return written
         node = k.state_at(keys[:at])
     else:
         node = k.state_at(keys)
     return node.task_cls.name if node is not None and node.task_cls is not None else None
 
 
+def _written_metrics(k: Knowledge, cur: Cursor) -> dict[str, tuple[str, str]]:
+    """Metric → (unit, publisher) of the task and world written in the text, for a mission that has not
+    compiled yet (a new file): the state's ``task`` (block ``name:``, flow or bare name) and ``world``."""
+    out: dict[str, tuple[str, str]] = {}
+    state = cur.path[:cur.path.index("transitions")] if "transitions" in cur.path else None
+    task = state is not None and (_written(k, state + ("task", "name")) or _written(k, state + ("task",)))
+    for registry, name, what in ((TASKS, task, "task"),
+                                 (WORLDS, _written(k, ("world", "name")) or _written(k, ("world",)), "world")):
+        cls = _class(registry, name or None)
+        for metric, unit in (getattr(cls, "metrics", None) or {}).items():
+            out.setdefault(metric, (str(unit), f"{what} {name}"))
+    return out
+
+
 def _guard_items(k: Knowledge, cur: Cursor) -> list[Item]:
     """Inside a guard: units after ``METRIC OP NUMBER``, else metrics of the state, ``$parameters``, ``data.`` keys."""
     before = cur.value[:len(cur.value) - len(cur.prefix)] if cur.prefix else cur.value
-    metrics = k.metrics_in(k.state_at(cur.path) if "transitions" in cur.path else None)
+    metrics = k.metrics_in(k.state_at(cur.path) if "transitions" in cur.path else None) or _written_metrics(k, cur)
     m = _COMPARISON.search(before)
     if m:
         unit = metrics.get(m.group(1), ("", ""))[0]
@@ -220,6 +242,17 @@ def _value_items(k: Knowledge, cur: Cursor, file: str, text: str) -> list[Item]:
     return []
 
 
+def _keys_written(k: Knowledge, cur: Cursor) -> set[str]:
+    """The keys already written in the mapping the cursor types a key of (a key is not offered twice); the one
+    being typed stays (its own entry, where the cursor's word is)."""
+    if k.written is None:
+        return set()
+    n = len(cur.path)
+    return {p[n] for p, e in k.written.entries.items()
+            if len(p) == n + 1 and p[:n] == cur.path and isinstance(p[n], str)
+            and not (e.key is not None and (e.key.line, e.key.col) == (cur.span.line, cur.span.col))}
+
+
 def complete(ctx: Any, file: str, line: int, col: int) -> types.CompletionList | None:
     """What may be typed at (``line``, ``col``) of ``file``, each item replacing the word at the cursor."""
     text = ctx.ws.text_of(file)
@@ -231,7 +264,7 @@ def complete(ctx: Any, file: str, line: int, col: int) -> types.CompletionList |
     if not items:
         return None
     rng = ctx.range(file, cur.span)
-    seen: set[str] = set()
+    seen = _keys_written(k, cur) if cur.role == "key" else set()
     out = []
     for label, detail, doc, kind in items:
         if label in seen:

@@ -31,8 +31,14 @@ class Context:
         return from_fs_path(str(Path(file).resolve())) or file
 
     def _lines(self, file: str) -> list[str]:
+        """The buffer's lines with their ends, and the empty last line after a final newline (where the cursor is
+        when typing at the end of a file: ``splitlines`` drops it, and the codec would clamp the position onto
+        the line above)."""
         text = self.ws.text_of(file) or ""
-        return text.splitlines(True) or [""]
+        lines = text.splitlines(True)
+        if not lines or lines[-1].endswith(("\n", "\r")):
+            lines.append("")
+        return lines
 
     def range(self, file: str, span: Span) -> types.Range:
         return self.codec().range_to_client_units(self._lines(file), ServerTextRange(

@@ -18,6 +18,7 @@ from pydantic import BaseModel
 from taskflow.catalogue.catalogue import Catalogue, build
 from taskflow.catalogue.declarations import Param, params_of
 from taskflow.lsp.analysis import Analysis, Workspace, same_file
+from taskflow.lsp.document import DocumentIndex
 from taskflow.mission.model import CompiledMission, StateNode, YPath
 from taskflow.mission.yamlsrc import load_yaml_text
 
@@ -59,19 +60,21 @@ class Knowledge:
     analysis: Analysis | None
     mission: CompiledMission | None
     offset: tuple[YPath, YPath] = ((), ())  # (document prefix, expanded prefix)
+    written: DocumentIndex | None = None  # the index of the text as it is now (``analysis`` may be older)
 
     @classmethod
     def of(cls, ws: Workspace, file: str) -> Knowledge:
         a = ws.context(file)
+        now = ws.index_of(file)
         if a is not None and a.mission is not None:
-            return cls(a, a.mission)
+            return cls(a, a.mission, written=now)
         if a is not None and a.kind == "submission":
             for user in ws.missions_using(file):
                 assert user.mission is not None
                 for node in user.mission.states.values():
                     if node.use and same_file(str(Path(user.file).parent / node.use), file):
-                        return cls(a, user.mission, (("machine",), node.ypath))
-        return cls(a, None)
+                        return cls(a, user.mission, (("machine",), node.ypath), now)
+        return cls(a, None, written=now)
 
     def expanded(self, path: YPath) -> YPath:
         """``path`` of the file's document as a path of the mission's expanded document."""

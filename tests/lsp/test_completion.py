@@ -47,28 +47,33 @@ async def test_a_new_state_half_typed_gets_state_keys(client):
     await open_doc(client, VIKI)
     cut = text.replace("    placed: {final: succeeded}", "    extra:\n      ta\n    placed: {final: succeeded}", 1)
     await change_doc(client, VIKI, cut, 2)
-    items = await complete(client, VIKI, cut, "\n      ta")
+    items = await complete(client, VIKI, cut, "extra:\n      ta")
     assert {"task", "bind", "transitions", "states", "final"} <= set(items)
     assert items["task"].text_edit.new_text == "task: "
     assert "mission" not in items
+    # in a state that has them, the keys already written are not offered again; the one being typed is
+    items = await complete(client, VIKI, cut, "    backward:\n      descr")
+    assert "description" in items and "task" not in items and "transitions" not in items
+    assert {"final", "states", "regions"} <= set(items)
 
 
 async def test_top_level_keys_of_a_mission_and_of_a_sub_mission(client):
     text = VIKI.read_text()
     await open_doc(client, VIKI)
-    items = await complete(client, VIKI, text, "rate_hz", -7)
-    assert {"mission", "robot", "world", "machine", "profiles"} <= set(items)
+    items = await complete(client, VIKI, text, "rate_hz", -7)  # on the key `rate_hz`: it, and keys not written
+    assert {"rate_hz", "seed", "events", "data"} <= set(items)
+    assert not {"mission", "robot", "world", "machine", "profiles"} & set(items)
     sub = SUB.read_text()
     await open_doc(client, SUB)
     items = await complete(client, SUB, sub, "exits", -5)
-    assert {"submission", "parameters", "exits", "machine"} <= set(items) and "robot" not in items
+    assert set(items) == {"exits"}  # a sub-mission's keys (no `robot`), all written but the one typed
 
 
 async def test_transition_keys_robot_and_world_names(client):
     text = VIKI.read_text()
     await open_doc(client, VIKI)
     items = await complete(client, VIKI, text, "- {to: rotate, ", 0)
-    assert {"to", "when", "after", "on", "for"} <= set(items)
+    assert {"when", "after", "on", "blend"} <= set(items) and not {"to", "for"} & set(items)  # (written already)
     assert "racecar" in await complete(client, VIKI, text, "robot: ")
     worlds = set(await complete(client, VIKI, text, "  name: viki_g"))
     assert {"viki_ground", "screw_conveyor"} <= worlds <= set(WORLDS.names())
@@ -78,9 +83,13 @@ async def test_task_params_with_type_default_and_unit(client):
     text = VIKI.read_text()
     await open_doc(client, VIKI)
     items = await complete(client, VIKI, text, "params: {radius", -6)
-    assert {"radius", "turn"} <= set(items) and "desired" not in items  # viki_rotate's, not viki_hyco's
-    items = await complete(client, VIKI, text, "params: {camera", -6)
+    # viki_rotate's, not viki_hyco's; `turn` is written already, `radius` is the key under the cursor
+    assert set(items) == {"radius", "lookahead", "leg_tolerance", "camera"}
+    cut = text.replace("params: {camera: front, desired: $front_goal, ", "params: {camera: front, ", 1)
+    await change_doc(client, VIKI, cut, 2)
+    items = await complete(client, VIKI, cut, "params: {camera", -6)
     assert "required" in items["camera"].detail and "[m]" in items["desired"].detail
+    assert "keep_out_body" not in items
 
 
 async def test_bind_slots_profile_fields_and_profile_names_of_the_slot_kind(client):
@@ -88,7 +97,7 @@ async def test_bind_slots_profile_fields_and_profile_names_of_the_slot_kind(clie
     await open_doc(client, VIKI)
     assert "gains" in await complete(client, VIKI, text, "bind: {", 0)
     fields = await complete(client, VIKI, text, "front: {", 0)
-    assert {"lam", "k1"} <= set(fields)
+    assert {"lam", "d"} <= set(fields) and "k1" not in fields  # (`k1` is written; `lam` under the cursor)
     names = await complete(client, VIKI, text, "bind: {gains: fr")
     assert set(names) == set(yaml.safe_load(text)["profiles"]["viki_gains"])  # not the `gains` kind's `rotate`
 
@@ -110,8 +119,13 @@ async def test_sub_mission_files_their_parameters_and_targets_inside_the_sub_mis
     text = SCREW.read_text()
     await open_doc(client, SCREW)
     assert "lib/screw_operation.yaml" in await complete(client, SCREW, text, "use: lib/")
-    params = await complete(client, SCREW, text, "with: {", 0)
-    assert set(params) == set(yaml.safe_load(SUB.read_text())["parameters"])
+    params = await complete(client, SCREW, text, "with: {", 0)  # on the first key: it alone is not written
+    assert set(params) == {"camera_target"}
+    cut = text.replace(" approach: $approach,", "", 1)
+    await change_doc(client, SCREW, cut, 2)
+    params = await complete(client, SCREW, cut, "with: {", 0)
+    assert set(params) == {"camera_target", "approach"} and "approach" in yaml.safe_load(SUB.read_text())["parameters"]
+    await change_doc(client, SCREW, text, 3)
     sub = SUB.read_text()
     await open_doc(client, SUB)
     targets = await complete(client, SUB, sub, "{to: s3_arm")
@@ -128,8 +142,9 @@ async def test_world_params_and_fidelity_levels(client):
     await change_doc(client, SCREW, cut, 2)
     levels = await complete(client, SCREW, cut, "fidelity: ")
     assert set(levels) == set(world.Params.fidelity_names())
-    keys = await complete(client, SCREW, cut, "\n    motion", -6)
-    assert set(world.Params.model_fields) <= set(keys)
+    keys = await complete(client, SCREW, cut, "\n    motion", -6)  # on `motion`: it, and the ones not written
+    written = set(yaml.safe_load(cut)["world"]["params"])
+    assert {"fidelity", "motion"} <= written and set(keys) == (set(world.Params.model_fields) - written) | {"motion"}
 
 
 async def test_completion_is_fast_on_the_largest_mission(client):
