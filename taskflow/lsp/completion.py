@@ -120,16 +120,7 @@ def _guard_items(k: Knowledge, cur: Cursor) -> list[Item]:
 
 def _dollar(k: Knowledge) -> list[Item]:
     """``$parameters`` of the mission (and sub-mission) with their values, and foreach items."""
-    params: dict[str, Any] = {}
-    if k.analysis is not None and isinstance(k.analysis.data, dict):
-        raw = k.analysis.data.get("parameters")
-        params.update(raw if isinstance(raw, dict) else {})
-    if k.mission is not None:
-        params.update({n: v for n, v in k.mission.spec.parameters.items() if n not in params})
-        for node in k.mission.states.values():
-            if node.loop is not None:
-                params.setdefault(node.loop.item, f"item of ${node.loop.items} (foreach in {node.path})")
-    return [(f"${n}", "parameter", repr(v), types.CompletionItemKind.Variable) for n, v in params.items()]
+    return [(f"${n}", "parameter", repr(v), types.CompletionItemKind.Variable) for n, v in k.parameters().items()]
 
 
 def _use_files(file: str) -> list[Item]:

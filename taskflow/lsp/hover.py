@@ -21,11 +21,26 @@ _QUANTITY = re.compile(r"(?<![A-Za-z0-9_.])([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.]*")
 
 
+_ANCHOR = re.compile(r"^<a id=[^>]*></a>\s*", re.M)
+
+
 def _entry_markdown(name: str, kind: Any) -> str | None:
+    """The catalogue's page of a registered name (without the anchor the catalogue document links to)."""
     try:
-        return describe_markdown(catalogue().find(name, kind))
+        return _ANCHOR.sub("", describe_markdown(catalogue().find(name, kind)))
     except UnknownEntry:
         return None
+
+
+def _parameter_markdown(k: Knowledge, line: str, col: int) -> str | None:
+    """A ``$parameter`` under ``col``: its value (or what a foreach item iterates)."""
+    for m in re.finditer(r"\$([A-Za-z_][A-Za-z0-9_]*)", line):
+        if m.start() <= col <= m.end():
+            params = k.parameters()
+            if m.group(1) not in params:
+                return None
+            return f"**parameter `${m.group(1)}`** = `{params[m.group(1)]!r}`"
+    return None
 
 
 def _threshold(line: str, col: int) -> tuple[str, Span] | None:
@@ -66,6 +81,14 @@ def _markdown(k: Knowledge, path: tuple[Any, ...], on_key: bool, text: str | Non
     keys = tuple(p for p in path if isinstance(p, str))
     if not keys:
         return None
+    if not on_key and "$" in line:
+        param = _parameter_markdown(k, line, col)
+        if param is not None:
+            return param
+    if not on_key and keys[-1] == "on" and "transitions" in keys and text:
+        sources = k.event_sources(text)
+        if sources:
+            return f"**event `{text}`**, raised by " + "; ".join(sources)
     if not on_key and (keys in (("robot",), ("robot", "name"))):
         return _entry_markdown(text or "", "robot")
     if not on_key and (keys in (("world",), ("world", "name"))):

@@ -94,6 +94,34 @@ class Knowledge:
                 best = node
         return best
 
+    def parameters(self) -> dict[str, Any]:
+        """``$name`` → value of the mission's (or the sub-mission file's) ``parameters`` as written, and each
+        ``foreach`` item (→ a description of what it iterates)."""
+        params: dict[str, Any] = {}
+        if self.analysis is not None and isinstance(self.analysis.data, dict):
+            raw = self.analysis.data.get("parameters")
+            params.update(raw if isinstance(raw, dict) else {})
+        if self.mission is not None:
+            params.update({n: v for n, v in self.mission.spec.parameters.items() if n not in params})
+            for node in self.mission.states.values():
+                if node.loop is not None:
+                    params.setdefault(node.loop.item, f"item of ${node.loop.items} (foreach in {node.path})")
+        return params
+
+    def event_sources(self, event: str) -> list[str]:
+        """Who raises ``event`` in this mission: the world, its actions, the states' tasks, or the mission's own
+        ``events:`` (for the operator)."""
+        m = self.mission
+        if m is None:
+            return []
+        out = [f"world `{m.world_cls.name}`"] if event in m.world_cls.events else []
+        out += [f"the end of action `{a}`" for a, ends in m.world_cls.actions.items() if event in ends]
+        tasks = sorted({n.task_cls.name for n in m.states.values() if n.task_cls is not None and event in n.task_cls.events})
+        out += [f"task `{name}`" for name in tasks]
+        if event in m.spec.events:
+            out.append("the mission's `events:` (raised by the operator: `taskflow ctl RUN inject`)")
+        return out
+
     # -- what a state offers ------------------------------------------------------------------------------
     def metrics_in(self, node: StateNode | None) -> dict[str, tuple[str, str]]:
         """Metric → (unit, publisher) a guard of ``node`` can read: its task's and the world's (every metric of

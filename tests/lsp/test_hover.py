@@ -93,3 +93,15 @@ async def test_half_typed_buffer_still_hovers_and_nonsense_returns_nothing(clien
     result = await client.text_document_hover_async(types.HoverParams(
         text_document=types.TextDocumentIdentifier(uri=OVAL.resolve().as_uri()), position=types.Position(0, 2)))
     assert result is None
+
+
+async def test_parameter_value_event_sources_and_no_catalogue_anchor(client):
+    text = VIKI.read_text()
+    await open_doc(client, VIKI)
+    md = await hover(client, VIKI, text, "desired: $zo")
+    assert "$zone" in md and "[-0.9, 0.0]" in md
+    md = await hover(client, VIKI, text, "{to: no_target, on: no_tar")
+    assert "event `no_target`" in md and "task `viki_hyco`" in md and "task `viki_rotate`" in md  # both declare it
+    assert "world" not in md  # viki_ground does not raise it
+    md = await hover(client, VIKI, text, "name: viki_rot")
+    assert "<a id" not in md
