@@ -33,6 +33,8 @@ from pytest_lsp import client_capabilities, make_test_lsp_client
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from importlib.metadata import version as _version
+
 from taskflow.execution.provenance import versions
 from taskflow.lsp.server import DEBOUNCE_S
 
@@ -75,6 +77,7 @@ async def _measure(name: str, repeat: int, text: str | None = None) -> dict[str,
         await asyncio.sleep(0.005)
     at = text.index("rate_hz:") + len("rate_hz: ")
     diag_times: list[float] = []
+    flagged = 0  # invalid edits that got their diagnostic (the analysis really ran on each change)
     for k in range(repeat):
         edited = text[:at] + ("0" if k % 2 == 0 else "") + text[at:]  # rate_hz: 0 is refused, then restored
         client.diagnostics.pop(uri, None)
@@ -85,6 +88,7 @@ async def _measure(name: str, repeat: int, text: str | None = None) -> dict[str,
         while uri not in client.diagnostics:
             await asyncio.sleep(0.001)
         diag_times.append(time.perf_counter() - t0)
+        flagged += k % 2 == 0 and any("rate_hz" in d.message for d in client.diagnostics[uri])
     doc = types.TextDocumentIdentifier(uri=uri)
     completion: dict[str, list[float]] = {}
     hover: list[float] = []
@@ -106,7 +110,7 @@ async def _measure(name: str, repeat: int, text: str | None = None) -> dict[str,
     await client.stop()
     every = [x for xs in completion.values() for x in xs]
     out: dict[str, Any] = {"mission": name, "lines": text.count("\n"), "diagnostics": _summary(diag_times),
-                           "published": len(client.diagnostics.get(uri, []))}
+                           "invalid_edits": (repeat + 1) // 2, "invalid_edits_flagged": flagged}
     if every:
         out.update(completion=_summary(every), completion_by_place={k: _summary(v) for k, v in completion.items()},
                    completion_items=items, hover=_summary(hover))
@@ -139,7 +143,8 @@ def main() -> None:
             print(f"    completion at {what}: median {s['median_ms']} ms, max {s['max_ms']} ms, "
                   f"{r['completion_items'][what]} items")
     print(json.dumps({"benchmark": "lsp", "targets_ms": {"diagnostics": 300, "completion": 100},
-                      "results": results, "versions": versions()}))
+                      "results": results,
+                      "versions": {**versions(), **{d: _version(d) for d in ("pygls", "lsprotocol", "pytest-lsp")}}}))
 
 
 if __name__ == "__main__":
