@@ -15,6 +15,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import sys
+import threading
 import traceback
 from collections.abc import Callable
 from pathlib import Path
@@ -42,6 +43,22 @@ class TaskflowServer(LanguageServer):
         self.pending: dict[str, asyncio.Task[None]] = {}
         self.by_buffer: dict[str, dict[str, list[Diagnostic]]] = {}  # buffer → file → what its analysis found there
         self.ctx = Context(self.buffers, lambda: self.workspace.position_codec)
+        self.warming: threading.Thread | None = None
+
+    def warm_catalogue(self) -> None:
+        """Build the catalogue (hover's pages: every registered plugin imported, about 0.6 s) in a thread once a
+        document is open, so the first hover does not wait for it."""
+        if self.warming is None:
+            from taskflow.lsp.knowledge import catalogue
+
+            def build() -> None:
+                try:
+                    catalogue()
+                except Exception:  # the first hover builds it again and reports the error to the client
+                    print(f"taskflow lsp: catalogue:\n{traceback.format_exc()}", file=sys.stderr)
+
+            self.warming = threading.Thread(target=build, name="catalogue", daemon=True)
+            self.warming.start()
 
     def analyse_and_publish(self, file: str) -> None:
         self.buffers.update(file)
@@ -122,6 +139,7 @@ def build_server() -> TaskflowServer:
         file = ctx.file_of(params.text_document.uri)
         ls.buffers.texts[file] = params.text_document.text
         _guard(lambda: ls.analyse_and_publish(file), None)
+        ls.warm_catalogue()
 
     @server.feature(types.TEXT_DOCUMENT_DID_CHANGE)
     def did_change(ls: TaskflowServer, params: types.DidChangeTextDocumentParams) -> None:
