@@ -135,6 +135,11 @@ def _entry(ctx: Context, a: Analysis, ypath: YPath) -> tuple[str, Entry] | None:
     if entry is None and same_file(file, a.file):
         entry = a.index.get(local)  # the buffer does not parse now: the text that compiled
         file = a.file
+    elif entry is None and index is not None and index.error is not None:
+        # a used sub-mission's buffer that does not parse now: the text of its latest analysis that checked
+        good = next((g for f, g in ctx.ws.good.items() if same_file(f, file)), None)
+        if good is not None:
+            entry, file = good.index.get(local), good.file
     return (file, entry) if entry is not None else None
 
 

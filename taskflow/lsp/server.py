@@ -61,21 +61,28 @@ class TaskflowServer(LanguageServer):
             self.warming.start()
 
     def analyse_and_publish(self, file: str) -> None:
+        """Analyse ``file`` and the open missions that use it (they see its unsaved text), then publish."""
         self.buffers.update(file)
-        self.publish(file)
-        for other in list(self.buffers.texts):  # the open missions that use this file see its unsaved text
+        touched = [file]
+        for other in list(self.buffers.texts):
             a = self.buffers.analyses.get(other)
             if other != file and a is not None and str(Path(file).resolve()) in a.used_files:
                 self.buffers.update(other)
-                self.publish(other)
+                touched.append(other)
+        self.publish(*touched)
 
-    def publish(self, file: str) -> None:
-        """Publish what the analysis of buffer ``file`` found, in every file it found something in (and clear
-        the files it no longer does).  A file's diagnostics are those of every buffer that shows some there: a
-        sub-mission open beside the mission using it shows its own problems and those found through the use."""
-        before = set(self.by_buffer.get(file, {}))
-        self.by_buffer[file] = self.buffers.diagnostics(file)
-        for target in sorted(before | set(self.by_buffer[file])):
+    def publish(self, *buffers: str) -> None:
+        """Publish what the analyses of ``buffers`` found, in every file they found something in (and clear the
+        files they no longer do).  A file's diagnostics are those of every buffer that shows some there: a
+        sub-mission open beside the mission using it shows its own problems and those found through the use.
+        Every buffer's diagnostics are taken before any file is published, so no file is sent a problem that
+        another of them no longer has (a fixed sub-mission's error, shown in it through the mission)."""
+        targets: set[str] = set()
+        for file in buffers:
+            targets |= set(self.by_buffer.get(file, {}))
+            self.by_buffer[file] = self.buffers.diagnostics(file)
+            targets |= set(self.by_buffer[file])
+        for target in sorted(targets):
             diags = [types.Diagnostic(range=self.ctx.range(target, d.span), message=d.message,
                                       severity=types.DiagnosticSeverity.Error, source="taskflow",
                                       data={"line": d.problem.line, "col": d.problem.col, "hint": d.problem.hint,

@@ -71,6 +71,6 @@ def check_submission(data: Any, inner_map: SourceMap, via: tuple[str, ...]) -> t
         if to.split(".")[0] not in own and to not in doc.exits:
             problems.append(with_via(inner_map.problem(
                 tpath, f"target {to!r} is not a state of this sub-mission",
-                f"name one of its states ({', '.join(sorted(own))}), or list {to!r} under `exits:` when it "
-                "is a state of the mission that uses it"), via))
+                f"{describe_choices(to.split('.')[0], sorted(own | set(doc.exits)))} (its states and exits), or "
+                f"list {to!r} under `exits:` when it is a state of the mission that uses it"), via))
     return doc, problems
