@@ -142,9 +142,11 @@ def anchor(e: Entry) -> str:
     return re.sub(r"[^a-z0-9_-]", "", f"{e.kind}-{e.name}".lower().replace(".", "-"))
 
 
-def describe_markdown(e: Entry, level: int = 3) -> str:
-    """The entry as a markdown section (``level``: its heading's)."""
-    out = [f'<a id="{anchor(e)}"></a>', "", f"{'#' * level} {e.kind} `{e.name}`", "", e.doc or e.summary, ""]
+def describe_markdown(e: Entry, level: int = 3, anchored: bool = True) -> str:
+    """The entry as a markdown section (``level``: its heading's; ``anchored``: with the anchor the reference
+    page links to — an editor's hover has no use for it)."""
+    out = [f'<a id="{anchor(e)}"></a>', ""] if anchored else []
+    out += [f"{'#' * level} {e.kind} `{e.name}`", "", e.doc or e.summary, ""]
     if e.source:
         out += [f"Declared by `{e.source}`.", ""]
     for s in sections(e):

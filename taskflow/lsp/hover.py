@@ -15,26 +15,24 @@ from taskflow.catalogue.catalogue_render import describe_markdown
 from taskflow.lsp.completion import GUARD_KEYS
 from taskflow.lsp.document import Span
 from taskflow.lsp.knowledge import Knowledge, catalogue, param_detail, params_table
+from taskflow.mission.submission import PARAM_REF
 from taskflow.units import BASE_UNIT_OF, UNITS
 
 _QUANTITY = re.compile(r"(?<![A-Za-z0-9_.])([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z%/]+)")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.]*")
 
 
-_ANCHOR = re.compile(r"^<a id=[^>]*></a>\s*", re.M)
-
-
 def _entry_markdown(name: str, kind: Any) -> str | None:
-    """The catalogue's page of a registered name (without the anchor the catalogue document links to)."""
+    """The catalogue's page of a registered name."""
     try:
-        return _ANCHOR.sub("", describe_markdown(catalogue().find(name, kind)))
+        return describe_markdown(catalogue().find(name, kind), anchored=False)
     except UnknownEntry:
         return None
 
 
 def _parameter_markdown(k: Knowledge, line: str, col: int) -> str | None:
     """A ``$parameter`` under ``col``: its value (or what a foreach item iterates)."""
-    for m in re.finditer(r"\$([A-Za-z_][A-Za-z0-9_]*)", line):
+    for m in PARAM_REF.finditer(line):
         if m.start() <= col <= m.end():
             params = k.parameters()
             if m.group(1) not in params:

@@ -61,7 +61,8 @@ USE_KEYS = ("use", "with")
 """The keys of a using state that this module consumes (the shape check never sees them)."""
 
 _NOT_WITH_USE = ("states", "initial", "final")
-_GUARD_REF = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
+PARAM_REF = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
+"""A ``$name`` reference to a parameter, in a guard or a value (group 1: the name)."""
 
 
 class _Scope:
@@ -159,7 +160,7 @@ class _Expander:
         return value
 
     def rename_guard(self, text: str, ypath: YPath, scope: _Scope) -> str:
-        return _GUARD_REF.sub(lambda m: "$" + self.rename(m.group(1), ypath, scope), text)
+        return PARAM_REF.sub(lambda m: "$" + self.rename(m.group(1), ypath, scope), text)
 
     def rename(self, name: str, ypath: YPath, scope: _Scope) -> str:
         """The mission's name for ``$name`` written at ``ypath`` of a used file (problems recorded)."""

@@ -50,7 +50,7 @@ def _half_typed(text: str, line: int) -> str:
     cut = lines[line + 1]
     word = re.search(r"[A-Za-z_]{4,}", cut)
     assert word, cut
-    lines[line + 1] = cut[: word.start() + 2] + " {[" if "[" not in cut else cut[: word.start() + 2]
+    lines[line + 1] = cut[: word.start() + 2] + " {["
     return "\n".join(lines)
 
 
