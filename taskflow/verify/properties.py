@@ -147,10 +147,11 @@ def check_property(model: Model, prop: Any) -> CheckResult:
         if pattern == "absence":
             exprs = [e["never"]] + ([e["while"]] if "while" in e else [])
             bad = _where(model, ev, lambda s: ev.possible(s, exprs, [True] * len(exprs)))
-            what = "A and B can hold" if "while" in e else "A can hold"
+            what = (f"`{e['never'].text}` and `{e['while'].text}` can hold" if "while" in e
+                    else f"`{e['never'].text}` can hold")
         else:
             bad = _where(model, ev, lambda s: ev.possible(s, [e["always"]], [False]))
-            what = "A can fail"
+            what = f"`{e['always'].text}` can fail"
         return _reach_result(model, name, pattern, bad, what)
     if pattern == "precedence":
         a, b = e["only_after"], e["occurs"]
@@ -158,11 +159,12 @@ def check_property(model: Model, prop: Any) -> CheckResult:
         bad = _where(model, ev, lambda s: ev.possible(s, [a, b], [False, True]))
         storm = StormModel(model, extra_labels={"prop_not_a": not_a, "prop_bad": bad})
         if storm.values('Pmax=? ["prop_not_a" U "prop_bad"]')[model.initial] <= 0.0:
-            return CheckResult(name, HOLDS, "precedence: B can hold only after A has (on every path of the model)")
+            return CheckResult(name, HOLDS, f"precedence: `{b.text}` can hold only after `{a.text}` has (on every path "
+                               "of the model)")
         path = [] if model.initial in bad else model.path_to(bad, avoid=set(range(model.n_states)) - set(not_a))
         assert path is not None  # Storm found one
-        return CheckResult(name, FAILS, "precedence: B can hold before A ever has",
-                           Counterexample(model, path, "B holds here and A has not held on the way"))
+        return CheckResult(name, FAILS, f"precedence: `{b.text}` can hold before `{a.text}` ever has",
+                           Counterexample(model, path, f"`{b.text}` holds here and `{a.text}` has not held on the way"))
     return _response(model, name, prop, ev, e["after"], e["then"])
 
 
@@ -191,15 +193,15 @@ def _response(model: Model, name: str, prop: Any, ev: _Evaluator, a: Guard, b: G
                 st.target in not_b and (ends.get(st.target, False) or
                                         (1 if st.cause == TICK else 0) + longest[st.target] > limit) for st in first)):
             continue
-        found = _escape(model, t, first, not_b, limit, within)
+        found = _escape(model, t, first, not_b, limit, within, b.text)
         assert found is not None  # the delays above say there is one
         tail, why = found
         lead = model.path_to([t]) or []
         when = f" with {', '.join(sorted(arriving))} arriving" if arriving else ""
-        return CheckResult(name, FAILS, f"response: A can hold in {model.configs[t].describe()}{when}, and then {why}",
+        return CheckResult(name, FAILS, f"response: `{a.text}` can hold in {model.configs[t].describe()}{when}, and then {why}",
                            Counterexample(model, lead + tail, why, list(model.configs[t].leaves)))
     tol = "" if limit * model.quantum == within else f" (decided to within one tick of {model.quantum:g} s)"
-    return CheckResult(name, HOLDS, f"response: whenever A can hold, B follows within {within:g} s{tol}")
+    return CheckResult(name, HOLDS, f"response: whenever `{a.text}` can hold, `{b.text}` follows within {within:g} s{tol}")
 
 
 def _depths(model: Model) -> dict[int, int]:
@@ -250,11 +252,11 @@ def _delays(model: Model, not_b: set[int], limit: int) -> tuple[dict[int, int], 
 
 
 def _escape(model: Model, t: int, first: list[Step], not_b: set[int], limit: int,
-            within: float) -> tuple[list[tuple[int, Step]], str] | None:
+            within: float, b_text: str) -> tuple[list[tuple[int, Step]], str] | None:
     """A path from ``t`` (its first step among ``first``) that keeps B false past the deadline or to the run's end,
     breadth first over (configuration, ticks elapsed): the steps and why it violates, or None."""
     if model.configs[t].final:
-        return [], "the run has ended and B does not hold"
+        return [], f"the run has ended and `{b_text}` does not hold"
     back: dict[tuple[int, int], tuple[tuple[int, int], Step]] = {}
     seen = {(t, 0)}
     queue = deque([(t, 0)])
@@ -268,9 +270,9 @@ def _escape(model: Model, t: int, first: list[Step], not_b: set[int], limit: int
             back[(n, k2)] = ((s, k), step)
             why = None
             if k2 > limit:
-                why = f"B has not held {k2 * model.quantum:g} s later (deadline {within:g} s)"
+                why = f"`{b_text}` has not held {k2 * model.quantum:g} s later (deadline {within:g} s)"
             elif model.configs[n].final:
-                why = "the run ends and B never held"
+                why = f"the run ends and `{b_text}` never held"
             if why is not None:
                 path: list[tuple[int, Step]] = []
                 node = (n, k2)

@@ -32,6 +32,7 @@ CORPUS = {
     "require_never": ("outcomes", (H, H, H, F, H)),
     "region_conflict": ("region_conflicts", (H, H, H, H, F)),
     "duration_unbounded": ("duration", (H, F, F, H, H)),
+    "property_violated": ("property:screw_after_align", (H, H, H, H, H)),
 }
 
 
