@@ -31,7 +31,8 @@ class ViKiScore:
         self.path = 0.0
         self._last_xy: tuple[float, float] | None = None
         self.min_clearance = math.inf
-        self.contact = False
+        self.contact = False  # touched at some tick so far
+        self.touching = False  # touching at the latest tick
 
     def track(self, t: float, v: float, pose: tuple[float, float, float], touching: bool) -> None:
         """One control tick at time ``t``: speed ``v`` (m/s), true planar pose, whether a PyBullet contact
@@ -39,7 +40,8 @@ class ViKiScore:
         self.v_trace.append((t, v))
         d = 0.0 if touching else footprint_clearance(self.footprint, pose, self.object)
         self.min_clearance = min(self.min_clearance, d)
-        self.contact = self.contact or d == 0.0
+        self.touching = d == 0.0
+        self.contact = self.contact or self.touching
         x, y = pose[0], pose[1]
         if self._last_xy is not None:
             self.path += math.hypot(x - self._last_xy[0], y - self._last_xy[1])

@@ -22,7 +22,9 @@ own rate for the front camera).
 
 Events: ``target_found`` / ``target_lost`` when the active camera's detection (after dropout) appears /
 disappears from one frame to the next (the first frame of a camera emits ``target_found`` if it sees the
-object).
+object); ``contact`` (ground truth, whatever the cameras see) in the control tick the car starts touching the
+object — its footprint overlapping the object's or a PyBullet contact point between the two bodies, as
+``contact`` in the summary — for a mission's property (``never: event(contact)``) or a transition.
 
 Stepping and observing: the frames, their delivery, the odometry's drift and the ground-truth scoring
 happen once per control tick in the stepping hook (:meth:`VikiGround.end_steps`, and once at ``reset`` for
@@ -106,7 +108,7 @@ class VikiGround(FlatGround):
                 f"a camera rate of at most {rate_hz:g} Hz (world.params.camera_rate_hz or the mounts' rate_hz), "
                 "or a control rate_hz at least the camera's")
 
-    events: ClassVar[tuple[str, ...]] = ("target_found", "target_lost")
+    events: ClassVar[tuple[str, ...]] = ("target_found", "target_lost", "contact")
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("x", "y", "yaw", "v", "obj_x", "obj_y", "err_x", "err_y",
                                                     "detected", "camera")
     needs: ClassVar[RobotNeeds] = RobotNeeds(
@@ -125,6 +127,7 @@ class VikiGround(FlatGround):
         self.object_body = -1
         self._sensors: VikiCameras | None = None
         self._score: ViKiScore | None = None
+        self._touch_started = False  # the car started touching the object in this control tick
         self._slip: SlipOdometry | None = None
         self._odometry: NDArray[np.float64] | None = None  # the drifting odometry's pose of the latest poll
 
@@ -147,6 +150,7 @@ class VikiGround(FlatGround):
         for name, stream in self._sensors.streams.items():  # declared: polled by the stepping base
             self.add_stream(f"{name}_camera", stream)
         self._score = ViKiScore(footprint, self.object)
+        self._touch_started = False
         self._slip = None
         self._odometry = None
         if wp.odom_scale_error != 0.0 or wp.odom_slip > 0.0:  # its own stream: the ideal runs draw nothing
@@ -189,8 +193,11 @@ class VikiGround(FlatGround):
         v = float(car.proprioception()["v"])  # the measured speed is the simulator's (no noise on it)
         x, y, yaw = car.pose()
         touching = bool(p.getContactPoints(car.body, self.object_body, physicsClientId=scene.client))
-        assert self._score is not None
-        self._score.track(self.t, v, (float(x), float(y), float(yaw)), touching)
+        score = self._score
+        assert score is not None
+        touched_before = score.touching
+        score.track(self.t, v, (float(x), float(y), float(yaw)), touching)
+        self._touch_started = score.touching and not touched_before
         self.sensors.begin_tick()
 
     def observe(self) -> Observation:
@@ -203,7 +210,7 @@ class VikiGround(FlatGround):
         if sensors.timings:
             obs.timings = dict(sensors.timings)
         obs.sensors.update(sensors.readings())
-        obs.events = sensors.events()
+        obs.events = sensors.events() + (("contact",) if self._touch_started else ())
         return obs
 
     def select_sensors(self, names: tuple[str, ...]) -> None:

@@ -23,7 +23,9 @@ def test_viki_hyco_turns_before_it_reverses_and_places_only_by_reversing() -> No
     assert r.outcome == "succeeded" and {"rotate", "backward", "placed"} <= set(r.summary["states_visited"])
     assert r.summary["properties"] == {
         "rear_after_turn": {"pattern": "precedence", "verdict": "held", "t": None},
-        "placed_after_backward": {"pattern": "precedence", "verdict": "held", "t": None}}
+        "placed_after_backward": {"pattern": "precedence", "verdict": "held", "t": None},
+        "never_touches": {"pattern": "absence", "verdict": "held", "t": None}}
+    assert r.summary["metrics"]["min_clearance_m"] > 0.1  # the ground truth the world's contact event watches
 
 
 def test_the_screwdriver_runs_only_with_the_platform_aligned(tmp_path: Path) -> None:

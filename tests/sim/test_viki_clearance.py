@@ -1,5 +1,6 @@
 """ViKi-HyCo's ground-truth clearance to the object: the car's footprint measured from its model, the
-footprint distance against a sampled oracle, and the summary of a normal run and of a run into the object."""
+footprint distance against a sampled oracle, and the summary of a normal run and of a run into the object (its
+``contact`` metric and the mission's ``never_touches`` property, broken by the world's ``contact`` event)."""
 
 from __future__ import annotations
 
@@ -85,6 +86,7 @@ def test_a_normal_run_keeps_clear_of_the_object_and_a_run_into_it_reports_the_co
     normal = run_on_world(load_mission(FORWARD), seed=0)
     m = normal.summary["metrics"]
     assert normal.outcome == "succeeded" and m["contact"] is False
+    assert normal.summary["properties"]["never_touches"] == {"pattern": "absence", "verdict": "held", "t": None}
     # the car ends with the object 1 m ahead of its rear axle: the front of its footprint is 0.41 m ahead
     radius = SHAPES[m["object_kind"]].footprint_radius()
     assert 0.4 < m["min_clearance_m"] <= m["object_x_m"] - 0.4065 - radius + 1e-3
@@ -95,6 +97,9 @@ def test_a_normal_run_keeps_clear_of_the_object_and_a_run_into_it_reports_the_co
                         seed=0, max_time=12.0)
     m = into.summary["metrics"]
     assert m["contact"] is True and m["min_clearance_m"] == 0.0
+    # the world's contact event (ground truth) breaks the mission's `never: event(contact)` at the touch
+    touched = into.summary["properties"]["never_touches"]
+    assert touched["verdict"] == "violated" and 0.0 < touched["t"] < 12.0
     assert m["object_x_m"] < 0.4065 + SHAPES[m["object_kind"]].footprint_radius() + 0.005  # pinned at the car's front
     # ...and with the mission's keep-out (the car's footprint, 0.3 m margin) the same bad goal keeps clear
     kept = run_on_world(load_mission(FORWARD, bad_goal), seed=0, max_time=12.0).summary["metrics"]
