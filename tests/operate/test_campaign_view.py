@@ -164,3 +164,22 @@ def test_a_folder_that_is_neither_a_run_nor_a_campaign_is_one_line(tmp_path, cap
     err = capsys.readouterr().err
     assert "neither a run folder (it has no trace.csv) nor a batch folder (no batch.json)" in err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_off_loopback_the_campaign_and_its_replays_need_the_token(campaigns):
+    """``--host`` another address than loopback: the campaign page draws a token, as a replay does, and every
+    request for its data — the campaign's and each kept trial's — must carry it; the package's files need none."""
+    server = serve_replay(campaigns["swept_kept"], "0.0.0.0:0")
+    url, token = server.url.replace("0.0.0.0", "127.0.0.1"), server.token
+    assert token is not None
+    try:
+        for path in ("/", "/campaign", "/run/c000/trial-00000/", "/run/c000/trial-00000/view/summary"):
+            assert _get(url + path)[0] == 401, path
+            assert _get(f"{url}{path}?token=x{token[1:]}")[0] == 403, path
+        status, page = _get(f"{url}/campaign?token={token}")
+        assert status == 200 and page["kept"] == 4
+        status, summary = _get(f"{url}/{page['trials'][0]['replay']}view/summary?token={token}")
+        assert status == 200 and summary["seed"] == 0
+        assert _get(url + "/web/campaign.js")[0] == 200 and _get(url + "/web/common.js")[0] == 200
+    finally:
+        server.stop()
