@@ -178,6 +178,12 @@ def file_sha256(path: str | Path) -> str:
     return digest.hexdigest()
 
 
+def trial_dir(swept: bool, condition: int, seed: int) -> str:
+    """A kept trial's run directory inside its campaign's (``--keep-runs``): ``trial-SSSSS``, or
+    ``cCCC/trial-SSSSS`` when the campaign sweeps."""
+    return f"c{condition:03d}/trial-{seed:05d}" if swept else f"trial-{seed:05d}"
+
+
 def record_name(condition: int, seed: int) -> str:
     return f"c{condition:03d}-s{seed:05d}.json"
 
@@ -238,8 +244,7 @@ class Campaign:
 
     def run_dir(self, condition: int, seed: int) -> Path:
         """Where a trial's run directory goes with ``keep_runs``."""
-        base = self.root if not self.spec.sweep else self.root / f"c{condition:03d}"
-        return base / f"trial-{seed:05d}"
+        return self.root / trial_dir(bool(self.spec.sweep), condition, seed)
 
     def record(self, condition: int, seed: int, summary: dict[str, Any], timing: dict[str, Any]) -> None:
         """Store one finished trial (atomically: a record on disk is always whole)."""

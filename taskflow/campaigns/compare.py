@@ -44,12 +44,26 @@ class _Stats(BaseModel):
     ci95: list[float] | None = None
 
 
+class _Property(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    pattern: str = ""
+    held: int = 0
+    violated: int = 0
+    not_decided: int = 0
+    violation_rate: float | None = None
+    violation_ci95: list[float] | None = None
+    first_violation_t: float | None = None
+
+
 class _Aggregate(BaseModel):
     model_config = ConfigDict(extra="allow", strict=True)
+    trials: int = 0
     success_rate: float | None = None
     success_ci95: list[float] | None = None
+    outcomes: dict[str, int] = {}
     items: dict[str, _Items] = {}
     metrics: dict[str, _Stats] = {}
+    properties: dict[str, _Property] = {}
 
 
 class _Condition(BaseModel):
@@ -60,15 +74,24 @@ class _Condition(BaseModel):
     aggregate: _Aggregate
 
 
+class _Verdict(BaseModel):
+    model_config = ConfigDict(extra="allow", strict=True)
+    pattern: str = ""
+    verdict: str
+    t: float | None = None
+
+
 class _Trial(SummaryFields):
     outcome: str
     condition: int = 0
+    properties: dict[str, _Verdict] = {}
 
 
 class BatchFields(BaseModel):
-    """The fields of ``batch.json`` the readers (:func:`compare`, :mod:`taskflow.campaigns.campaign_plots`) use, with
-    their types: the trials (each a run summary, :class:`~taskflow.execution.record_io.SummaryFields`, with its
-    ``condition``), the aggregate and the conditions with theirs."""
+    """The fields of ``batch.json`` the readers (:func:`compare`, :mod:`taskflow.campaigns.campaign_plots`, the
+    campaign page :mod:`taskflow.operate.campaign_view`) use, with their types: the trials (each a run summary,
+    :class:`~taskflow.execution.record_io.SummaryFields`, with its ``condition`` and its properties' verdicts),
+    the aggregate (with each property's rates) and the conditions with theirs."""
 
     model_config = ConfigDict(extra="allow", strict=True)
     mission: str = ""

@@ -149,12 +149,15 @@ def cmd_view(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         raise UsageError(f"--port {args.port}: a TCP port — valid: 0 to 65535 (0: any free port)")
     from taskflow.execution.control import ControlError
+    from taskflow.operate.campaign_view import is_campaign
     from taskflow.operate.replay import serve_replay, wait_forever
     from taskflow.operate.view import ViewError
 
+    what = "campaign" if is_campaign(args.run_dir) else "replay"
+
     def announce(url: str, run_dir: Path | None, token: str | None) -> None:
         page = f"{url}/?token={token}" if token else f"{url}/"
-        print(f"view: {page}  (replay of {args.run_dir}; Ctrl-C stops)", file=sys.stderr)
+        print(f"view: {page}  ({what} of {args.run_dir}; Ctrl-C stops)", file=sys.stderr)
 
     try:
         server = serve_replay(args.run_dir, f"{args.host}:{args.port}", announce)
@@ -191,8 +194,9 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
                    help="serve the web view of the live run on the control endpoint (its address is printed)")
     r.set_defaults(fn=cmd_run)
 
-    w = sub.add_parser("view", help="replay a finished run in the browser (a local web page)")
-    w.add_argument("run_dir")
+    w = sub.add_parser("view", help="replay a finished run, or show a campaign (a batch folder), in the browser "
+                                    "(a local web page)")
+    w.add_argument("run_dir", metavar="RUN_DIR|BATCH_DIR")
     w.add_argument("--port", type=int, default=8765, help="port (default 8765; 0: any free port)")
     w.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     w.set_defaults(fn=cmd_view)

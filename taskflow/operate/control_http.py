@@ -169,16 +169,13 @@ def write_private(path: Path, text: str) -> None:
     tmp.replace(path)
 
 
-def _app(channel: OperatorChannel | None, host: str, view: RunView | None = None, token: str | None = None,
+def control_app(channel: OperatorChannel | None, host: str, view: RunView | None = None, token: str | None = None,
          on_refused: Callable[[str, str, str, int, str], None] | None = None) -> Any:
     """The routes (with ``view``, the web view's too: :mod:`taskflow.operate.view_http`; without ``channel``, a
     replay: ``/state`` tells the run's end and the actions answer 409).  On a loopback address only
     requests naming a loopback host are served (no DNS rebinding), and a POST must say ``Content-Type: application/json`` (a page of another origin cannot
     send that without a CORS preflight, which is never granted): no web page can drive the robot by
     accident.  Given ``token``, :class:`TokenGate` decides who may ask at all."""
-    from starlette.applications import Starlette
-    from starlette.middleware import Middleware
-    from starlette.middleware.trustedhost import TrustedHostMiddleware
     from starlette.requests import Request
     from starlette.responses import JSONResponse
     from starlette.routing import Route
@@ -221,12 +218,23 @@ def _app(channel: OperatorChannel | None, host: str, view: RunView | None = None
             return JSONResponse({"error": f"{name}: {msgs}"}, status_code=400)
         return JSONResponse({"queued": name, "who": action.who})
 
-    hosts = ["127.0.0.1", "localhost", "[::1]"] if host in LOOPBACK else ["*"]
     routes = [Route("/state", state), Route("/mission", mission), Route("/{action}", act, methods=["POST"])]
     if view is not None:
         from taskflow.operate.view_http import view_routes
 
         routes = view_routes(view) + routes
+    return guarded_app(routes, host, token, on_refused)
+
+
+def guarded_app(routes: list[Any], host: str, token: str | None = None,
+                on_refused: Callable[[str, str, str, int, str], None] | None = None) -> Any:
+    """``routes`` as a starlette app behind the endpoint's guards (:func:`control_app`): loopback hosts only on a
+    loopback address, and :class:`TokenGate` given ``token``.  The campaign page is served so too."""
+    from starlette.applications import Starlette
+    from starlette.middleware import Middleware
+    from starlette.middleware.trustedhost import TrustedHostMiddleware
+
+    hosts = ["127.0.0.1", "localhost", "[::1]"] if host in LOOPBACK else ["*"]
     return Starlette(routes=routes,
                      middleware=[Middleware(TrustedHostMiddleware, allowed_hosts=hosts),
                                  Middleware(TokenGate, token=token, reads=not is_loopback(host),
@@ -265,8 +273,10 @@ class ControlServer:
         self._refused = 0
         self._log_lock = threading.Lock()
 
-    def start(self, channel: OperatorChannel | None, run_dir: Path | None, view: RunView | None = None) -> None:
-        """Serve ``channel`` (None: a replay) and, given ``view``, the web page of the run."""
+    def start(self, channel: OperatorChannel | None, run_dir: Path | None, view: RunView | None = None,
+              routes: list[Any] | None = None) -> None:
+        """Serve ``channel`` (None: a replay) and, given ``view``, the web page of the run; given ``routes``,
+        those instead (``taskflow view BATCH_DIR``: the campaign page, :mod:`taskflow.operate.campaign_http`)."""
         import uvicorn
 
         if view is None and self.view and channel is not None and run_dir is not None:
@@ -276,7 +286,8 @@ class ControlServer:
         if channel is None and is_loopback(self.host):
             self.token = None  # a replay on loopback drives nothing and shows what its owner can read anyway
         self._run_dir = run_dir if channel is not None else None
-        app = _app(channel, self.host, view, self.token, self.refused)
+        app = (control_app(channel, self.host, view, self.token, self.refused) if routes is None
+               else guarded_app(routes, self.host, self.token, self.refused))
         config = uvicorn.Config(app, log_level="warning", lifespan="off", access_log=False, timeout_graceful_shutdown=1)
         self._server = uvicorn.Server(config)
         self._thread = threading.Thread(target=self._server.run, kwargs={"sockets": [self.socket]},

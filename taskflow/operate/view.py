@@ -295,9 +295,7 @@ def open_run(run_dir: str | Path) -> RunView:
     if not d.is_dir():
         raise ViewError(f"{d}: no such folder")
     if not (d / "trace.csv").is_file():
-        what = ("a batch folder: view one of its trial-NNNNN folders (taskflow batch --keep-runs)"
-                if (d / "batch.json").is_file() else "not a run folder (it has no trace.csv)")
-        raise ViewError(f"{d}: {what}")
+        raise ViewError(f"{d}: not a run folder (it has no trace.csv)")
     try:
         view = RunView(_load_mission(d), d, live=False)
         for name in ("summary.json", "transitions.jsonl"):

@@ -149,7 +149,7 @@ def test_view_of_what_is_not_a_run_is_one_line_and_exit_1(tmp_path, capsys):
     assert main(["view", str(tmp_path / "nope")]) == 1
     assert "no such folder" in capsys.readouterr().err
     assert main(["view", str(tmp_path)]) == 1
-    assert "not a run folder" in capsys.readouterr().err
+    assert "neither a run folder (it has no trace.csv) nor a batch folder" in capsys.readouterr().err
     with pytest.raises(ViewError):
         open_run(tmp_path)
 

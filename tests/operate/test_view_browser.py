@@ -336,3 +336,65 @@ def test_the_page_lists_each_property_with_its_verdict_at_the_cursor(browser, tm
         assert verdicts() == {"no_settle": "violated", "near": "held"}
     finally:
         server.stop()
+
+
+def _rate_text(k: int, n: int, rate: float, ci: list[float]) -> str:
+    """A rate as ``taskflow batch`` prints it (:func:`taskflow.campaigns.batch._rate`)."""
+    return f"{k}/{n} = {100 * rate:.1f} % [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]"
+
+
+def test_the_campaign_page_shows_batch_json_rates_and_a_trial_link_opens_its_replay(browser, tmp_path):
+    """``taskflow view BATCH_DIR`` of a swept toy campaign with properties and kept runs: the page shows
+    the mission success rate and each property's violation rate with their Wilson intervals as batch.json
+    holds them, per condition too; a trial's replay link opens the replay of that trial's run folder, which
+    leads back to the campaign."""
+    from toy_campaigns import SWEEP, toy_with_properties
+
+    from taskflow.campaigns.batch import run_batch
+
+    out = tmp_path / "campaign"
+    run_batch(str(toy_with_properties(tmp_path)), trials=2, workers=1, out=out, keep_runs=True, sweep=SWEEP)
+    batch = json.loads((out / "batch.json").read_text())
+    agg = batch["aggregate"]
+    server = serve_replay(out, "127.0.0.1:0")
+    try:
+        _open(browser, server.url)
+        assert browser.find_element("id", "mission").text == "toy_full"
+        success = browser.find_element("id", "success-rate").text
+        assert success == _rate_text(agg["outcomes"]["succeeded"], agg["trials"], agg["success_rate"], agg["success_ci95"])
+        assert success == "2/4 = 50.0 % [15.0, 85.0]"
+        shown = browser.execute_script("""const o = {};
+            document.querySelectorAll('#properties tbody tr').forEach(tr => {
+              o[tr.dataset.property] = tr.querySelector('td.violation').textContent; }); return o;""")
+        for name, p in agg["properties"].items():
+            assert shown[name] == _rate_text(p["violated"], p["held"] + p["violated"], p["violation_rate"],
+                                             p["violation_ci95"]), name
+        assert shown["never_broken"] == "2/4 = 50.0 % [15.0, 85.0]"
+        per_condition = browser.execute_script("""return [...document.querySelectorAll('#conditions tbody tr')].map(tr =>
+            tr.querySelector('td[data-property="never_broken"]').textContent);""")
+        assert per_condition == [_rate_text(c["aggregate"]["properties"]["never_broken"]["violated"], 2,
+                                            c["aggregate"]["properties"]["never_broken"]["violation_rate"],
+                                            c["aggregate"]["properties"]["never_broken"]["violation_ci95"])
+                                 for c in batch["conditions"]]
+        # the trial of condition 1, seed 0: its verdict, then its replay
+        row = browser.find_element("css selector", '#trials tr[data-condition="1"][data-seed="0"]')
+        assert row.find_element("css selector", 'td[data-property="never_broken"]').get_attribute("data-verdict") == "violated"
+        row.find_element("css selector", "a.replay").click()
+        _until(lambda: browser.execute_script("return location.pathname") == "/run/c001/trial-00000/", "the replay page")
+        _until(lambda: browser.execute_script("return document.body.dataset.ready || document.body.dataset.error"),
+               "the replay to load")
+        assert browser.execute_script("return document.body.dataset.error || ''") == ""
+        summary = json.loads((out / "c001" / "trial-00000" / "summary.json").read_text())
+        assert summary["outcome"] == "failed"
+        assert browser.find_element("id", "live-state").text.startswith(f"outcome: failed ({summary['reason']})")
+        verdicts = browser.execute_script("taskflowView.seek(taskflowView.S.rows.length - 1); const o = {};"
+                                          "document.querySelectorAll('#properties li').forEach(li => {"
+                                          " o[li.dataset.property] = li.dataset.verdict; }); return o;")
+        assert verdicts["never_broken"] == "violated"
+        back = browser.find_element("id", "campaign-link")
+        assert back.is_displayed()
+        back.click()
+        _until(lambda: browser.execute_script("return location.pathname === '/' && document.body.dataset.ready"),
+               "the campaign page again")
+    finally:
+        server.stop()

@@ -1,5 +1,5 @@
 // taskflow view: the page of one run, live or replayed, drawn from its record (taskflow/operate/view.py serves it).
-// Plain JavaScript, no library, no network beyond the page's own server.
+// Plain JavaScript, no library, no network beyond the page's own server; common.js is loaded first.
 "use strict";
 
 const S = {
@@ -7,15 +7,14 @@ const S = {
   cursor: 0, follow: true, live: false, running: true, plots: [], playing: null, ops: null, cpOf: new Map(),
   frames: [], frameNext: 0, cams: {},
 };
-const $ = (id) => document.getElementById(id);
 const within = (path, p) => p === "" || path === p || path.startsWith(p + ".");
 const leavesOf = (row) => (row ? row[1].split("|").filter(Boolean) : []);
 const fmt = (x) => (x === null || x === undefined || Number.isNaN(x) ? "–" : Math.abs(x) >= 1e4 || (Math.abs(x) < 1e-3 && x !== 0) ? x.toExponential(3) : (+x.toPrecision(4)).toString());
 
-// the run's token, from the address the run printed (…/?token=…): sent with every request
-const TOKEN = new URLSearchParams(window.location.search).get("token") || "";
-const authHeaders = () => (TOKEN ? { Authorization: `Bearer ${TOKEN}` } : {});
-const withToken = (url) => (TOKEN ? `${url}${url.includes("?") ? "&" : "?"}token=${encodeURIComponent(TOKEN)}` : url);
+
+// the routes are asked for relative to the page's address: the page of a campaign's kept trial is served
+// under the campaign's (…/run/trial-00003/, taskflow/operate/campaign_http.py), a run's at the root
+const IN_CAMPAIGN = window.location.pathname.startsWith("/run/");
 
 async function getJSON(url) {
   const r = await fetch(url, { cache: "no-store", headers: authHeaders() });
@@ -174,14 +173,6 @@ function outgoing(leaves) {
     }
   }
   return out;
-}
-
-function cell(tr, text, cls) {
-  const td = document.createElement("td");
-  td.textContent = text;
-  if (cls) td.className = cls;
-  tr.appendChild(td);
-  return td;
 }
 
 function bar(frac) {
@@ -605,7 +596,7 @@ function renderCameras(t, latest) {
     if (!f || f.file === cam.file) continue;
     cam.file = f.file;
     cam.img.dataset.stamp = String(f.stamp);
-    cam.img.src = withToken(`/view/frame?sensor=${encodeURIComponent(sensor)}&t=${f.stamp}`);
+    cam.img.src = withToken(`view/frame?sensor=${encodeURIComponent(sensor)}&t=${f.stamp}`);
     cam.cap.textContent = `${sensor} (${f.frame}, ${f.width}×${f.height}) captured at t = ${f.stamp.toFixed(3)} s, tick ${f.tick}`;
   }
 }
@@ -613,12 +604,12 @@ function renderCameras(t, latest) {
 // -- data --------------------------------------------------------------------------------------------------
 async function pull() {
   for (;;) {
-    const tr = await getJSON(`/view/trace?since=${S.rowNext}`);
+    const tr = await getJSON(`view/trace?since=${S.rowNext}`);
     if (tr.columns.length && !S.cols.length) {
       S.cols = tr.columns;
       tr.columns.forEach((c, k) => { S.col[c] = k; });
       if (!S.machine.columns_known) {  // a live run: the ground-truth columns are known from now on
-        const m = await getJSON("/view/machine");
+        const m = await getJSON("view/machine");
         Object.assign(S.machine, { xy: m.xy, bodies: m.bodies, markers: m.markers, control_points: m.control_points,
           columns_known: m.columns_known });
         S.cpOf.clear();
@@ -629,10 +620,10 @@ async function pull() {
     S.rowNext = tr.next;
     if (tr.done) break;
   }
-  const rec = await getJSON(`/view/transitions?since=${S.recNext}`);
+  const rec = await getJSON(`view/transitions?since=${S.recNext}`);
   for (const r of rec.records) S.recs.push(r);
   S.recNext = rec.next;
-  const fr = await getJSON(`/view/frames?since=${S.frameNext}`);
+  const fr = await getJSON(`view/frames?since=${S.frameNext}`);
   for (const f of fr.records) S.frames.push(f);
   S.frameNext = fr.next;
 }
@@ -652,7 +643,7 @@ function setupPlots() {
 
 async function livePoll() {
   try {
-    const st = await getJSON("/state");
+    const st = await getJSON("state");
     S.running = st.running;
     const mode = st.outcome ? `ended: ${st.outcome}` : st.paused ? "paused" : st.held ? "held" : "running";
     $("live-state").textContent = `run: ${st.state} at ${(+st.t).toFixed(2)} s — ${mode}`;
@@ -660,7 +651,7 @@ async function livePoll() {
     $("live-state").dataset.mode = mode;
     await pull();
     if (S.follow) S.cursor = S.rows.length - 1;
-    if (!S.running) S.summary = await getJSON("/view/summary");
+    if (!S.running) S.summary = await getJSON("view/summary");
     render();
   } catch (e) {
     $("live-state").textContent = S.running ? `the run's server does not answer (${e.message})`
@@ -677,7 +668,7 @@ async function operate(action) {
   if (action === "preempt" && $("preempt-to").value) body.to = $("preempt-to").value;
   if (action === "inject") body.event = $("inject-event").value;
   try {
-    const r = await fetch(`/${action}`, { method: "POST", headers: { "Content-Type": "application/json", ...authHeaders() }, body: JSON.stringify(body) });
+    const r = await fetch(`${action}`, { method: "POST", headers: { "Content-Type": "application/json", ...authHeaders() }, body: JSON.stringify(body) });
     const j = await r.json();
     $("op-msg").textContent = r.ok ? `${j.queued} queued by ${j.who}` : `refused: ${j.error}`;
   } catch (e) {
@@ -727,18 +718,19 @@ function wire() {
 }
 
 async function main() {
-  S.machine = await getJSON("/view/machine");
+  S.machine = await getJSON("view/machine");
   S.live = S.machine.live;
   index(S.machine.root, null);
   buildChart(S.machine.root, $("chart"), false);
   $("mission").textContent = S.machine.mission;
   document.title = `${S.machine.mission} — taskflow view`;
   $("mode").textContent = S.live ? "live" : "replay";
+  if (IN_CAMPAIGN) { $("campaign-link").href = withToken("/"); $("campaign-link").hidden = false; }
   $("mode").classList.toggle("live", S.live);
   wire();
   if (S.live) {
     $("operator").hidden = false;
-    const m = await getJSON("/mission");
+    const m = await getJSON("mission");
     m.states.forEach((s) => { const o = document.createElement("option"); o.value = s; o.textContent = s; $("preempt-to").appendChild(o); });
     m.events.forEach((ev) => { const o = document.createElement("option"); o.value = ev; o.textContent = ev; $("inject-event").appendChild(o); });
     livePoll();
@@ -746,7 +738,7 @@ async function main() {
     $("follow-label").hidden = true;
     S.follow = false;
     await pull();
-    S.summary = await getJSON("/view/summary");
+    S.summary = await getJSON("view/summary");
     const st = S.summary;
     $("live-state").textContent = st.outcome ? `outcome: ${st.outcome} (${st.reason || ""}) in ${st.final_state}` : "";
     S.cursor = 0;
