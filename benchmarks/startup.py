@@ -124,8 +124,13 @@ def _until(python: str, args: list[str], until: str, tmp: Path, timeout: float =
     return {k: v - t0 for k, v in _read_marks(marks_file).items()}
 
 
+def _fresh(tmp: Path, name: str) -> Path:
+    """A directory name not used yet (a batch refuses a directory that holds a campaign)."""
+    return Path(tempfile.mkdtemp(prefix=f"{name}-", dir=tmp)) / "out"
+
+
 def measure_run(python: str, tmp: Path) -> dict[str, float]:
-    m = _until(python, ["run", "--out", str(tmp / "run")], "Executor.tick:begin", tmp)
+    m = _until(python, ["run", "--out", str(_fresh(tmp, "run"))], "Executor.tick:begin", tmp)
     return {"first_tick_s": m["Executor.tick:begin"], "imports_s": m["load_mission:begin"],
             "mission_load_s": m["load_mission:end"] - m["load_mission:begin"],
             "world_build_s": m["Executor.__init__:begin"] - m["load_mission:end"],
@@ -133,7 +138,7 @@ def measure_run(python: str, tmp: Path) -> dict[str, float]:
 
 
 def measure_batch(python: str, tmp: Path, mission: str) -> dict[str, float]:
-    m = _until(python, ["batch", mission, "--trials", "2", "--workers", "2", "--out", str(tmp / "batch")],
+    m = _until(python, ["batch", mission, "--trials", "2", "--workers", "2", "--out", str(_fresh(tmp, "batch"))],
                "run_trial:begin", tmp)
     return {"first_trial_s": m["run_trial:begin"]}
 
@@ -214,9 +219,9 @@ def main() -> None:
                 samples[py].append(row)
                 print(f"repeat {i + 1} {py}: " + ", ".join(f"{k} {v:.3f}" for k, v in row.items()), file=sys.stderr)
         medians = {py: _median(rows) for py, rows in samples.items()}
-        breakdown = {py: {"run": import_breakdown(py, tmp, ["run", "--max-time", "0.05", "--out", str(tmp / "r")]),
+        breakdown = {py: {"run": import_breakdown(py, tmp, ["run", "--max-time", "0.05", "--out", str(_fresh(tmp, "r"))]),
                           "batch": import_breakdown(py, tmp, ["batch", missions[py], "--trials", "1", "--workers",
-                                                              "1", "--max-time", "0.05", "--out", str(tmp / "b")])}
+                                                              "1", "--max-time", "0.05", "--out", str(_fresh(tmp, "b"))])}
                      for py in pythons}
     for py in pythons:
         print(f"{py}: medians of {args.repeat} (s)")
