@@ -2,17 +2,18 @@
 
 - **run**: ``taskflow run`` of the default mission (no file: the shipped default) from the process's start to its
   first tick, split into *imports* (interpreter start and the imports, up to the mission's load), *mission load*
-  (``load_mission``), *world build* (robot, record, the world's constructor: up to the executor's construction)
-  and *world reset* (``World.reset``: up to ``Executor.start``); the process is killed at its first tick.
+  (``load_mission``), *world build* (robot, record, the world's constructor: up to the executor's construction),
+  *endpoint start* (the operator endpoint, on by default: ``ControlServer.start``, uvicorn's imports) and *world
+  reset* (``World.reset``: up to ``Executor.start``); the process is killed at its first tick.
 - **batch**: ``taskflow batch`` of the default mission (``--trials 2 --workers 2``, the process pool) from the
   process's start to its first trial starting (the first call of ``run_trial``, in whichever process); killed then.
 - **validate**: ``taskflow validate`` of the default mission, the whole process.
 - **lsp**: ``taskflow lsp`` from the process's start to its answer to ``initialize`` over stdio.
 
 The marks come from a timing hook in the child process (:data:`CHILD`), not from the product: an import hook wraps
-``load_mission``, ``Executor.__init__`` / ``start`` / ``tick`` and ``run_trial`` when their modules load, and
-appends ``name pid time.time()`` to a file at their first call in each process; the process start is the parent's
-``time.time()`` just before it starts the child.  Nothing a run writes changes.  So the same benchmark measures
+``load_mission``, ``Executor.__init__`` / ``start`` / ``tick``, ``ControlServer.start`` and ``run_trial`` when
+their modules load, and appends ``name pid time.time()`` to a file at their first call in each process; the process
+start is the parent's ``time.time()`` just before it starts the child.  Nothing a run writes changes.  So the same benchmark measures
 any checkout: ``--python`` names the interpreters of the checkouts to compare (each its own venv), run alternately,
 repeat by repeat, in one session; with two of them the ratios (first / second) of the medians are printed.
 ``-X importtime`` then gives, once per interpreter, the top-level imports of ``run`` and ``batch`` that cost most.
@@ -53,7 +54,8 @@ def _wrap(fn, name):
     wrapper.__name__, wrapper.__qualname__, wrapper.__module__ = fn.__name__, fn.__qualname__, fn.__module__
     return wrapper
 _WRAP = {"taskflow.mission.loader": ["load_mission"], "taskflow.campaigns.backends": ["run_trial"],
-         "taskflow.execution.executor": ["Executor.__init__", "Executor.start", "Executor.tick"]}
+         "taskflow.execution.executor": ["Executor.__init__", "Executor.start", "Executor.tick"],
+         "taskflow.operate.control_http": ["ControlServer.start"]}
 def _patch(module, names):
     for dotted in names:
         owner, attr = module, dotted
@@ -134,7 +136,8 @@ def measure_run(python: str, tmp: Path) -> dict[str, float]:
     return {"first_tick_s": m["Executor.tick:begin"], "imports_s": m["load_mission:begin"],
             "mission_load_s": m["load_mission:end"] - m["load_mission:begin"],
             "world_build_s": m["Executor.__init__:begin"] - m["load_mission:end"],
-            "world_reset_s": m["Executor.start:begin"] - m["Executor.__init__:end"]}
+            "endpoint_start_s": m["ControlServer.start:end"] - m["ControlServer.start:begin"],
+            "world_reset_s": m["Executor.start:begin"] - m["ControlServer.start:end"]}
 
 
 def measure_batch(python: str, tmp: Path, mission: str) -> dict[str, float]:

@@ -264,14 +264,11 @@ class ControlServer:
         self._run_dir: Path | None = None
         self._refused = 0
         self._log_lock = threading.Lock()
-        self._built = threading.Event()  # set once the serving thread has built its server (or failed to)
 
     def start(self, channel: OperatorChannel | None, run_dir: Path | None, view: RunView | None = None) -> None:
-        """Serve ``channel`` (None: a replay) and, given ``view``, the web page of the run.
+        """Serve ``channel`` (None: a replay) and, given ``view``, the web page of the run."""
+        import uvicorn
 
-        The server (uvicorn and starlette: a quarter of ``taskflow run``'s imports) is imported and built in
-        its own thread, so the run's first tick does not wait for it; a request sent meanwhile waits in the
-        bound socket's backlog, and :meth:`stop` waits for the server before stopping it."""
         if view is None and self.view and channel is not None and run_dir is not None:
             from taskflow.operate.view import RunView
 
@@ -279,7 +276,11 @@ class ControlServer:
         if channel is None and is_loopback(self.host):
             self.token = None  # a replay on loopback drives nothing and shows what its owner can read anyway
         self._run_dir = run_dir if channel is not None else None
-        self._thread = threading.Thread(target=self._serve, args=(channel, view), name="taskflow-control", daemon=True)
+        app = _app(channel, self.host, view, self.token, self.refused)
+        config = uvicorn.Config(app, log_level="warning", lifespan="off", access_log=False, timeout_graceful_shutdown=1)
+        self._server = uvicorn.Server(config)
+        self._thread = threading.Thread(target=self._server.run, kwargs={"sockets": [self.socket]},
+                                        name="taskflow-control", daemon=True)
         self._thread.start()
         if run_dir is not None and channel is not None:
             self._control_file = run_dir / CONTROL_FILE
@@ -290,18 +291,6 @@ class ControlServer:
             }) + "\n")
         if self.announce is not None:
             self.announce(self.url, run_dir, self.token)
-
-    def _serve(self, channel: OperatorChannel | None, view: RunView | None) -> None:
-        try:
-            import uvicorn
-
-            app = _app(channel, self.host, view, self.token, self.refused)
-            config = uvicorn.Config(app, log_level="warning", lifespan="off", access_log=False,
-                                    timeout_graceful_shutdown=1)
-            self._server = uvicorn.Server(config)
-        finally:
-            self._built.set()
-        self._server.run(sockets=[self.socket])
 
     def refused(self, method: str, path: str, client: str, status: int, why: str) -> None:
         """Log one refused request: a line on stderr and, for a run, one in ``RUN_DIR/refused.jsonl``."""
@@ -322,8 +311,6 @@ class ControlServer:
                     pass  # the stderr line stands; a full disk must not stop the endpoint
 
     def stop(self) -> None:
-        if self._thread is not None:
-            self._built.wait(timeout=30.0)
         if self._control_file is not None:
             self._control_file.unlink(missing_ok=True)
         if self.view and self._server is not None:

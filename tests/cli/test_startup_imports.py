@@ -23,7 +23,7 @@ import taskflow.execution.executor as executor
 import taskflow.campaigns.backends as backends
 seen = {}
 def loaded():
-    return sorted({m.split(".")[0] for m in sys.modules.copy()} & set(json.loads(sys.argv[1])))  # copy: the endpoint imports in its thread
+    return sorted({m.split(".")[0] for m in sys.modules.copy()} & set(json.loads(sys.argv[1])))  # copy: a thread may import
 tick, trial = executor.Executor.tick, backends.run_trial
 def first_tick(self, *a, **k):
     seen.setdefault("first_tick", loaded())
