@@ -3,6 +3,13 @@
 Pure functions of counts and samples (scipy for the distributions).  Every interval is two-sided at
 ``confidence`` (0.95 unless told).
 
+scipy is imported by the function that needs it, not with this module (``import scipy.stats`` takes seconds,
+and ``taskflow batch`` imports this module before its first trial): the intervals call the two special
+functions behind ``scipy.stats.norm.ppf`` and ``scipy.stats.t.ppf`` — ``scipy.special.ndtri(q)`` and
+``scipy.special.stdtrit(df, q)``, which those return unchanged (``_ppf(q) * scale + loc`` with scale 1, loc 0:
+the same float, ``tests/unit/framework/test_stats.py`` checks it) — and only the tests between two campaigns import
+``scipy.stats``.
+
 * :func:`wilson_interval` — the Wilson score interval of a binomial proportion (Wilson 1927; Agresti &
   Coull 1998 recommend it over the normal "Wald" interval, which collapses to a point at 0 % and 100 %
   and undercovers for the 10–40 trials robot papers report):
@@ -25,13 +32,22 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats as _sp
 
 
 def _z(confidence: float) -> float:
+    """The two-sided normal quantile: ``scipy.stats.norm.ppf(0.5 + confidence / 2)``."""
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must lie in (0, 1), got {confidence}")
-    return float(_sp.norm.ppf(0.5 + confidence / 2.0))
+    from scipy.special import ndtri
+
+    return float(ndtri(0.5 + confidence / 2.0))
+
+
+def _t(confidence: float, df: int) -> float:
+    """The two-sided Student t quantile: ``scipy.stats.t.ppf(0.5 + confidence / 2, df)``."""
+    from scipy.special import stdtrit
+
+    return float(stdtrit(df, 0.5 + confidence / 2.0))
 
 
 def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
@@ -71,7 +87,7 @@ def mean_interval(values: Sequence[float] | np.ndarray, confidence: float = 0.95
     if a.size == 1:
         return MeanInterval(mean, None, None, 0.0, 1)
     s = float(a.std(ddof=1))
-    half = float(_sp.t.ppf(0.5 + confidence / 2.0, a.size - 1)) * s / math.sqrt(a.size)
+    half = _t(confidence, a.size - 1) * s / math.sqrt(a.size)
     return MeanInterval(mean, mean - half, mean + half, s, int(a.size))
 
 
@@ -83,8 +99,10 @@ def _check_counts(k1: int, n1: int, k2: int, n2: int) -> None:
 
 def fisher_exact(k1: int, n1: int, k2: int, n2: int) -> float:
     """Two-sided p-value of Fisher's exact test: ``k1`` of ``n1`` against ``k2`` of ``n2`` successes."""
+    from scipy.stats import fisher_exact as _fisher
+
     _check_counts(k1, n1, k2, n2)
-    return float(_sp.fisher_exact([[k1, n1 - k1], [k2, n2 - k2]], alternative="two-sided").pvalue)
+    return float(_fisher([[k1, n1 - k1], [k2, n2 - k2]], alternative="two-sided").pvalue)
 
 
 def two_proportion_z(k1: int, n1: int, k2: int, n2: int) -> tuple[float, float]:
@@ -96,7 +114,9 @@ def two_proportion_z(k1: int, n1: int, k2: int, n2: int) -> tuple[float, float]:
     if se == 0.0:
         return 0.0, 1.0
     z = (k1 / n1 - k2 / n2) / se
-    return z, float(2.0 * _sp.norm.sf(abs(z)))
+    from scipy.special import ndtr  # scipy.stats.norm.sf(x) is ndtr(-x)
+
+    return z, float(2.0 * ndtr(-abs(z)))
 
 
 def mann_whitney(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray) -> tuple[float, float]:
@@ -107,5 +127,7 @@ def mann_whitney(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarra
         raise ValueError("the Mann-Whitney test needs at least one finite value in each sample")
     if np.ptp(np.concatenate([x, y])) == 0.0:
         return x.size * y.size / 2.0, 1.0  # every value equal: nothing to tell apart (scipy returns nan)
-    res = _sp.mannwhitneyu(x, y, alternative="two-sided")
+    from scipy.stats import mannwhitneyu
+
+    res = mannwhitneyu(x, y, alternative="two-sided")
     return float(res.statistic), float(res.pvalue)

@@ -13,8 +13,9 @@ from taskflow.errors import MissionError
 
 
 def _check_batch_options(args: argparse.Namespace) -> None:
-    """What ``batch`` can refuse before importing the statistics and the backends (seconds of imports):
-    the numbers, the syntax of ``--sweep`` and ``--set``, the mission, and each swept value on it."""
+    """What ``batch`` can refuse before importing the campaign machinery and the backends: the numbers, the
+    syntax of ``--sweep`` and ``--set``, the mission (with file:line:col, before any worker starts), and each
+    swept value on it."""
     from taskflow.campaigns.campaign import CampaignError, parse_sweep
 
     positive_flag("--workers", args.workers)
@@ -66,8 +67,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
             if args.trials is None:
                 raise UsageError("--trials N is required (trials per condition)")
             positive_flag("--trials", args.trials)
-            max_time = max_time_flag(args.max_time)
-            load(args.mission, args.set)  # fail fast, with file:line:col, before any worker starts
+            max_time = max_time_flag(args.max_time)  # the mission loaded in _check_batch_options: it is valid
             result = run_batch(args.mission, trials=args.trials, workers=args.workers,
                                seed=0 if args.seed is None else args.seed, overrides=args.set, out=args.out,
                                max_time=max_time, keep_runs=args.keep_runs, sweep=args.sweep,

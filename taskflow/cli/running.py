@@ -122,7 +122,7 @@ def cmd_ctl(args: argparse.Namespace) -> int:
             return 0
         if action not in ("pause", "hold", "resume", "preempt", "inject"):
             raise UsageError(f"unknown action {action!r}; valid: state, mission, pause, hold, resume, preempt, inject")
-        reply = client.send(action, who=args.who, **extra)
+        reply = client.send(action, who=args.who if args.who is not None else user_name(), **extra)
     except ControlError as exc:
         raise UsageError(str(exc)) from None
     print(f"{reply['queued']} queued by {reply['who']}: applied at the next tick boundary")
@@ -208,5 +208,5 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     o.add_argument("--token", default=None, help="with --url: the run's token (default: $TASKFLOW_TOKEN; "
                    "with RUN_DIR it is read from control.json)")
     o.add_argument("--to", default=None, metavar="STATE_PATH", help="preempt: the state to go to (default: abort the run)")
-    o.add_argument("--who", default=user_name(), help="who asks (recorded in transitions.jsonl; default: your user name)")
+    o.add_argument("--who", default=None, help="who asks (recorded in transitions.jsonl; default: your user name)")
     o.set_defaults(fn=cmd_ctl)

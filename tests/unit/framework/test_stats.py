@@ -79,3 +79,20 @@ def test_mann_whitney_exact_small_samples() -> None:
     assert mann_whitney([2.0, 2.0], [2.0, 2.0, 2.0]) == (3.0, 1.0)  # nothing to tell apart
     with pytest.raises(ValueError):
         mann_whitney([], [1.0])
+
+
+@pytest.mark.parametrize("confidence", [0.5, 0.8, 0.9, 0.95, 0.99, 0.999, 1e-6, 1.0 - 1e-9])
+def test_the_quantiles_are_scipy_stats_own_to_the_last_bit(confidence: float) -> None:
+    # the module calls scipy.special (ndtri, stdtrit, ndtr) instead of importing scipy.stats: batch.json
+    # prints every interval at full precision, so they must be the very floats scipy.stats gives
+    from scipy import stats
+
+    from taskflow.campaigns.stats import _t, _z
+
+    q = 0.5 + confidence / 2.0
+    assert _z(confidence) == float(stats.norm.ppf(q))
+    for df in (1, 2, 3, 4, 9, 19, 29, 99, 1000, 10**6):
+        assert _t(confidence, df) == float(stats.t.ppf(q, df)), df
+    for k1, n1, k2, n2 in ((3, 10, 7, 10), (1, 40, 39, 40), (20, 25, 5, 30)):
+        z, p = two_proportion_z(k1, n1, k2, n2)
+        assert p == float(2.0 * stats.norm.sf(abs(z)))
