@@ -206,7 +206,10 @@ class RunRecorder:
         self.command_layout = dict(command_layout)
         self.gt_names = list(gt_names)
         self.flush_every = flush_every
-        self._rows: list[tuple[float, str, str, list[float]]] = []  # t, state, events, the values in column order
+        self._rows: list[str] = []  # the rows formatted at their tick, written every ``flush_every``
+        self._nans = [math.nan] * len(self.metric_names)  # the value of a metric not published that tick
+        self._gt_nans = [math.nan] * len(self.gt_names)
+        self._cmd = [(k, n, [math.nan] * n) for k, n in self.command_layout.items()]
         cmd_cols = [f"cmd.{k}" if n == 1 else f"cmd.{k}.{i}" for k, n in self.command_layout.items() for i in range(n)]
         self.columns = ["t", "state", "events", *[f"m.{m}" for m in self.metric_names], *cmd_cols,
                         *[f"gt.{g}" for g in self.gt_names]]
@@ -226,14 +229,22 @@ class RunRecorder:
 
     def tick(self, t: float, state: str, events: Iterable[str], metrics: dict[str, float],
              command: dict[str, Any], gt: dict[str, float]) -> None:
-        # the values are read now: a task or world may reuse (and later change) the dicts and arrays it returned
-        nan = math.nan
-        vals = [metrics.get(m, nan) for m in self.metric_names]
-        for k, n in self.command_layout.items():
+        # the row is formatted now: a task or world may reuse (and later change) the dicts and arrays it returned
+        vals = list(map(metrics.get, self.metric_names, self._nans))
+        for k, n, missing in self._cmd:
             v = command.get(k)
-            vals += [nan] * n if v is None else np.ravel(v)[:n].tolist()
-        vals += [gt.get(g, nan) for g in self.gt_names]
-        self._rows.append((t, state, "|".join(sorted(events)) if events else "", vals))
+            if v is None:
+                vals += missing
+            elif type(v) is np.ndarray and v.ndim == 1:  # the usual command: np.ravel's copy is not needed
+                vals += v[:n].tolist()
+            elif type(v) is float and n == 1:
+                vals.append(v)
+            else:
+                vals += np.ravel(v)[:n].tolist()
+        if self.gt_names:
+            vals += map(gt.get, self.gt_names, self._gt_nans)
+        ev = "|".join(sorted(events)) if events else ""
+        self._rows.append(f"{t!r},{state},{ev}," + ",".join(map(repr, map(float, vals))))
         self.ticks += 1
         if len(self._rows) >= self.flush_every:
             self.flush()
@@ -242,8 +253,8 @@ class RunRecorder:
         if not self._rows:
             self._transitions.flush()
             return
-        out = [f"{t!r},{state},{events}," + ",".join(map(repr, map(float, vals))) for t, state, events, vals in self._rows]
-        self._trace.write("\n".join(out) + "\n")
+        self._rows.append("")  # the last row's newline
+        self._trace.write("\n".join(self._rows))
         self._trace.flush()
         self._transitions.flush()
         self._rows.clear()
