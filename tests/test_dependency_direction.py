@@ -40,7 +40,8 @@ MACHINERY: dict[str, frozenset[str]] = {
     "mission": frozenset(),  # the format and its compiler: the bottom layer
     "execution": frozenset({"mission"}),  # a run: engine, executor, runtime, what it writes
     "readers": frozenset({"mission", "execution"}),  # a finished record read back
-    "operate": frozenset({"mission", "execution", "readers"}),  # the HTTP endpoint, the web view
+    # the HTTP endpoint, the web view; the campaign page reads a batch folder as campaigns writes it
+    "operate": frozenset({"mission", "execution", "readers", "campaigns"}),
     "catalogue": frozenset({"mission"}),  # what is registered, described
     "campaigns": frozenset({"mission", "execution", "readers", "catalogue"}),  # many runs, their statistics
     # the finite model, its checks (Storm), counterexamples replayed on the scripted backend, campaign predictions

@@ -58,9 +58,16 @@ class _FastRobot(Robot):
 
 @pytest.fixture(autouse=True)
 def _robots():
+    """The two robots registered for this module's tests only (left in the registry they would change every later
+    message in this process that lists the valid robots)."""
+    added = []
     for name, cls in (("toy_str", _StrRobot), ("toy_fast", _FastRobot)):
         if name not in ROBOTS._items:
             ROBOTS.add(name, cls)
+            added.append(name)
+    yield
+    for name in added:
+        ROBOTS.remove(name)
 
 
 def test_a_robot_without_the_parameters_a_task_reads_is_refused_at_the_task_line() -> None:

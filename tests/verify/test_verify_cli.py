@@ -61,7 +61,10 @@ def test_a_sound_mission_verifies_with_exit_0_and_json() -> None:
     doc = json.loads(r.stdout)
     assert doc["ok"] is True and {c["name"] for c in doc["checks"]} == {
         "no_trap", "timed_exit", "duration", "outcomes", "region_conflicts",
-        "property:rear_after_turn", "property:placed_after_backward"}  # the mission's declared properties
+        "property:rear_after_turn", "property:placed_after_backward",  # the mission's declared properties
+        "property:never_touches"}
+    verdicts = {c["name"]: c["verdict"] for c in doc["checks"]}
+    assert verdicts["property:never_touches"] == "monitored"  # the world's ground truth: only a run decides it
     assert doc["model"]["configurations"] > 1
 
 
