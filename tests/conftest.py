@@ -10,7 +10,7 @@ toys.register()
 
 
 from collections.abc import Callable, Iterator  # noqa: E402
-from typing import TYPE_CHECKING  # noqa: E402
+from typing import TYPE_CHECKING, Any  # noqa: E402
 
 import pytest  # noqa: E402
 
@@ -100,6 +100,22 @@ def rendered_run(out: Path, seed: int = 5, max_time: float = 3.0) -> Path:
 
     run_mission(load_mission(RENDERED, RENDERED_LOW_RES), seed=seed, max_time=max_time, out_dir=out)
     return out
+
+
+@pytest.fixture
+def register() -> Iterator[Callable[[Any, str, type], None]]:
+    """``register(REGISTRY, name, cls)`` for one test: what it adds is removed afterwards, so no later test of the
+    process (the suite runs in a few of them, ``-n auto``) sees a longer list of valid names in its messages."""
+    added: list[tuple[Any, str]] = []
+
+    def add(registry: Any, name: str, cls: type) -> None:
+        if name not in registry._items:
+            registry.add(name, cls)
+            added.append((registry, name))
+
+    yield add
+    for registry, name in reversed(added):
+        registry.remove(name)
 
 
 @pytest.fixture(scope="session")

@@ -6,7 +6,6 @@ stands), ``toy_return`` reads it, ``toy_goto`` records its targets in ``toy.entr
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -214,19 +213,8 @@ class _Sneak(Task):
         return StepResult({"v": np.zeros(1)})
 
 
-@pytest.fixture
-def sneak_task() -> Iterator[None]:
-    """``toy_sneak`` registered for one test only: a task left in the registry would change every later message
-    that lists the valid tasks in this process (the language server's diagnostics test compares them)."""
-    TASKS.add("toy_sneak", _Sneak)
-    try:
-        yield
-    finally:
-        TASKS.remove("toy_sneak")
-
-
-@pytest.mark.usefixtures("sneak_task")
-def test_an_undeclared_write_stops_the_run_naming_the_task_and_the_key() -> None:
+def test_an_undeclared_write_stops_the_run_naming_the_task_and_the_key(register) -> None:
+    register(TASKS, "toy_sneak", _Sneak)  # for this test only (tests/conftest.py)
     text = HEAD % "[]" + """\
 machine:
   initial: sneak

@@ -57,17 +57,10 @@ class _FastRobot(Robot):
 
 
 @pytest.fixture(autouse=True)
-def _robots():
-    """The two robots registered for this module's tests only (left in the registry they would change every later
-    message in this process that lists the valid robots)."""
-    added = []
+def _robots(register):
+    """The two robots, registered for each test of this module only (``register``, tests/conftest.py)."""
     for name, cls in (("toy_str", _StrRobot), ("toy_fast", _FastRobot)):
-        if name not in ROBOTS._items:
-            ROBOTS.add(name, cls)
-            added.append(name)
-    yield
-    for name in added:
-        ROBOTS.remove(name)
+        register(ROBOTS, name, cls)
 
 
 def test_a_robot_without_the_parameters_a_task_reads_is_refused_at_the_task_line() -> None:
@@ -123,10 +116,9 @@ class _Selecting(ToyLine):
         self.selected.append((self.k, names))
 
 
-def test_the_sensors_a_step_names_reach_the_world_before_its_command() -> None:
+def test_the_sensors_a_step_names_reach_the_world_before_its_command(register) -> None:
     for reg, name, cls in ((TASKS, "toy_look", _Looker), (WORLDS, "toy_selecting", _Selecting)):
-        if name not in reg._items:
-            reg.add(name, cls)
+        register(reg, name, cls)
     m = load_mission_text((MISSION % "toy_point").replace("world: toy_line", "world: toy_selecting")
                           .replace("name: toy_goto", "name: toy_look"), "m.yaml")
     world = _Selecting(m.build_robot(), m.world_params(0), 0)
