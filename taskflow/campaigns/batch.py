@@ -131,11 +131,10 @@ def _wilson(k: int, n: int) -> list[float] | None:
 
 
 def aggregate(summaries: list[dict[str, Any]]) -> dict[str, Any]:
-    """Success rate with its Wilson 95 % interval (``success_ci95``), outcome counts, item success per
-    foreach loop (with the Wilson interval over the items, which counts every item as an independent
-    trial; each item counts on its last attempt, and a loop that retries adds ``attempts``, the items
-    ``retried`` and those ``recovered`` — retried and then succeeded), and mean (with the t 95 % interval of the mean, ``ci95``), std (population, ddof 0), min,
-    max of every numeric final metric and of ``sim_time_s``."""
+    """Success rate with its Wilson 95 % interval (``success_ci95``), outcome counts, item success per foreach loop
+    (Wilson interval over the items, each an independent trial counted on its last attempt; with ``retry``, also
+    ``attempts``, ``retried``, ``recovered``), and mean (with the t 95 % interval of the mean, ``ci95``), std
+    (population, ddof 0), min, max of every numeric final metric and of ``sim_time_s``."""
     n = len(summaries)
     outcomes: dict[str, int] = {}
     for s in summaries:
@@ -156,14 +155,8 @@ def aggregate(summaries: list[dict[str, Any]]) -> dict[str, Any]:
     for s in summaries:
         for loop, c in s.get("items", {}).items():
             agg = items.setdefault(loop, {"attempted": 0, "succeeded": 0, "rule": c.get("rule")})
-            agg["attempted"] += c["attempted"]
-            agg["succeeded"] += c["succeeded"]
-            if "attempts" in c:  # a loop that retries: every attempt, the items retried and those it saved
-                agg["attempts"] = agg.get("attempts", 0) + c["attempts"]
-                agg["retried"] = agg.get("retried", 0) + c["retried"]
-                agg["recovered"] = agg.get("recovered", 0) + sum(
-                    1 for it in s.get("iterations", []) if it.get("state") == loop and it.get("attempts", 1) > 1
-                    and it.get("outcome") == "succeeded")
+            for key in {"attempted", "succeeded", "attempts", "retried", "recovered"} & set(c):  # the last 3: `retry`
+                agg[key] = agg.get(key, 0) + c[key]
     for agg in items.values():
         agg["failed"] = agg["attempted"] - agg["succeeded"]
         agg["success_rate"] = agg["succeeded"] / agg["attempted"] if agg["attempted"] else None
@@ -375,7 +368,7 @@ def _aggregate_lines(agg: dict[str, Any]) -> list[str]:
     for loop, c in agg.get("items", {}).items():
         lines.append(f"items of {loop}: {_rate(c['succeeded'], c['attempted'], c['success_rate'], c.get('success_ci95'))}"
                      f" succeeded, rule per run: {c['rule']}")
-        if "attempts" in c:
+        if "attempts" in c:  # a loop that retries
             lines.append(f"  attempts of {loop}: {c['attempts']} over {c['attempted']} items; {c['retried']} retried, "
                          f"{c['recovered']} of them then succeeded")
     for name, c in agg.get("properties", {}).items():

@@ -168,6 +168,7 @@ class ItemCount:
     retry: int = 0  # further attempts the loop allows an item (0: no ``retry``, nothing below is written)
     attempts: int = 0  # attempts over all items (an item's retries included)
     retried: int = 0  # items that took more than one attempt
+    recovered: int = 0  # ... and of those, the ones that succeeded
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -175,7 +176,7 @@ class ItemCount:
             "success_rate": self.succeeded / self.attempted if self.attempted else None,
             "required": self.required, "rule": self.rule}
         if self.retry:
-            out.update(retry=self.retry, attempts=self.attempts, retried=self.retried)
+            out.update(retry=self.retry, attempts=self.attempts, retried=self.retried, recovered=self.recovered)
         return out
 
 

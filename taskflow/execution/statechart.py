@@ -314,6 +314,7 @@ class Statechart:
                 attempts=st.attempt if loop.retries else None, retried=tuple(st.retried)))
             count.attempted += 1
             count.retried += st.attempt > 1
+            count.recovered += st.attempt > 1 and outcome == "succeeded"
             st.attempt, st.retried = 1, []
             if outcome == "succeeded":
                 count.succeeded += 1

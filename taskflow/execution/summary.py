@@ -35,7 +35,8 @@ class RunResult:
       ``t_start``, ``t_end``, ``ground_truth`` when it ended; with ``retry`` declared, ``attempts`` and
       ``retried``, the final state of each earlier attempt — the item counts on its last) and ``items``
       (foreach state → ``attempted``, ``succeeded``, ``failed``, ``success_rate``, ``required``, ``rule``;
-      with ``retry``, ``retry``, ``attempts`` over all items and ``retried``, the items run again);
+      with ``retry``, ``retry``, ``attempts`` over all items, ``retried``, the items run again, and
+      ``recovered``, those of them that succeeded);
     - ``metrics`` (the last value of every metric published on the last tick, then the world's
       ``summary_metrics()``: ground truth such as ``gt_x_m``, ``final_error_m``), ``outputs`` (the final
       mission data the mission declares as outputs), ``versions`` (the packages the run used);

@@ -13,43 +13,17 @@ from taskflow.cli import main
 
 pytestmark = pytest.mark.machine
 
-MISSION = """\
-mission: r
-robot: toy_point
-world: {name: toy_line, params: {start: 0.0}}
-rate_hz: 20
-max_time: 30 s
-parameters: {spots: [1.0, 3.0], tol: 2 cm}
-profiles:
-  gains: {soft: {kp: 1.0}}
-machine:
-  initial: visit
-  states:
-    visit:
-      foreach: {in: spots, as: spot, on_failure: continue, require: all%s}
-      bind: {gains: soft}
-      initial: go
-      transitions:
-        - {to: fin, done: succeeded}
-        - {to: missed, done: failed}
-      states:
-        go:
-          task: {name: toy_goto, params: {target: $spot}}
-          transitions:
-            - {to: ok, when: "pos_error < $tol"}
-            - {to: late, after: 2 s}
-        ok: {final: succeeded}
-        late: {final: failed}
-    fin: {final: succeeded}
-    missed: {final: failed}
-"""
+RETRY = Path(__file__).resolve().parents[1] / "machine" / "missions" / "toy_retry.yaml"
+DECLARED = ", retry: {times: 3, on: [late]}"
 
 
 def test_batch_counts_items_on_their_last_attempt_and_compare_sets_the_attempts_side_by_side(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     plain, retried = tmp_path / "plain.yaml", tmp_path / "retried.yaml"
-    plain.write_text(MISSION % "")
-    retried.write_text(MISSION % ", retry: 1")  # the 3 m spot needs three attempts of 2 s: one retry is too few
+    text = RETRY.read_text()
+    assert DECLARED in text
+    plain.write_text(text.replace(DECLARED, ""))
+    retried.write_text(text.replace(DECLARED, ", retry: 1"))  # the 3 m spot needs three attempts of 2 s: one is too few
     run_batch(str(plain), trials=2, workers=1, out=tmp_path / "a")
     result = run_batch(str(retried), trials=2, workers=1, out=tmp_path / "b")
     a = json.loads((tmp_path / "a" / "batch.json").read_text())["aggregate"]["items"]["visit"]

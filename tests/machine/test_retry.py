@@ -72,7 +72,8 @@ def test_a_failed_item_runs_again_and_counts_on_its_last_attempt() -> None:
     assert [(it["index"], it["outcome"], it["attempts"], it["retried"]) for it in its] == [
         (0, "succeeded", 1, []), (1, "succeeded", 3, ["missed", "missed"]), (2, "succeeded", 1, [])]
     items = r.summary["items"]["screws"]
-    assert (items["attempted"], items["succeeded"], items["failed"], items["attempts"], items["retried"]) == (3, 3, 0, 5, 1)
+    assert (items["attempted"], items["succeeded"], items["failed"], items["attempts"], items["retried"],
+            items["recovered"]) == (3, 3, 0, 5, 1, 1)
     # the loop's next item comes after the retried one's last attempt, not after its first failure
     assert [x["item"] for x in _records(r) if x["cause"] == "next_item"] == [1, 2]
 

@@ -173,7 +173,7 @@ def test_a_screw_whose_activation_fails_three_times_is_recorded_failed_and_the_s
     # every screw was tried; 3 of 4 fastened does not meet the paper's criterion (all): controlled stop, failed
     assert r.summary["items"]["cell.operation.operate.screws"] == {
         "attempted": 4, "succeeded": 3, "failed": 1, "success_rate": 0.75, "required": 4, "rule": "all",
-        "retry": 2, "attempts": 6, "retried": 1}
+        "retry": 2, "attempts": 6, "retried": 1, "recovered": 0}
     assert path[-2:] == ["error_stop", "error"]
     assert_outcome(r, "failed")
 

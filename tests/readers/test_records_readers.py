@@ -80,37 +80,6 @@ machine:
     arrived: {final: succeeded}
 """,
 }
-RETRY_MISSION = {  # a loop whose items run out of time and are retried (`foreach: {retry: …}`)
-    "r.yaml": """\
-mission: r
-robot: toy_point
-world: {name: toy_line, params: {start: 0.0}}
-rate_hz: 20
-max_time: 30 s
-parameters: {spots: [1.0, 3.0], tol: 2 cm}
-profiles:
-  gains: {soft: {kp: 1.0}}
-machine:
-  initial: visit
-  states:
-    visit:
-      foreach: {in: spots, as: spot, on_failure: continue, require: 1, retry: {times: 3, on: [late]}}
-      bind: {gains: soft}
-      initial: go
-      transitions:
-        - {to: fin, done: succeeded}
-        - {to: fin, done: failed}
-      states:
-        go:
-          task: {name: toy_goto, params: {target: $spot}}
-          transitions:
-            - {to: ok, when: "pos_error < $tol"}
-            - {to: late, after: 2 s}
-        ok: {final: succeeded}
-        late: {final: failed}
-    fin: {final: succeeded}
-""",
-}
 SUB_SCRIPT = """\
 - {t: 0.5, action: pause, who: script}
 - {t: 0.5, action: resume, who: ann}
@@ -120,9 +89,9 @@ CASES = {  # name: (mission, operator script or None, extra arguments, the cause
     "items": ("toy_full.yaml", None, [], {"start", "timeout", "guard", "event", "next_item", "done"}),
     "regions": ("toy_regions.yaml", REGION_SCRIPT, [], {"start", "operator", "timeout"}),
     "sub-mission": ("m.yaml", SUB_SCRIPT, [], {"start", "guard", "next_item", "done"}),
-    "retry": ("r.yaml", None, [], {"start", "timeout", "retry", "guard", "next_item", "done"}),
+    "retry": ("toy_retry.yaml", None, [], {"start", "timeout", "retry", "guard", "next_item", "done"}),
 }
-WRITTEN = {"sub-mission": SUB_MISSION, "retry": RETRY_MISSION}  # cases whose mission files the test writes
+WRITTEN = {"sub-mission": SUB_MISSION}  # cases whose mission files the test writes
 
 
 def _lines(run: Path) -> list[dict[str, Any]]:
