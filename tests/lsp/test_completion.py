@@ -134,6 +134,21 @@ async def test_sub_mission_files_their_parameters_and_targets_inside_the_sub_mis
     assert {"$camera_target", "$screw"} <= set(dollars)
 
 
+async def test_foreach_and_retry_keys(client):
+    sub = SUB.read_text()
+    line = "      foreach: {in: screws, as: screw, on_failure: continue, require: all, retry: {times: 2, on: [activation_failed]}}"
+    assert line in sub
+    await open_doc(client, SUB)
+    cut = sub.replace(line, "      foreach:\n        in: screws\n        as: screw\n        re", 1)
+    await change_doc(client, SUB, cut, 2)
+    items = await complete(client, SUB, cut, "as: screw\n        re")
+    assert {"in", "as", "on_failure", "require", "retry"} <= set(items) and "task" not in items and "states" not in items
+    cut = sub.replace(line, "      foreach:\n        in: screws\n        as: screw\n        retry:\n          ti", 1)
+    await change_doc(client, SUB, cut, 3)
+    items = await complete(client, SUB, cut, "retry:\n          ti")
+    assert set(items) == {"times", "on"}
+
+
 async def test_world_params_and_fidelity_levels(client):
     text = SCREW.read_text()
     await open_doc(client, SCREW)
