@@ -43,6 +43,7 @@ from taskflow.campaigns.stats import wilson_interval
 
 MISSION = Path(__file__).resolve().parents[1] / "missions" / "viki_hyco.yaml"
 WIDE_BEARING = "world.params.object_bearing={uniform: [-0.45, 0.45]}"
+EDGE_DISTANCE = "world.params.object_distance={uniform: [1.5, 2.6]}"
 
 ROWS: dict[str, tuple[str, list[str]]] = {
     "shipped": ("as shipped", []),
@@ -54,6 +55,10 @@ ROWS: dict[str, tuple[str, list[str]]] = {
     "dropout50": ("dropout 50 %, bursts 1.5", ["world.params.dropout=0.5"]),
     "burst5": ("dropout 50 %, bursts 5", ["world.params.dropout=0.5", "world.params.dropout_burst=5"]),
     "burst15": ("dropout 50 %, bursts 15", ["world.params.dropout=0.5", "world.params.dropout_burst=15"]),
+    "edge+0.48": ("edge of the front view, left: 0.44 to 0.52 rad, 1.5-2.6 m",
+                  ["world.params.object_bearing={uniform: [0.44, 0.52]}", EDGE_DISTANCE]),
+    "edge-0.48": ("edge of the front view, right: -0.52 to -0.44 rad, 1.5-2.6 m",
+                  ["world.params.object_bearing={uniform: [-0.52, -0.44]}", EDGE_DISTANCE]),
     "worst": ("±0.45 rad, 1.1-3.6 m, 50 % in bursts of 15",
               [WIDE_BEARING, "world.params.object_distance={uniform: [1.1, 3.6]}", "world.params.dropout=0.5",
                "world.params.dropout_burst=15"]),
