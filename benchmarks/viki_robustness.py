@@ -15,6 +15,8 @@ Rows (``--rows`` picks some by name):
 * ``near`` / ``far``: the object 1.1 m / 3.6 m away at a bearing drawn in ±0.45 rad;
 * ``dropout30`` / ``dropout50``: 30 % / 50 % of the frames missed (bursts of 1.5 frames);
 * ``burst5`` / ``burst15``: 50 % missed in bursts of 5 / 15 frames;
+* ``edge+0.48`` / ``edge-0.48``: the object at the edge of the front view at the start (issue 25): bearing
+  drawn in 0.44–0.52 rad to the left / right, distance in 1.5–2.6 m — its box starts cut by the image border;
 * ``worst``: everything at once — bearing ±0.45 rad, 1.1–3.6 m, 50 % dropout in 15-frame bursts.
 
 ``--set KEY=VALUE`` applies to every row (e.g. ``--set world.params.fidelity=paper``, or
