@@ -84,7 +84,7 @@ async def test_task_params_with_type_default_and_unit(client):
     await open_doc(client, VIKI)
     items = await complete(client, VIKI, text, "params: {radius", -6)
     # viki_rotate's, not viki_hyco's; `turn` is written already, `radius` is the key under the cursor
-    assert set(items) == {"radius", "lookahead", "leg_tolerance", "camera"}
+    assert set(items) == {"radius", "lookahead", "leg_tolerance", "camera", "keep_out_body", "keep_out_margin"}
     cut = text.replace("params: {camera: front, desired: $front_goal, ", "params: {camera: front, ", 1)
     await change_doc(client, VIKI, cut, 2)
     items = await complete(client, VIKI, cut, "params: {camera", -6)
