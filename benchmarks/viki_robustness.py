@@ -15,6 +15,8 @@ Rows (``--rows`` picks some by name):
 * ``near`` / ``far``: the object 1.1 m / 3.6 m away at a bearing drawn in ±0.45 rad;
 * ``dropout30`` / ``dropout50``: 30 % / 50 % of the frames missed (bursts of 1.5 frames);
 * ``burst5`` / ``burst15``: 50 % missed in bursts of 5 / 15 frames;
+* ``edge+0.48`` / ``edge-0.48``: the object at the edge of the front view at the start (issue 25): bearing
+  drawn in 0.44–0.52 rad to the left / right, distance in 1.5–2.6 m — its box starts cut by the image border;
 * ``worst``: everything at once — bearing ±0.45 rad, 1.1–3.6 m, 50 % dropout in 15-frame bursts.
 
 ``--set KEY=VALUE`` applies to every row (e.g. ``--set world.params.fidelity=paper``, or
@@ -43,6 +45,7 @@ from taskflow.campaigns.stats import wilson_interval
 
 MISSION = Path(__file__).resolve().parents[1] / "missions" / "viki_hyco.yaml"
 WIDE_BEARING = "world.params.object_bearing={uniform: [-0.45, 0.45]}"
+EDGE_DISTANCE = "world.params.object_distance={uniform: [1.5, 2.6]}"
 
 ROWS: dict[str, tuple[str, list[str]]] = {
     "shipped": ("as shipped", []),
@@ -54,6 +57,10 @@ ROWS: dict[str, tuple[str, list[str]]] = {
     "dropout50": ("dropout 50 %, bursts 1.5", ["world.params.dropout=0.5"]),
     "burst5": ("dropout 50 %, bursts 5", ["world.params.dropout=0.5", "world.params.dropout_burst=5"]),
     "burst15": ("dropout 50 %, bursts 15", ["world.params.dropout=0.5", "world.params.dropout_burst=15"]),
+    "edge+0.48": ("edge of the front view, left: 0.44 to 0.52 rad, 1.5-2.6 m",
+                  ["world.params.object_bearing={uniform: [0.44, 0.52]}", EDGE_DISTANCE]),
+    "edge-0.48": ("edge of the front view, right: -0.52 to -0.44 rad, 1.5-2.6 m",
+                  ["world.params.object_bearing={uniform: [-0.52, -0.44]}", EDGE_DISTANCE]),
     "worst": ("±0.45 rad, 1.1-3.6 m, 50 % in bursts of 15",
               [WIDE_BEARING, "world.params.object_distance={uniform: [1.1, 3.6]}", "world.params.dropout=0.5",
                "world.params.dropout_burst=15"]),

@@ -131,10 +131,10 @@ def _wilson(k: int, n: int) -> list[float] | None:
 
 
 def aggregate(summaries: list[dict[str, Any]]) -> dict[str, Any]:
-    """Success rate with its Wilson 95 % interval (``success_ci95``), outcome counts, item success per
-    foreach loop (with the Wilson interval over the items, which counts every item as an independent
-    trial), and mean (with the t 95 % interval of the mean, ``ci95``), std (population, ddof 0), min,
-    max of every numeric final metric and of ``sim_time_s``."""
+    """Success rate with its Wilson 95 % interval (``success_ci95``), outcome counts, item success per foreach loop
+    (Wilson interval over the items, each an independent trial counted on its last attempt; with ``retry``, also
+    ``attempts``, ``retried``, ``recovered``), and mean (with the t 95 % interval of the mean, ``ci95``), std
+    (population, ddof 0), min, max of every numeric final metric and of ``sim_time_s``."""
     n = len(summaries)
     outcomes: dict[str, int] = {}
     for s in summaries:
@@ -155,8 +155,8 @@ def aggregate(summaries: list[dict[str, Any]]) -> dict[str, Any]:
     for s in summaries:
         for loop, c in s.get("items", {}).items():
             agg = items.setdefault(loop, {"attempted": 0, "succeeded": 0, "rule": c.get("rule")})
-            agg["attempted"] += c["attempted"]
-            agg["succeeded"] += c["succeeded"]
+            for key in {"attempted", "succeeded", "attempts", "retried", "recovered"} & set(c):  # the last 3: `retry`
+                agg[key] = agg.get(key, 0) + c[key]
     for agg in items.values():
         agg["failed"] = agg["attempted"] - agg["succeeded"]
         agg["success_rate"] = agg["succeeded"] / agg["attempted"] if agg["attempted"] else None
@@ -368,6 +368,9 @@ def _aggregate_lines(agg: dict[str, Any]) -> list[str]:
     for loop, c in agg.get("items", {}).items():
         lines.append(f"items of {loop}: {_rate(c['succeeded'], c['attempted'], c['success_rate'], c.get('success_ci95'))}"
                      f" succeeded, rule per run: {c['rule']}")
+        if "attempts" in c:  # a loop that retries
+            lines.append(f"  attempts of {loop}: {c['attempts']} over {c['attempted']} items; {c['retried']} retried, "
+                         f"{c['recovered']} of them then succeeded")
     for name, c in agg.get("properties", {}).items():
         undecided = f", {c['not_decided']} not decided" if c["not_decided"] else ""
         lines.append(f"property {name} ({c['pattern']}): violated in "

@@ -5,7 +5,9 @@ swept the same grid; or the single condition of one campaign against each of the
 
 * mission success: both rates with their Wilson 95 % intervals, Fisher's exact test (two-sided p) and
   the pooled two-proportion z test;
-* item success per foreach loop both campaigns have (screws, waypoints): the same, over items;
+* item success per foreach loop both campaigns have (screws, waypoints): the same, over items (each item
+  counted on its last attempt), and for a loop that retries in either campaign its attempts and the items
+  retried (``foreach: {retry: …}``);
 * each numeric aggregate both have (or the ones asked for): every numeric final metric of the trials and
   the run's own numbers :mod:`taskflow.campaigns.batch` aggregates beside them (``sim_time_s``, from each trial's
   summary): means with their t 95 % intervals and the two-sided Mann–Whitney U test, which assumes
@@ -201,6 +203,10 @@ def compare(a: dict[str, Any], b: dict[str, Any], metrics: list[str] | None = No
             ia, ib = items_a[loop], items_b[loop]
             if ia["attempted"] and ib["attempted"]:
                 entry["items"][loop] = _proportions(ia["succeeded"], ia["attempted"], ib["succeeded"], ib["attempted"])
+                if "attempts" in ia or "attempts" in ib:  # a loop that retries (in one campaign or both)
+                    entry.setdefault("attempts", {})[loop] = {
+                        side: [c.get("attempts", c["attempted"]), c["attempted"], c.get("retried", 0)]
+                        for side, c in (("a", ia), ("b", ib))}
         for m in common:
             va, vb = _values(ta, m), _values(tb, m)
             if va.size == 0 or vb.size == 0:
@@ -231,6 +237,9 @@ def format_comparison(names: tuple[str, str], results: list[dict[str, Any]]) -> 
                          f"B {s['b'][0]}/{s['b'][1]} = {100 * s['rate_b']:.1f} %{_ci(s['ci95_b'], 100)}   "
                          f"Fisher p = {s['fisher_p']:.3g}, z = {s['z']:.2f} (p = {s['z_p']:.3g})"
                          f"  -> {'DIFFERENT' if s['differs'] else 'no significant difference'}")
+        for loop, s in r.get("attempts", {}).items():
+            lines.append(f"attempts of {loop}: A {s['a'][0]} over {s['a'][1]} items ({s['a'][2]} retried)   "
+                         f"B {s['b'][0]} over {s['b'][1]} items ({s['b'][2]} retried)")
         if r["metrics"]:
             lines.append(f"{'metric':32s} {'mean A [95 %]':>30s} {'mean B [95 %]':>30s} {'Mann-Whitney p':>15s}")
             for m, s in r["metrics"].items():

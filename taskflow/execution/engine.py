@@ -84,6 +84,8 @@ class MissionState(NestedState):
         self.item = 0  # foreach: index of the current item
         self.item_started = 0.0  # foreach: sim time the current item started
         self.items_succeeded = 0  # foreach: items that succeeded in this run of the loop
+        self.attempt = 1  # foreach: the current item's attempt (1: the first; `retry` runs it again)
+        self.retried: list[str] = []  # foreach: the final states the current item's earlier attempts ended in
 
     def operating_time(self, t: float, held_s: float, first: bool = False) -> float:
         """Seconds of operating time from this state's last entry (``first``: its first entry, when it has one)

@@ -4,10 +4,10 @@
   ``mission.yaml``        the mission as resolved (overrides applied, world parameters drawn)
   ``seed``                the seed, alone on a line
   ``transitions.jsonl``   one JSON object per change of the active leaf: ``t``, ``from``, ``to``, ``cause``
-                          (start, guard, timeout, event, done, next_item), ``state`` and ``label`` (the
+                          (start, guard, timeout, event, done, next_item, retry), ``state`` and ``label`` (the
                           declaring state and the transition as written), and as they apply ``index``,
                           ``metrics`` (the guard's metric values when it fired), ``event``, ``outcome``,
-                          ``item``, ``resumed``, ``who`` — :class:`TransitionRecord`; and one object per
+                          ``item``, ``attempt``, ``resumed``, ``who`` — :class:`TransitionRecord`; and one object per
                           operator action (``taskflow ctl``, an operator script): ``cause: operator``,
                           ``action``, ``who``, ``args``, ``t``, ``tick``, ``state`` (and ``refused``, why, when the
                           run could not take it) — :class:`OperatorRecord`; and one object per declared
@@ -57,8 +57,8 @@ import yaml
 from taskflow.mission.data import clean_floats
 
 START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM = "start", "guard", "timeout", "event", "done", "next_item"
-OPERATOR = "operator"
-CAUSES = (START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM, OPERATOR)
+RETRY, OPERATOR = "retry", "operator"
+CAUSES = (START_CAUSE, GUARD, TIMEOUT, EVENT, DONE, NEXT_ITEM, RETRY, OPERATOR)
 PROPERTY = "property"
 """The ``cause`` of a :class:`PropertyRecord` (no state change: not one of :data:`CAUSES`)."""
 
@@ -70,7 +70,10 @@ class TransitionRecord:
     ``cause`` is one of :data:`CAUSES`: ``start``; ``guard`` (a ``when`` held: ``metrics`` has the values
     of its metrics that tick), ``timeout`` (an ``after`` ran out), ``event`` (``event``; with a condition,
     ``metrics`` too), ``done`` (the sub-machine of ``state`` finished with ``outcome``) or ``next_item``
-    (the loop ``state`` moved to item ``item`` after an item that ended ``outcome``) or ``operator`` (``who``
+    (the loop ``state`` moved to item ``item`` after an item that ended ``outcome``) or ``retry`` (the loop
+    ``state`` runs item ``item`` again, its attempt ``attempt`` — 2 the first retry — after the final state
+    ``from`` ended the previous attempt ``outcome``: ``foreach: {retry: …}``; ``from`` is that final state
+    alone, even beside parallel regions) or ``operator`` (``who``
     pre-empted the run to ``target``: ``taskflow ctl preempt --to``, :mod:`taskflow.execution.control`).  ``state`` and
     ``label`` name the declaring state and the transition as written; ``index`` is the transition's index
     in the mission; ``resumed`` says a history state was resumed where it was left."""
@@ -86,6 +89,7 @@ class TransitionRecord:
     event: str | None = None
     outcome: str | None = None
     item: int | None = None
+    attempt: int | None = None  # the attempt a ``retry`` starts (2: the first retry)
     resumed: bool = False
     who: str | None = None  # the operator who pre-empted (cause ``operator``)
 
@@ -93,7 +97,7 @@ class TransitionRecord:
         """The JSON object of ``transitions.jsonl``: the fields that apply to this cause."""
         out: dict[str, Any] = {"t": round(self.t, 9), "from": self.source, "to": self.target, "cause": self.cause,
                                "state": self.state, "label": self.label}
-        for key in ("index", "metrics", "event", "outcome", "item", "who"):
+        for key in ("index", "metrics", "event", "outcome", "item", "attempt", "who"):
             value = getattr(self, key)
             if value is not None:
                 out[key] = value
@@ -154,17 +158,26 @@ class PropertyRecord:
 
 @dataclass
 class ItemCount:
-    """A foreach loop's items over a whole run: attempted, succeeded, and its success rule."""
+    """A foreach loop's items over a whole run: attempted, succeeded (each item counted on its last attempt),
+    its success rule, and — for a loop that declares ``retry`` — every attempt and the items run again."""
 
     required: int  # per run of the loop
     rule: str  # as written: "all", "3", "75 %"
     attempted: int = 0
     succeeded: int = 0
+    retry: int = 0  # further attempts the loop allows an item (0: no ``retry``, nothing below is written)
+    attempts: int = 0  # attempts over all items (an item's retries included)
+    retried: int = 0  # items that took more than one attempt
+    recovered: int = 0  # ... and of those, the ones that succeeded
 
     def as_dict(self) -> dict[str, Any]:
-        return {"attempted": self.attempted, "succeeded": self.succeeded, "failed": self.attempted - self.succeeded,
-                "success_rate": self.succeeded / self.attempted if self.attempted else None,
-                "required": self.required, "rule": self.rule}
+        out: dict[str, Any] = {
+            "attempted": self.attempted, "succeeded": self.succeeded, "failed": self.attempted - self.succeeded,
+            "success_rate": self.succeeded / self.attempted if self.attempted else None,
+            "required": self.required, "rule": self.rule}
+        if self.retry:
+            out.update(retry=self.retry, attempts=self.attempts, retried=self.retried, recovered=self.recovered)
+        return out
 
 
 @dataclass
@@ -176,6 +189,8 @@ class IterationRecord:
     t_start: float
     t_end: float
     ground_truth: dict[str, float]
+    attempts: int | None = None  # with ``retry`` declared: the attempts the item took (it counts on the last)
+    retried: tuple[str, ...] = ()  # ... and the final state each earlier attempt ended in
 
 
 

@@ -13,8 +13,9 @@ the simulation clock.  In brief (docs/missions.md has the long form):
   resolved after the transition's exits, so re-entering an active history state resumes where it is;
 * a transition exits and re-enters every state below its domain (UML external semantics: a transition
   into its own source or an ancestor re-enters it);
-* reaching a final sub-state finishes its parent: a ``foreach`` parent moves to the next item (or stops on
-  a failed/aborted iteration unless ``on_failure: continue``); otherwise the parent's matching ``done``
+* reaching a final sub-state finishes its parent: a ``foreach`` parent runs the item again when its
+  ``retry`` covers that final state and attempts remain, else moves to the next item (or stops on a
+  failed/aborted iteration unless ``on_failure: continue``); otherwise the parent's matching ``done``
   transition fires.  A final state directly under the root ends the run;
 * a region reaching a final state finishes; its parallel state finishes by its rule
   (:func:`~taskflow.execution.outcomes.parallel_outcome`);
@@ -34,7 +35,7 @@ from taskflow.api import Robot, World
 from taskflow.execution.contexts import AnyTask, Contexts, TaskFactory
 from taskflow.execution.engine import START, MissionMachine, MissionState, leaf_paths
 from taskflow.execution.outcomes import Preemption, SkippedRule, end_verdict, loop_verdict, parallel_outcome
-from taskflow.execution.records import DONE, NEXT_ITEM, START_CAUSE, ItemCount, IterationRecord, TransitionRecord
+from taskflow.execution.records import DONE, NEXT_ITEM, RETRY, START_CAUSE, ItemCount, IterationRecord, TransitionRecord
 from taskflow.execution.triggers import Trigger, arm
 from taskflow.mission.model import CompiledMission, DoneTransition, StateNode, Transition, resolve_refs
 
@@ -171,7 +172,7 @@ class Statechart:
         if not self._resuming and node.children:
             self._forget_first_entries(node)
         if node.loop and not self._resuming:
-            st.item, st.item_started, st.items_succeeded = 0, t, 0
+            st.item, st.item_started, st.items_succeeded, st.attempt, st.retried = 0, t, 0, 1, []
         if node.parallel:
             self._region_outcomes.pop(node.path, None)
         if (node.loop or node.parallel) and not self._resuming:
@@ -297,10 +298,24 @@ class Statechart:
             st = self._states[parent.path]
             lst = self.params[loop.items]
             i = st.item
-            self.iterations.append(IterationRecord(parent.path, i, lst[i], outcome, st.item_started, self.t,
-                                                   self.world.ground_truth()))
-            count = self.item_counts.setdefault(parent.path, ItemCount(required=loop.required, rule=loop.rule))
+            count = self.item_counts.setdefault(parent.path, ItemCount(loop.required, loop.rule, retry=loop.retries))
+            count.attempts += 1
+            if outcome != "succeeded" and loop.retries_after(leaf, st.attempt):
+                # the item runs again from the sub-machine's initial state, entered afresh as for a new
+                # item (first-entry clocks, histories, nested loops); its index and the loop's counts stay
+                st.attempt += 1
+                st.retried.append(leaf.name)
+                self._forget_first_entries(parent)
+                self._go(parent.entry_point(), RETRY, resume=False, keep=parent.depth, source=leaf.path,
+                         state=parent.path, outcome=outcome, item=i, attempt=st.attempt)
+                return
+            self.iterations.append(IterationRecord(
+                parent.path, i, lst[i], outcome, st.item_started, self.t, self.world.ground_truth(),
+                attempts=st.attempt if loop.retries else None, retried=tuple(st.retried)))
             count.attempted += 1
+            count.retried += st.attempt > 1
+            count.recovered += st.attempt > 1 and outcome == "succeeded"
+            st.attempt, st.retried = 1, []
             if outcome == "succeeded":
                 count.succeeded += 1
                 st.items_succeeded += 1

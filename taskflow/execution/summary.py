@@ -10,6 +10,7 @@ from typing import Any
 
 from taskflow.execution.executor import Executor
 from taskflow.execution.provenance import versions
+from taskflow.execution.records import IterationRecord
 from taskflow.mission.data import clean_floats
 from taskflow.mission.model import CompiledMission
 
@@ -31,8 +32,11 @@ class RunResult:
       spent in it), ``sim_time_s`` (simulated time when the outcome was reached), ``ticks``,
       ``transitions`` (how many fired), ``stopped_at_s`` (simulated time after the safe stop);
     - ``iterations`` (one dict per ``foreach`` item: ``state``, ``index``, ``item``, ``outcome``,
-      ``t_start``, ``t_end``, ``ground_truth`` when it ended) and ``items`` (foreach state → ``attempted``,
-      ``succeeded``, ``failed``, ``success_rate``, ``required``, ``rule``);
+      ``t_start``, ``t_end``, ``ground_truth`` when it ended; with ``retry`` declared, ``attempts`` and
+      ``retried``, the final state of each earlier attempt — the item counts on its last) and ``items``
+      (foreach state → ``attempted``, ``succeeded``, ``failed``, ``success_rate``, ``required``, ``rule``;
+      with ``retry``, ``retry``, ``attempts`` over all items, ``retried``, the items run again, and
+      ``recovered``, those of them that succeeded);
     - ``metrics`` (the last value of every metric published on the last tick, then the world's
       ``summary_metrics()``: ground truth such as ``gt_x_m``, ``final_error_m``), ``outputs`` (the final
       mission data the mission declares as outputs), ``versions`` (the packages the run used);
@@ -85,9 +89,7 @@ def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: f
         "sim_time_s": round(sim_time, 9),
         "ticks": ticks,
         "time_in_state_s": {k: round(v, 9) for k, v in ex.time_in_state.items()},
-        "iterations": [
-            {"state": r.state, "index": r.index, "item": r.item, "outcome": r.outcome,
-             "t_start": r.t_start, "t_end": r.t_end, "ground_truth": r.ground_truth} for r in ex.iterations],
+        "iterations": [_iteration(r) for r in ex.iterations],
         "items": {path: count.as_dict() for path, count in ex.item_counts.items()},
         "transitions": len(ex.transitions_fired),
         "metrics": metrics,
@@ -100,3 +102,12 @@ def build_summary(mission: CompiledMission, seed: int, ex: Executor, sim_time: f
         out["held_s"] = round(ex.held_s, 9)
     summary: dict[str, Any] = clean_floats(out)
     return summary
+
+
+def _iteration(r: IterationRecord) -> dict[str, Any]:
+    """One ``foreach`` item of ``summary.json``'s ``iterations`` (its attempts where the loop declares ``retry``)."""
+    out: dict[str, Any] = {"state": r.state, "index": r.index, "item": r.item, "outcome": r.outcome,
+                           "t_start": r.t_start, "t_end": r.t_end, "ground_truth": r.ground_truth}
+    if r.attempts is not None:
+        out.update(attempts=r.attempts, retried=list(r.retried))
+    return out

@@ -152,6 +152,10 @@ def _key_items(k: Knowledge, cur: Cursor, text: str) -> list[Item]:
         return _keys_of(schema.Region)
     if len(keys) >= 2 and keys[-2] == "states":
         return _keys_of(schema.State)
+    if keys[-1] == "foreach":
+        return _keys_of(schema.Foreach)
+    if keys[-2:] == ("foreach", "retry"):
+        return _keys_of(schema.Retry)
     if len(keys) >= 2 and keys[-2] == "properties" and keys[0] == "properties":
         return _keys_of(schema.Property)
     if keys[-1] == "params" and len(keys) >= 2:

@@ -98,14 +98,21 @@ class DoneTransition(Transition):
 
 @dataclass(frozen=True)
 class Loop:
-    """A ``foreach``: the list parameter it iterates, the item's name, what a failed item does, and its
-    success rule resolved against the list (``required`` items must succeed; ``rule`` as written)."""
+    """A ``foreach``: the list parameter it iterates, the item's name, what a failed item does, its
+    success rule resolved against the list (``required`` items must succeed; ``rule`` as written), and how
+    often an item that failed is run again (``retries``, for the final states ``retry_on``)."""
 
     items: str
     item: str
     on_failure: str  # "stop" | "continue"
     required: int = 0
     rule: str = "all"
+    retries: int = 0  # further attempts of an item that ends in one of ``retry_on`` (``retry``)
+    retry_on: tuple[str, ...] = ()  # the names of the sub-machine's final states worth retrying
+
+    def retries_after(self, final: StateNode, attempt: int) -> bool:
+        """Whether an item whose ``attempt``-th attempt (1: the first) ended in the final state ``final`` runs again."""
+        return attempt <= self.retries and final.name in self.retry_on
 
 
 @dataclass(eq=False)

@@ -72,6 +72,28 @@ class TaskRef(_Model):
     params: dict[str, Any] = Field(default_factory=dict)
 
 
+MAX_RETRIES = 10
+"""The most further attempts a ``foreach`` item may declare (``retry``): every expansion has a budget."""
+
+
+class Retry(_Model):
+    """``retry: N`` or ``retry: {times: N, on: [FINAL, ...]}``: an item whose sub-machine ends in one of the
+    final states ``on`` (default: every ``failed`` final of the sub-machine) is run again from the
+    sub-machine's ``initial`` state, up to ``times`` more times, before it counts."""
+
+    times: StrictInt = Field(description=f"further attempts of a failed item, 0 to {MAX_RETRIES}")
+    on: list[str] | None = Field(None, description="the final states of the sub-machine worth retrying "
+                                                   "(default: every `failed` one; `aborted` ones only when named)")
+
+    @field_validator("times")
+    @classmethod
+    def _times(cls, v: int) -> int:
+        if not 0 <= v <= MAX_RETRIES:
+            raise ValueError(f"retry {v}: an item may be attempted again 0 to {MAX_RETRIES} times "
+                             "(every expansion has a budget)")
+        return v
+
+
 class Foreach(_Model):
     """Run the sub-machine once per item of the list parameter ``in``, exposing it as ``as``."""
 
@@ -82,6 +104,16 @@ class Foreach(_Model):
     require: Literal["all"] | StrictInt | str = Field(
         "all", description="the loop's success rule: 'all' items, at least N items (an integer), or a share like '75 %'; "
                            "with fewer the loop finishes failed")
+    retry: Retry | None = Field(None, description="run a failed item again: `retry: N` or `retry: {times: N, on: [FINAL, ...]}`; "
+                                                  "the item counts on its last attempt")
+
+    @field_validator("retry", mode="before")
+    @classmethod
+    def _retry(cls, v: Any) -> Any:
+        if isinstance(v, (bool, float, str)):
+            raise ValueError(f"retry {v!r} is not a number of further attempts (0 to {MAX_RETRIES}) "
+                             "nor {times: N, on: [FINAL, ...]}")
+        return {"times": v} if isinstance(v, int) else v
 
     @field_validator("require")
     @classmethod

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from taskflow.execution.records import RETRY
 from taskflow.markers import Marker
 from taskflow.readers.recorded import RecordedRun, Threshold, load_run
 
@@ -75,7 +76,7 @@ def _transition_labels(run: RecordedRun) -> list[tuple[float, str]]:
     for rec in run.transitions:
         if rec.cause == "start":
             continue
-        name = _short(rec.target)
+        name = _short(rec.target) + (f" (attempt {rec.attempt})" if rec.cause == RETRY else "")
         if groups and rec.t - groups[-1][0] <= 0.025 * span:
             if groups[-1][1][-1] != name:
                 groups[-1][1].append(name)

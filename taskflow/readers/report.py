@@ -1,6 +1,6 @@
 """The terminal summary of a run, from its record (:class:`~taskflow.readers.recorded.RecordedRun`).
 
-What it prints, in order: the outcome and its reason; times; ``foreach`` item counts; the operator's
+What it prints, in order: the outcome and its reason; times; ``foreach`` item counts (and attempts, with ``retry``); the operator's
 actions (pause, hold, resume, inject, preempt: who, when, in which state), whatever the outcome; each declared
 property's verdict (``summary.json``'s ``properties``) with its first violation's atom values; for a run that
 did not succeed, the chain of transitions that led to the final state, each with its cause (the guard
@@ -65,6 +65,9 @@ def describe_transition(rec: TransitionRecord, units: dict[str, str]) -> str:
         where = ""
     elif rec.cause == "operator":
         why = f"pre-empted by {rec.who} (operator)"
+    elif rec.cause == "retry":
+        why = f"retry of item {rec.item} in {rec.state}, attempt {rec.attempt} (the last ended '{rec.outcome}')"
+        where = ""
     else:
         why = f"{rec.cause} (item {rec.item}, previous item {rec.outcome})"
     values = ""
@@ -111,8 +114,9 @@ def format_report(run: RecordedRun, timing: dict[str, Any] | None = None) -> str
     lines.append(f"final state: {s.get('final_state', '')}   sim time: {s.get('sim_time_s') or 0.0:.2f} s{wall}   "
                  f"ticks: {s.get('ticks', 0)}")
     for loop, c in s.get("items", {}).items():
+        tries = f"; {c['attempts']} attempts, {c['retried']} items retried" if "attempts" in c else ""
         lines.append(f"  items of {loop}: {c['succeeded']}/{c['attempted']} succeeded (rule: {c.get('rule', '')}, "
-                     f"{c.get('required', 0)} required)")
+                     f"{c.get('required', 0)} required{tries})")
     if run.operator:
         lines.append(f"operator actions ({len(run.operator)}):")
         lines += [f"  {describe_operator(r)}" for r in run.operator]

@@ -144,6 +144,7 @@ def record_from_dict(d: Any) -> Record:
                             event=_typed(d, "event", (str,), "an event name", None),
                             outcome=_typed(d, "outcome", (str,), "an outcome", None),
                             item=_typed(d, "item", (int,), "an item index", None),
+                            attempt=_typed(d, "attempt", (int,), "an attempt number", None),
                             resumed=_typed(d, "resumed", (bool,), "true or false", False),
                             who=_typed(d, "who", (str,), "a name", None))
 

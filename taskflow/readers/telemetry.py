@@ -15,7 +15,7 @@ Topics:
   ``state`` (the active leaf), then one number per metric / command component / ground-truth column
   (null where it has no value); each property's schema ``description`` gives its unit;
 * ``/transitions`` — ``taskflow.Transition``: one message per change of the active leaf in
-  ``transitions.jsonl``, the same fields (``t``, ``from``, ``to``, ``cause``, ``label``, ``metrics``,
+  ``transitions.jsonl``, the same fields (``t``, ``from``, ``to``, ``cause``, ``label``, ``metrics``, ``attempt``,
   ``who`` of a pre-emption …);
 * ``/operator`` — ``taskflow.OperatorAction``: one message per operator action of ``transitions.jsonl``
   (:class:`~taskflow.execution.records.OperatorRecord`: ``t``, ``tick``, ``action``, ``who``, ``state``, ``args``),
@@ -78,7 +78,8 @@ TRANSITION_SCHEMA = {
     "properties": {"t": {"type": "number", "description": "s"}, "from": {"type": "string"}, "to": {"type": "string"},
                    "cause": {"type": "string"}, "state": {"type": "string"}, "label": {"type": "string"},
                    "index": {"type": "integer"}, "metrics": {"type": "object"}, "event": {"type": "string"},
-                   "outcome": {"type": "string"}, "item": {"type": "integer"}, "resumed": {"type": "boolean"},
+                   "outcome": {"type": "string"}, "item": {"type": "integer"}, "attempt": {"type": "integer"},
+                   "resumed": {"type": "boolean"},
                    "who": {"type": "string"}}}
 OPERATOR_SCHEMA = {
     "title": "taskflow.OperatorAction", "type": "object",

@@ -2,11 +2,11 @@
 campaign's records, solved with Storm, set beside the campaign's measured rates.
 
 **The chain.** Its states are the configurations the runs' ``transitions.jsonl`` records pass through
-(:func:`configuration_of`: the active leaves, one per active region, each active ``foreach``'s item index and
-count of items that succeeded, and the resume point of each history state that is not active — the parts of
+(:func:`configuration_of`: the active leaves, one per active region, each active ``foreach``'s item index,
+count of items that succeeded and the item's attempt, and the resume point of each history state that is not active — the parts of
 the finite model's configuration (:mod:`taskflow.verify.model`) a record determines; the model's clocks are
 replaced by the measured times).  Records of one instant that finish what the step before entered (``done``,
-``next_item``) are one step, as in the model: a final leaf that is finished at once is no state of the chain,
+``next_item``, ``retry``) are one step, as in the model: a final leaf that is finished at once is no state of the chain,
 and a run that the machine ended goes from its last configuration straight to its outcome.  The absorbing
 states are the runs' outcomes (``summary.json``: ``succeeded``, ``failed``, ``timeout``, ``aborted`` …).
 
@@ -55,7 +55,7 @@ from taskflow.campaigns.campaign import Campaign, CampaignError, Condition
 from taskflow.campaigns.stats import mean_interval, wilson_interval
 from taskflow.errors import MissionError, Problem
 from taskflow.execution.record_io import RunDirError
-from taskflow.execution.records import DONE, NEXT_ITEM, START_CAUSE, TransitionRecord
+from taskflow.execution.records import DONE, NEXT_ITEM, RETRY, START_CAUSE, TransitionRecord
 from taskflow.mission.data import clean_floats
 from taskflow.mission.model import CompiledMission, StateNode
 from taskflow.readers.run_files import read_transitions
@@ -92,19 +92,22 @@ def _fail(text: str, hint: str = "") -> CampaignDataError:
 class Configuration:
     """What the records say the machine holds: ``leaves`` (one per active region, declaration order),
     ``loops`` (each ``foreach`` that is active or that a history state will resume into: path, item index, items
-    succeeded) and ``history`` (history state not active → where it resumes)."""
+    succeeded, the item's attempt — 1 but after a ``retry``) and ``history`` (history state not active → where
+    it resumes)."""
 
     leaves: tuple[str, ...]
-    loops: tuple[tuple[str, int, int], ...] = ()
+    loops: tuple[tuple[str, int, int, int], ...] = ()
     history: tuple[tuple[str, str], ...] = ()
-    _positions: tuple[tuple[str, int, int], ...] = field(default=(), compare=False, repr=False)  # every loop's
+    _positions: tuple[tuple[str, int, int, int], ...] = field(default=(), compare=False, repr=False)  # every loop's
 
     @property
     def label(self) -> str:
-        """The leaves as the records join them (`` | ``), then ``{loop: item i, k ok}`` and ``(history → leaf)``."""
+        """The leaves as the records join them (`` | ``), then ``{loop: item i, k ok}`` (``, attempt a`` after a
+        retry) and ``(history → leaf)``."""
         text = " | ".join(self.leaves)
         if self.loops:
-            text += " {" + ", ".join(f"{p.rsplit('.', 1)[-1]}: item {i}, {k} ok" for p, i, k in self.loops) + "}"
+            text += " {" + ", ".join(f"{p.rsplit('.', 1)[-1]}: item {i}, {k} ok" + (f", attempt {a}" if a > 1 else "")
+                                     for p, i, k, a in self.loops) + "}"
         if self.history:
             text += " (" + ", ".join(f"{h.rsplit('.', 1)[-1]} → {leaf}" for h, leaf in self.history) + ")"
         return text
@@ -134,7 +137,7 @@ def configuration_of(mission: CompiledMission, before: Configuration | None, rec
     A record names one leaf entered (``to``: a leaf, or a parallel state whose regions all start), so the
     configuration needs the one before: the leaves of other regions of a parallel state that stays active are
     kept, every other leaf is left.  A ``next_item`` record gives its loop's item index (and the item's
-    ``outcome`` counts as succeeded or not); a loop entered afresh starts at item 0, one resumed by history
+    ``outcome`` counts as succeeded or not), a ``retry`` record the attempt of the item it runs again; a loop entered afresh starts at item 0, one resumed by history
     (``resumed``) where it was left.  A history state that stops being active remembers the leaf it resumes
     (as the engine does: the active leaf inside it, or the outermost parallel state on the way).  A record the
     configuration before cannot have written (a leaf left that was not active, a state the mission has not)
@@ -148,7 +151,7 @@ def configuration_of(mission: CompiledMission, before: Configuration | None, rec
             raise _fail(f"{where}: the first record's cause is {record.cause!r}", "a run's records begin with "
                         "its 'start' record")
         old: tuple[str, ...] = ()
-        positions: dict[str, tuple[int, int]] = {}
+        positions: dict[str, tuple[int, int, int]] = {}
         history: dict[str, str] = {}
     else:
         old = before.leaves
@@ -156,7 +159,7 @@ def configuration_of(mission: CompiledMission, before: Configuration | None, rec
         if any(p not in old for p in left):
             raise _fail(f"{where}: the record leaves {record.source[:120]!r}, but the configuration was "
                         f"{before.label[:160]!r}", "records in the order the run wrote them, of one mission")
-        positions = {p: (i, k) for p, i, k in before._positions}
+        positions = {p: (i, k, a) for p, i, k, a in before._positions}
         history = dict(before.history)
     entered = [n.path for n in target.entry_leaves()]
     kept = [p for p in old if _keeps(mission, p, target)]
@@ -171,14 +174,17 @@ def configuration_of(mission: CompiledMission, before: Configuration | None, rec
         if now:
             history.pop(path, None)
         if node.loop is not None and now and not was and not record.resumed:
-            positions[path] = (0, 0)
+            positions[path] = (0, 0, 1)
     if record.cause == NEXT_ITEM and record.item is not None:
-        _, ok = positions.get(record.state, (0, 0))
-        positions[record.state] = (record.item, ok + (record.outcome == "succeeded"))
+        _, ok, _ = positions.get(record.state, (0, 0, 1))
+        positions[record.state] = (record.item, ok + (record.outcome == "succeeded"), 1)
+    elif record.cause == RETRY and record.item is not None:
+        _, ok, _ = positions.get(record.state, (0, 0, 1))
+        positions[record.state] = (record.item, ok, record.attempt or 2)
     loops = tuple((p, *positions[p]) for p in mission.states if p in positions and (
         any(_under(q, p) for q in new) or any(_under(point, p) and _under(p, h) for h, point in history.items())))
     return Configuration(new, loops, tuple(sorted(history.items())),
-                         tuple((p, i, k) for p, (i, k) in sorted(positions.items())))
+                         tuple((p, *v) for p, v in sorted(positions.items())))
 
 
 # -- the runs ------------------------------------------------------------------------------------------------
@@ -220,7 +226,7 @@ def read_run(mission: CompiledMission, run_dir: Path, seed: int, summary: dict[s
     kept: list[tuple[Configuration, float]] = []
     for k, (cfg, rec) in enumerate(entries):
         nxt = entries[k + 1][1] if k + 1 < len(entries) else None
-        if nxt is not None and nxt.cause in (DONE, NEXT_ITEM) and abs(nxt.t - rec.t) < 1e-9:
+        if nxt is not None and nxt.cause in (DONE, NEXT_ITEM, RETRY) and abs(nxt.t - rec.t) < 1e-9:
             continue  # a final leaf finished at once: part of the step that entered it
         kept.append((cfg, rec.t))
     end = float(summary["sim_time_s"])

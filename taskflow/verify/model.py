@@ -10,7 +10,7 @@ whose nondeterminism is the environment's.  It follows the statechart semantics 
 is a path of the model (:meth:`Model.path_of`).
 
 What is **kept**: the active leaves (one per active region), each history state's resume point, each
-``foreach``'s item index and count of items that succeeded, which regions of an active parallel state have
+``foreach``'s item index, count of items that succeeded and the current item's attempt (``retry``), which regions of an active parallel state have
 finished and how, the run's outcome, and the clocks the timers read, counted in ticks of the model's time
 step :attr:`Model.quantum` — the greatest common divisor of the mission's ``after`` values (and the
 ``--max-time`` given), so that every timeout falls on a tick.
@@ -32,7 +32,7 @@ What is **abstracted**:
 * **not modelled**: operator actions (pre-emption, hold, abort), ``$data`` values, and the control law.
 
 A step of the model is one firing and everything it sets off at the same instant (entering a final state
-finishes its parent: the next ``foreach`` item, a ``done`` transition, a region, the run), so that a step
+finishes its parent: the item's retry, the next ``foreach`` item, a ``done`` transition, a region, the run), so that a step
 writes the same records to ``transitions.jsonl`` as the engine does, in the same order.
 """
 
@@ -46,7 +46,7 @@ from functools import reduce
 from typing import Any
 
 from taskflow.execution.outcomes import loop_verdict, parallel_outcome, parallel_verdict
-from taskflow.execution.records import DONE, EVENT, GUARD, NEXT_ITEM, OPERATOR, PROPERTY, START_CAUSE, TIMEOUT
+from taskflow.execution.records import DONE, EVENT, GUARD, NEXT_ITEM, OPERATOR, PROPERTY, RETRY, START_CAUSE, TIMEOUT
 from taskflow.mission.model import (
     CompiledMission,
     DoneTransition,
@@ -86,7 +86,7 @@ class Config:
     leaves: tuple[str, ...]  # the active leaves, one per active region, in declaration order (finals included)
     clocks: tuple[int, ...]  # ticks each clock has run, capped at the largest value it is compared with; -1: stopped
     history: tuple[tuple[str, str], ...]  # history state → the state it resumes (sorted)
-    loops: tuple[tuple[int, int], ...]  # per foreach: (item index, items succeeded)
+    loops: tuple[tuple[int, int, int], ...]  # per foreach: (item index, items succeeded, the item's attempt)
     regions: tuple[tuple[str, tuple[tuple[str, str], ...]], ...]  # parallel state → finished region → outcome
     outcome: str | None = None  # the run ended with it
     mission_ticks: int = 0  # ticks since the start (only with a max time)
@@ -108,7 +108,7 @@ class Step:
     """One step of the model from a configuration: its cause, the transition (index into the mission's, or
     None) and the records it writes — ``(cause, to)`` per record, as ``transitions.jsonl`` gives them."""
 
-    cause: str  # guard | timeout | event | tick | max_time (a done or next_item cascade is in ``records``)
+    cause: str  # guard | timeout | event | tick | max_time (a done, next_item or retry cascade is in ``records``)
     target: int  # index of the configuration it leads to
     transition: int | None = None
     label: str = ""
@@ -377,12 +377,12 @@ class _Explorer:
 
     def freeze(self, w: _Work) -> Config:
         leaves = tuple(sorted(w.leaves, key=self.order.__getitem__))
-        return Config(leaves, tuple(w.clocks), tuple(sorted(w.history.items())), tuple((a, b) for a, b in w.loops),
+        return Config(leaves, tuple(w.clocks), tuple(sorted(w.history.items())), tuple((a, b, k) for a, b, k in w.loops),
                       tuple(sorted((p, tuple(sorted(o.items()))) for p, o in w.regions.items())), w.outcome,
                       w.mission_ticks, tuple(w.skipped.items()), w.grace)
 
     def initial(self) -> tuple[Config, tuple[tuple[str, str], ...]]:
-        w = _Work([], [-1] * len(self.clocks), {}, [[0, 0] for _ in self.loop_states], {}, None, 0)
+        w = _Work([], [-1] * len(self.clocks), {}, [[0, 0, 1] for _ in self.loop_states], {}, None, 0)
         root = self.m.root
         first = root.children[str(root.initial)]
         self.go(w, first.entry_point(), START_CAUSE, resume=False, keep=0)
@@ -475,7 +475,7 @@ class _Explorer:
         if not resuming and node.children:
             self.forget_first_entries(w, node)
         if node.loop is not None and not resuming:
-            w.loops[self.loop_index[node.path]] = [0, 0]
+            w.loops[self.loop_index[node.path]] = [0, 0, 1]
         if node.parallel:
             w.regions.pop(node.path, None)
         if (node.loop is not None or node.parallel) and not resuming:
@@ -498,7 +498,7 @@ class _Explorer:
         if self.resumable[path]:
             return
         if node.loop is not None:
-            w.loops[self.loop_index[path]] = [0, 0]
+            w.loops[self.loop_index[path]] = [0, 0, 1]
         j = self.clock_index.get((path, True))
         if j is not None and node.parent is not None and node.parent.path in exited:
             w.clocks[j] = -1
@@ -525,14 +525,19 @@ class _Explorer:
         if parent.loop is not None:
             loop = parent.loop
             li = self.loop_index[parent.path]
-            item, succeeded = w.loops[li]
+            item, succeeded, attempt = w.loops[li]
             n = len(self.params[loop.items])
+            if outcome != "succeeded" and loop.retries_after(leaf, attempt):
+                w.loops[li] = [item, succeeded, attempt + 1]
+                self.forget_first_entries(w, parent)
+                self.go(w, parent.entry_point(), RETRY, resume=False, keep=parent.depth)
+                return
             if outcome == "succeeded":
                 succeeded += 1
-            w.loops[li] = [item, succeeded]
+            w.loops[li] = [item, succeeded, 1]
             if outcome == "succeeded" or loop.on_failure == "continue":
                 if item + 1 < n:
-                    w.loops[li] = [item + 1, succeeded]
+                    w.loops[li] = [item + 1, succeeded, 1]
                     self.forget_first_entries(w, parent)
                     self.go(w, parent.entry_point(), NEXT_ITEM, resume=False, keep=parent.depth)
                     return
@@ -701,7 +706,7 @@ def entered_by(model: Model, source: int, step: Step) -> list[str]:
     """The states ``step`` enters when taken from configuration ``source`` (the start's: ``source`` -1)."""
     ex = _Explorer(model.mission, model.max_time, model.operator)
     if source < 0:
-        w = _Work([], [-1] * len(ex.clocks), {}, [[0, 0] for _ in ex.loop_states], {}, None, 0)
+        w = _Work([], [-1] * len(ex.clocks), {}, [[0, 0, 1] for _ in ex.loop_states], {}, None, 0)
         root = model.mission.root
         ex.go(w, root.children[str(root.initial)].entry_point(), START_CAUSE, resume=False, keep=0)
         return w.entered

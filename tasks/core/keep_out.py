@@ -22,7 +22,11 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["body_gap", "keep_out_speed"]
+__all__ = ["RACECAR_BODY", "body_gap", "keep_out_speed"]
+
+# the racecar's footprint (x_min, x_max, y_min, y_max), m, robot frame: taskflow_sim.viki.clearance.measure_footprint
+# of the PyBullet racecar, rounded outward (tests/sim/test_viki_clearance.py checks it covers the measured one)
+RACECAR_BODY: tuple[float, float, float, float] = (-0.05, 0.41, -0.15, 0.15)
 
 
 def body_gap(body: ArrayLike, object_xy: ArrayLike, radius: float) -> float:

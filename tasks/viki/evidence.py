@@ -6,6 +6,11 @@ Pure functions (numbers in, numbers out) used by :mod:`taskflow_tasks.viki.hyco`
   is the visible part of an object the image cuts: its centre, width and eq. 18's position estimate are
   all biased toward the image's inside (a can half out of view looks half as wide and sits at the edge).
   Such a box neither drives the visual servo nor re-anchors the kinematic target;
+* :func:`cut_box_near_point` — where the object of a box cut by the left or right border is, from the
+  part that shows: eq. 18 with eq. 17's depth puts it 0.35-0.42 m too far (issue 25: the shrunk box of a
+  sliver is mostly floor beyond the object), so the position comes from the floor instead: the ray
+  through the box's bottom edge in its inner (uncut) column meets the ground in front of the object's
+  base — a point no farther than the object, the conservative estimate a keep-out needs;
 * :func:`view_shift` — how far (m) a point fixed in the robot frame (the goal position of the object) has
   moved in the odometry frame between two poses: the change of the camera's view of the goal since a
   detection.  While it is below a few millimetres the image is the same (``viki_ground``'s still-camera
@@ -21,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from taskflow.spatial import planar_apply, planar_apply_inverse
 
-__all__ = ["box_cut_by_border", "view_shift", "view_shifts", "goal_offset"]
+__all__ = ["box_cut_by_border", "cut_box_near_point", "view_shift", "view_shifts", "goal_offset"]
 
 
 def box_cut_by_border(bbox: ArrayLike, width: int, height: int, margin_px: float) -> bool:
@@ -35,6 +40,37 @@ def box_cut_by_border(bbox: ArrayLike, width: int, height: int, margin_px: float
     lo_u, lo_v, hi_u, hi_v = -0.5 + margin_px, -0.5 + margin_px, width - 0.5 - margin_px, height - 0.5 - margin_px
     eps = 1e-9
     return u0 <= lo_u + eps or v0 <= lo_v + eps or u2 >= hi_u - eps or v2 >= hi_v - eps
+
+
+def cut_box_near_point(bbox: ArrayLike, width: int, height: int, margin_px: float, intrinsics: ArrayLike,
+                       T_body_camera: ArrayLike) -> NDArray[np.float64] | None:
+    """Robot-frame ``(x, y)`` (m) of the floor point seen at the bottom of a cut box's inner column.
+
+    The box ``(u0, v0, u2, v2)`` is cut by the left border (``u0`` within ``margin_px`` of it: the inner
+    column is ``u2``), by the right one (inner column ``u0``) or only by the top (the centre column).  The
+    ray of pixel ``(u_in, v2)`` (eq. 18's back-projection, ``d_c = ((u - c_u) / f_x, (v - c_v) / f_y, 1)``
+    rotated into the robot frame) meets the floor ``z = 0`` at the returned point.  A convex object
+    standing on the floor hides the floor above its bottom edge in every column, so that point lies on
+    the camera's side of the object's base, no farther than it (within its width).  ``None`` when the
+    box gives no such bound: cut by the bottom border (the object's base is below the image), by both
+    side borders, or a ray that does not reach the floor.
+    """
+    if width <= 0 or height <= 0:
+        raise ValueError(f"image size must be positive, got {width}x{height}")
+    u0, v0, u2, v2 = (float(x) for x in np.asarray(bbox, dtype=float).reshape(4))
+    eps = 1e-9
+    left, right = u0 <= -0.5 + margin_px + eps, u2 >= width - 0.5 - margin_px - eps
+    if v2 >= height - 0.5 - margin_px - eps or (left and right):
+        return None
+    u_in = u2 if left else u0 if right else 0.5 * (u0 + u2)
+    fx, fy, cu, cv = (float(x) for x in np.asarray(intrinsics, dtype=float).reshape(4))
+    T = np.asarray(T_body_camera, dtype=float).reshape(4, 4)
+    d = T[:3, :3] @ np.array([(u_in - cu) / fx, (v2 - cv) / fy, 1.0])
+    o = T[:3, 3]
+    if not d[2] < -1e-9 or not o[2] > 0.0:
+        return None
+    t = -o[2] / d[2]
+    return np.asarray(o[:2] + t * d[:2], dtype=float)
 
 
 def view_shifts(poses_then: ArrayLike, pose_now: ArrayLike, point: ArrayLike) -> NDArray[np.float64]:

@@ -33,7 +33,7 @@ the rotation, the backward positioning — use it.  With ``target_update: latest
 *whole* detection re-anchors it — one whose box is not within ``border_px`` of the image border
 (:func:`taskflow_tasks.viki.evidence.box_cut_by_border`: a cut box's centre and width are the visible
 part's, and trusting it drove the car onto the object at large bearings); a cut box still drives the
-visual servo, and fixes the object only when nothing else has.  A target frozen at the first detection
+visual servo, and fixes the object (at its floor point, below) only while no whole box has.  A target frozen at the first detection
 (``target_update: first``, the paper's rule) lies 5–9 cm from where the visual servo converges, so
 each burst of missed detections dragged the car off by 20–30 cm.  A state turns the object into its
 control-point target on entry (if the memory has it) and after every re-anchoring: the pose with the
@@ -46,8 +46,15 @@ plain eq. 4 while reversing jack-knifes the car); ``fallback: forward | reverse`
 No detection yet and no object in memory: the robot holds still and, after ``search_timeout``, the task
 raises ``no_target`` every tick (declare ``on: no_target`` to an error state).
 
-Keep-out (:mod:`taskflow_tasks.core.keep_out`): with ``keep_out_body`` (the car's footprint, robot frame) a
-command moving the body toward the object (memory) once within ``keep_out_margin`` is turned around.
+A cut box's position is not eq. 18's (its eq. 17 depth averages floor beyond a sliver of object: 0.35–0.42 m
+too far at the edge of the view, issue 25) but the floor point under its inner column
+(:func:`taskflow_tasks.viki.evidence.cut_box_near_point`), no farther than the object; a box cut by the bottom
+border gives none.  While the object is fixed only by cut boxes, each new one re-anchors it.
+
+Keep-out (:mod:`taskflow_tasks.core.keep_out`), on in every state and every mode: a command moving the body
+``keep_out_body`` (the car's footprint in the robot frame; default the racecar's, measured by
+``taskflow_sim.viki.clearance.measure_footprint``) toward the object (memory: the last good estimate, also
+while nothing is detected) once within ``keep_out_margin`` is turned around; ``keep_out_margin: 0`` turns it off.
 
 Evidence for the settle rule (a completion a car can meet, docs/missions.md): ``goal_error`` (m) is the
 distance from ``desired`` to the mean object position of the last ``evidence_frames`` whole detections
@@ -77,10 +84,10 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 from taskflow_robots.racecar import CameraMount
 from taskflow_tasks.core import keys
 from taskflow_tasks.core.gains import positive_gains
-from taskflow_tasks.core.keep_out import keep_out_speed
+from taskflow_tasks.core.keep_out import RACECAR_BODY, keep_out_speed
 from taskflow_tasks.ground.car_goto import CarGains, CarGeometry
 from taskflow_tasks.viki.car_visual_servo import car_jacobian_r
-from taskflow_tasks.viki.evidence import box_cut_by_border, goal_offset, view_shifts
+from taskflow_tasks.viki.evidence import box_cut_by_border, cut_box_near_point, goal_offset, view_shifts
 from taskflow_tasks.viki.laws import (
     ServoInputs,
     desired_centre,
@@ -175,12 +182,14 @@ class ViKiHyCoParams(StrictModel):
                                  "this many latest whole detections (15: 1 s of frames)...")
     evidence_window: float = Field(default=0.02, gt=0.0, description="m: ...taken while the view has shifted less "
                                    "than this since (view_shift)")
-    keep_out_body: tuple[float, float, float, float] | None = Field(
-        default=None, description="m: the car's body (x_min, x_max, y_min, y_max) in the robot frame; with it the "
-        "car never drives toward the object once within keep_out_margin (taskflow_tasks.core.keep_out)")
-    keep_out_margin: float = Field(default=0.3, ge=0.0, description="m: body-object gap that triggers the keep-out")
+    keep_out_body: tuple[float, float, float, float] = Field(
+        default=RACECAR_BODY, description="m: the car's body (x_min, x_max, y_min, y_max) in the robot frame (default: "
+        "the racecar's footprint); the car never drives it toward the object once within keep_out_margin "
+        "(taskflow_tasks.core.keep_out)")
+    keep_out_margin: float = Field(default=0.3, ge=0.0, description="m: body-object gap that triggers the keep-out "
+                                   "(0: off)")
     border_px: float = Field(default=2.0, ge=0.0, description="px: a box this close to the image border is cut by "
-                             "it: it does not re-anchor the target nor count as evidence (goal_error)")
+                             "it: no evidence (goal_error), and it places the object only while no whole box has (cut_box_near_point)")
     zd: Literal["window", "pixel"] = "window"
     fallback: Literal["auto", "forward", "reverse"] = "auto"
     smoothing: bool = True
@@ -241,6 +250,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         # the whole detections' evidence, newest last: (odometry pose at the detection, object (x, y) in odometry)
         self.evidence: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=params.evidence_frames)
         self.object_radius = 0.0  # m, the object's half-width by the last whole detection (keep-out)
+        self.anchored_by_cut = False  # the object (memory) was fixed by this state from cut boxes only
         self.target: np.ndarray | None = None
         self.theta_f: float | None = None
         self._sensors = (f"{self.camera}_camera",)
@@ -281,13 +291,21 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         events: tuple[str, ...] = ()
         bbox = Z_o = Z_d = centre = None
         if det is not None and usable:
-            O, r, z_c = self._object_from(det, pose)
+            O_box, r, z_c = self._object_from(det, pose)
+            O: np.ndarray | None = O_box
             if whole:
-                self.evidence.append((pose.copy(), O))
+                self.evidence.append((pose.copy(), O_box))
                 self.object_radius = r
-            if not MEM_OBJECT.present(self.memory) or (self.p.target_update == "latest" and whole):
+            else:  # the visible part's floor point, not eq. 18 (module docstring)
+                N = cut_box_near_point(cast(Any, det.bbox), det.width, det.height, self.p.border_px, det.intrinsics,
+                                       self.T_body_camera)
+                O = planar_apply(pose, N) if N is not None else None
+            anchor = not MEM_OBJECT.present(self.memory) or (
+                self.p.target_update == "latest" and (whole or self.anchored_by_cut))
+            if O is not None and anchor:
                 if not MEM_OBJECT.present(self.memory):
                     MEM_FIRST.set(self.memory, {"t": obs.t, "camera": self.camera})
+                self.anchored_by_cut = not whole
                 MEM_OBJECT.set(self.memory, O)
                 if self.p.target_update == "latest":
                     self.theta_f = None
@@ -324,7 +342,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             direction=self.direction)
         # the object (memory) in the robot frame, once per tick: for the keep-out and the object_x/y metrics
         object_robot = planar_apply_inverse(pose, MEM_OBJECT(self.memory)) if MEM_OBJECT.present(self.memory) else None
-        if self.p.keep_out_body is not None and object_robot is not None:
+        if object_robot is not None:
             v_safe = keep_out_speed(out.v_cmd, self.p.keep_out_body, object_robot, self.object_radius,
                                     self.p.keep_out_margin)
             if v_safe != out.v_cmd:  # backing away: the applied twist is the reversed one (eq. 26's memory)

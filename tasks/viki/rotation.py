@@ -24,6 +24,11 @@ and the limits then give ``(v, steer)`` (:func:`taskflow_tasks.ground.car_kinema
 carrot is the leg's end and the control point is within ``leg_tolerance`` of it; the last leg's end is
 the final target, approached by eq. 4 alone.
 
+Keep-out (:mod:`taskflow_tasks.core.keep_out`), on by default as in ``viki_hyco``: a command that would drive
+the body ``keep_out_body`` toward the object (mission data ``viki.object``, the last good estimate — no
+camera sees it here) once within ``keep_out_margin`` is turned around (``keep_out_margin: 0`` turns it off).
+The object's width is unknown here: its estimate counts as a point, the margin covers the width.
+
 Metrics: ``pos_error`` (m) — distance from the control point (``d`` ahead) to the final target, the
 paper's ``-0.01 < h < 0.01`` m test; ``leg`` (0, 1); ``heading_error`` (rad) to the final heading;
 ``speed`` (m/s).  No object in the mission data: the task holds still and raises ``no_target``.
@@ -39,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, Field
 from taskflow_tasks.core import keys
+from taskflow_tasks.core.keep_out import RACECAR_BODY, keep_out_speed
 from taskflow_tasks.ground.car_goto import CarGains, CarGeometry, car_control_point
 from taskflow_tasks.ground.car_kinematics import car_command, control_point, kinematic_control, wrap_angle
 from taskflow_tasks.viki.hyco import MEM_OBJECT
@@ -59,6 +65,7 @@ from taskflow.api import (
     array,
 )
 from taskflow.registry import register_task
+from taskflow.spatial import planar_apply_inverse
 from taskflow.specs import Requires
 
 FloatArray = NDArray[np.float64]
@@ -118,6 +125,11 @@ class ViKiRotateParams(StrictModel):
     lookahead: float = Field(default=0.25, gt=0.0, description="carrot distance along the leg (m)")
     leg_tolerance: float = Field(default=0.06, gt=0.0, description="control point to a leg's end to switch (m)")
     camera: Literal["none", "front", "rear"] = "none"
+    keep_out_body: tuple[float, float, float, float] = Field(
+        default=RACECAR_BODY, description="m: the car's body (x_min, x_max, y_min, y_max) in the robot frame (default: "
+        "the racecar's footprint); never driven toward the object once within keep_out_margin")
+    keep_out_margin: float = Field(default=0.3, ge=0.0, description="m: body-object gap that triggers the keep-out "
+                                   "(0: off)")
 
 
 @register_task("viki_rotate")
@@ -196,6 +208,8 @@ class ViKiRotate(Task[ViKiRotateParams, CarGeometry]):
         else:
             v, w = reverse_control(pose, goal, self.k1, self.d)  # eq. 4, car seen backwards
         v_cmd, psi = car_command(v, w, self.wheelbase, self.v_max, self.psi_max, direction)  # eq. 5
+        object_robot = planar_apply_inverse(pose, MEM_OBJECT(self.memory))
+        v_cmd = keep_out_speed(v_cmd, self.p.keep_out_body, object_robot, 0.0, self.p.keep_out_margin)
         h = control_point(pose, self.d)
         metrics = {
             "pos_error": float(np.hypot(*(final - h))),

@@ -84,7 +84,7 @@ async def test_task_params_with_type_default_and_unit(client):
     await open_doc(client, VIKI)
     items = await complete(client, VIKI, text, "params: {radius", -6)
     # viki_rotate's, not viki_hyco's; `turn` is written already, `radius` is the key under the cursor
-    assert set(items) == {"radius", "lookahead", "leg_tolerance", "camera"}
+    assert set(items) == {"radius", "lookahead", "leg_tolerance", "camera", "keep_out_body", "keep_out_margin"}
     cut = text.replace("params: {camera: front, desired: $front_goal, ", "params: {camera: front, ", 1)
     await change_doc(client, VIKI, cut, 2)
     items = await complete(client, VIKI, cut, "params: {camera", -6)
@@ -132,6 +132,21 @@ async def test_sub_mission_files_their_parameters_and_targets_inside_the_sub_mis
     assert {"s3_arm_destination_approach", "screw_failed", "error_stop"} <= set(targets)
     dollars = await complete(client, SUB, sub, "target: $screw", -5)
     assert {"$camera_target", "$screw"} <= set(dollars)
+
+
+async def test_foreach_and_retry_keys(client):
+    sub = SUB.read_text()
+    line = "      foreach: {in: screws, as: screw, on_failure: continue, require: all, retry: {times: 2, on: [activation_failed]}}"
+    assert line in sub
+    await open_doc(client, SUB)
+    cut = sub.replace(line, "      foreach:\n        in: screws\n        as: screw\n        re", 1)
+    await change_doc(client, SUB, cut, 2)
+    items = await complete(client, SUB, cut, "as: screw\n        re")
+    assert {"in", "as", "on_failure", "require", "retry"} <= set(items) and "task" not in items and "states" not in items
+    cut = sub.replace(line, "      foreach:\n        in: screws\n        as: screw\n        retry:\n          ti", 1)
+    await change_doc(client, SUB, cut, 3)
+    items = await complete(client, SUB, cut, "retry:\n          ti")
+    assert set(items) == {"times", "on"}
 
 
 async def test_world_params_and_fidelity_levels(client):

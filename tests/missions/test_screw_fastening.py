@@ -62,16 +62,17 @@ def test_marker_hidden_for_a_second_resumes_the_interrupted_state_on_pybullet():
     i = path.index(OP + "searching")
     assert path[i - 1] == path[i + 1] and path[i - 1].startswith("cell.operation.operate.")
     # the screw the occlusion interrupted lost its approach (the part moved on while the robot stood still)
-    # and failed its coupling; the others were fastened. Not every screw fastened: the mission's rule
-    # (`require: all`) makes the run fail, and the summary says which item it was
+    # and failed its coupling; the tool retracted and the loop's retry (issue 25) fastened it at the second
+    # attempt, so every screw is fastened and the summary says which item took two
     its = r.summary["iterations"]
     hit = [it for it in its if it["t_start"] <= 12.0 < it["t_end"]]
-    assert len(hit) == 1 and hit[0]["outcome"] == "failed"
-    assert all(it["outcome"] == "succeeded" for it in its if it is not hit[0])
-    assert r.summary["items"]["cell.operation.operate.screws"]["succeeded"] == 3
-    assert_outcome(r, "failed")
-    assert "3 of 4 items succeeded" in r.summary["reason"]
-    assert r.summary["metrics"]["operations_fastened"] == 3
+    assert len(hit) == 1 and hit[0]["outcome"] == "succeeded"
+    assert (hit[0]["attempts"], hit[0]["retried"]) == (2, ["activation_failed"])
+    assert all(it["outcome"] == "succeeded" and it["attempts"] == 1 for it in its if it is not hit[0])
+    assert r.summary["items"]["cell.operation.operate.screws"]["succeeded"] == 4
+    assert_outcome(r, "succeeded")
+    m = r.summary["metrics"]
+    assert (m["operations"], m["operations_fastened"], m["operations_failed"]) == (5, 4, 1)
 
 
 def test_marker_lost_for_good_ends_in_error_with_the_platform_stopped_and_the_arm_home():
@@ -106,9 +107,9 @@ def test_rendered_mode_short_run_reaches_the_arm_approach():
 
 def test_a_mission_pose_with_no_bolt_is_a_visible_failure_kept_out_of_the_error_statistics():
     """A fifth operation pose on the part's top face half-way between the four bolts (no bolt there):
-    the tool lands on the face, its activation fails as ``no_bolt``, the summary shows five operations
-    with that miss and its distance to the nearest bolt, and the error statistics stay over the bolts
-    the tool worked on.  (A pose in the air above the face is a different failure: the compliant tool
+    the tool lands on the face, its activation fails as ``no_bolt`` — three times, the loop's retry trying
+    twice more —, the summary shows seven operations with those misses and their distance to the nearest
+    bolt, and the error statistics stay over the bolts the tool worked on.  (A pose in the air above the face is a different failure: the compliant tool
     finds no contact, s3 times out and no operation starts — only the mission's item fails.)"""
     screws = ("[[0.14, 0.06, 0.0075, 3.14159265, 0, -1.57079633], [0.14, -0.06, 0.0075, 3.14159265, 0, -1.57079633], "
               "[0.19, 0.0, 0.0, 3.14159265, 0, -1.57079633], "
@@ -118,12 +119,13 @@ def test_a_mission_pose_with_no_bolt_is_a_visible_failure_kept_out_of_the_error_
     assert_outcome(r, "failed")  # the mission's rule (every screw) is not met
     assert r.summary["items"]["cell.operation.operate.screws"]["succeeded"] == 4
     m = r.summary["metrics"]
-    assert (m["operations"], m["operations_fastened"], m["operations_failed"], m["operations_no_bolt"]) == (5, 4, 1, 1)
-    miss = m["operation_log"][2]
-    assert miss["bolt"] is None and miss["outcome"] == "failed" and miss["failure"] == "no_bolt"
-    assert miss["nearest_bolt_mm"] == pytest.approx(1e3 * (0.05**2 + 0.06**2 + 0.0075**2) ** 0.5, abs=3.0)  # 78 mm
-    assert miss["err_t_mean_mm"] is None
-    assert [op["bolt"] for op in m["operation_log"]] == [0, 1, None, 2, 3]
+    assert r.summary["iterations"][2]["attempts"] == 3
+    assert (m["operations"], m["operations_fastened"], m["operations_failed"], m["operations_no_bolt"]) == (7, 4, 3, 3)
+    for miss in m["operation_log"][2:5]:
+        assert miss["bolt"] is None and miss["outcome"] == "failed" and miss["failure"] == "no_bolt"
+        assert miss["nearest_bolt_mm"] == pytest.approx(1e3 * (0.05**2 + 0.06**2 + 0.0075**2) ** 0.5, abs=3.0)  # 78 mm
+        assert miss["err_t_mean_mm"] is None
+    assert [op["bolt"] for op in m["operation_log"]] == [0, 1, None, None, None, 2, 3]
     assert m["fastened_err_operations"] == m["at_bolt_err_operations"] == 4
     assert m["fastened_err_t_max_mm"] < 3.0 and m["at_bolt_err_t_max_mm"] < 3.0  # the 78 mm miss is in neither
     assert m["bolts_fastened"] == 4

@@ -12,7 +12,7 @@ import taskflow_tasks.viki.rotation  # noqa: F401  registers the task viki_rotat
 from taskflow.errors import MissionError
 from taskflow.execution.runtime import run_mission
 from taskflow.mission.loader import load_mission
-from taskflow.testing import assert_outcome, assert_path
+from taskflow.testing import assert_outcome, assert_path, run_on_world
 
 ROOT = Path(__file__).resolve().parents[2] / "missions"
 COMPLETE = ROOT / "viki_hyco.yaml"
@@ -156,3 +156,17 @@ def test_an_object_at_0_45_rad_and_1_1_m_cut_by_the_image_border_is_placed_witho
     width): it steers the servo but does not move the fallback target."""
     r = run(COMPLETE, 8, ["world.params.object_bearing=0.45", "world.params.object_distance=1.1"])
     _placed_without_touching(r)
+
+
+def test_an_object_at_the_edge_of_the_view_seen_only_cut_is_not_driven_into():
+    """Issue 25: seed 14 of the right edge row (bearing in [-0.52, -0.44] rad, 1.5-2.6 m) saw the bottle only
+    in boxes cut by the image border; eq. 18 put it 0.5 m beyond where it stood, the keep-out trusted that,
+    and when the detections stopped the car drove blind into it at 5.1 s.  Now a cut box places the object
+    at the floor point under its inner column (no farther than the object) and the car keeps clear
+    (ground truth; the first 20 s, which cover the old touch and the forward positioning)."""
+    edge = ["world.params.object_bearing={uniform: [-0.52, -0.44]}", "world.params.object_distance={uniform: [1.5, 2.6]}"]
+    r = run_on_world(load_mission(COMPLETE, edge), seed=14, max_time=20.0)
+    m = r.summary["metrics"]
+    assert m["detections"] > 0 and m["first_detection_s"] == 0.0  # the object is visible from the start
+    assert m["contact"] is False and m["min_clearance_m"] > 0.05
+    assert r.summary["properties"]["never_touches"]["verdict"] == "held"

@@ -2,8 +2,8 @@
 
 Real runs of the toy missions (tests/toys.py) through the command line: the operator's actions of an
 operator script (pause, hold, resume, inject, preempt: ``OperatorRecord`` lines without ``from``/``to``),
-state changes caused by start, timeout, guard, event, done, next_item and the operator's pre-emption,
-foreach items and parallel regions.  Each record is then read back by the end-of-run summary, ``taskflow
+state changes caused by start, timeout, guard, event, done, next_item, retry and the operator's pre-emption,
+foreach items (retried ones too) and parallel regions.  Each record is then read back by the end-of-run summary, ``taskflow
 plot`` (the operator's actions marked on the time axis), ``taskflow export`` (read back with the
 ``mcap`` reader) and the replay page's endpoints.
 """
@@ -89,7 +89,9 @@ CASES = {  # name: (mission, operator script or None, extra arguments, the cause
     "items": ("toy_full.yaml", None, [], {"start", "timeout", "guard", "event", "next_item", "done"}),
     "regions": ("toy_regions.yaml", REGION_SCRIPT, [], {"start", "operator", "timeout"}),
     "sub-mission": ("m.yaml", SUB_SCRIPT, [], {"start", "guard", "next_item", "done"}),
+    "retry": ("toy_retry.yaml", None, [], {"start", "timeout", "retry", "guard", "next_item", "done"}),
 }
+WRITTEN = {"sub-mission": SUB_MISSION}  # cases whose mission files the test writes
 
 
 def _lines(run: Path) -> list[dict[str, Any]]:
@@ -100,11 +102,10 @@ def _lines(run: Path) -> list[dict[str, Any]]:
 def recorded(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     mission, script, extra, _ = CASES[request.param]
     out = tmp_path_factory.mktemp(request.param)
-    if request.param == "sub-mission":
-        for name, text in SUB_MISSION.items():
-            (out / name).parent.mkdir(parents=True, exist_ok=True)
-            (out / name).write_text(text)
-    args = ["run", str(out / mission if request.param == "sub-mission" else MISSIONS / mission), "--no-control", "--out", str(out / "run"), *extra]
+    for name, text in WRITTEN.get(request.param, {}).items():
+        (out / name).parent.mkdir(parents=True, exist_ok=True)
+        (out / name).write_text(text)
+    args = ["run", str(out / mission if request.param in WRITTEN else MISSIONS / mission), "--no-control", "--out", str(out / "run"), *extra]
     if script is not None:
         (out / "ops.yaml").write_text(script)
         args += ["--operator-script", str(out / "ops.yaml")]
@@ -184,3 +185,24 @@ def test_the_view_serves_every_record(recorded: tuple[Path, str]) -> None:
         assert get("/view/frames?since=0") == {"records": [], "next": 0}
     finally:
         server.stop()
+
+
+def test_every_reader_tells_a_retry_apart(recorded: tuple[Path, str], request: pytest.FixtureRequest) -> None:
+    """A ``retry`` record: the summary counts attempts, the report names each retry, the plot labels it."""
+    from taskflow.readers.plots import _transition_labels
+    from taskflow.readers.report import describe_transition
+
+    run, printed = recorded
+    retries = [r for r in _lines(run) if r["cause"] == "retry"]
+    if request.node.callspec.params["recorded"] != "retry":
+        assert not retries
+        return
+    assert [(r["from"], r["item"], r["attempt"]) for r in retries] == [("visit.late", 0, 2), ("visit.late", 1, 2),
+                                                                       ("visit.late", 1, 3)]
+    assert "items of visit: 2/2 succeeded (rule: 1, 1 required; 5 attempts, 2 items retried)" in printed
+    summary = json.loads((run / "summary.json").read_text())
+    assert [(it["attempts"], it["retried"]) for it in summary["iterations"]] == [(2, ["late"]), (3, ["late", "late"])]
+    loaded = load_run(run)
+    described = [describe_transition(r, {}) for r in loaded.transitions if r.cause == "retry"]
+    assert described[0].endswith("visit.late → visit.go: retry of item 0 in visit, attempt 2 (the last ended 'failed')")
+    assert any("go (attempt 3)" in text for _, text in _transition_labels(loaded))

@@ -14,6 +14,7 @@ from taskflow_robots.racecar import Racecar
 from taskflow_sim.core.bodies import BodyOptions, make_body
 from taskflow_sim.viki.clearance import Footprint, footprint_clearance, measure_footprint
 from taskflow_sim.viki.objects import SHAPES, PlacedObject
+from taskflow_tasks.core.keep_out import RACECAR_BODY
 
 from taskflow.mission.loader import load_mission
 from taskflow.testing import run_on_world
@@ -26,6 +27,9 @@ def test_the_racecar_footprint_covers_its_wheels_and_front_camera():
     # rear wheels (radius 0.05 about the rear axle, outer faces at ±0.145) to the ZED camera box's front face
     assert (fp.x_min, fp.x_max) == pytest.approx((-0.05, 0.4065), abs=1e-3)
     assert (fp.y_min, fp.y_max) == pytest.approx((-0.145, 0.145), abs=1e-3)
+    # the keep-out's default body (the ViKi tasks' keep_out_body) covers it
+    x0, x1, y0, y1 = RACECAR_BODY
+    assert x0 <= fp.x_min and x1 >= fp.x_max and y0 <= fp.y_min and y1 >= fp.y_max
 
 
 def _outline(obj: PlacedObject, n: int = 400) -> np.ndarray:
@@ -93,7 +97,7 @@ def test_a_normal_run_keeps_clear_of_the_object_and_a_run_into_it_reports_the_co
     # the mission's goal 0.3 m ahead of the rear axle lies inside the car: without the keep-out it drives
     # into the object (what the clearance must report)...
     bad_goal = ["parameters.goal=[0.3, 0.0]"]
-    into = run_on_world(load_mission(FORWARD, [*bad_goal, "machine.states.forward.task.params.keep_out_body=null"]),
+    into = run_on_world(load_mission(FORWARD, [*bad_goal, "machine.states.forward.task.params.keep_out_margin=0"]),
                         seed=0, max_time=12.0)
     m = into.summary["metrics"]
     assert m["contact"] is True and m["min_clearance_m"] == 0.0

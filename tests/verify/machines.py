@@ -4,7 +4,7 @@
 :func:`generate` writes a mission YAML text from a seed: a machine on the toy robot ``toy_pair`` and the toy
 world ``toy_line`` (``tests/toys.py``; the scripted backend replaces both when it drives the machine, but the
 mission must load, so every name is a registered one) with nested composites, ``history: true``, ``foreach``
-loops (``require`` rules, ``on_failure: continue|stop``), parallel ``regions`` (``owns``, ``outcome_map``),
+loops (``require`` rules, ``on_failure: continue|stop``, ``retry``), parallel ``regions`` (``owns``, ``outcome_map``),
 guards (``when``, some with ``for:`` dwells), ``after`` timeouts (``since:`` an enclosing state or
 ``first_entry``), ``on:`` events (the world's, the mission's declared ones, an action's end), ``done``
 transitions by outcome, and finals with several outcomes.  Every state is reachable (each composite's
@@ -91,8 +91,10 @@ class _Node:
 
 class _Generator:
     def __init__(self, seed: int, size: int | None, p_parallel: float, p_history: float, p_foreach: float,
-                 p_since: float) -> None:
+                 p_since: float, p_retry: float) -> None:
         self.rng = random.Random(seed)
+        self.retry_rng = random.Random(f"retry {seed}")  # its own stream: the machines without retry stay as they were
+        self.p_retry = p_retry
         self.p_foreach = p_foreach
         self.p_since = p_since
         self.p_parallel = p_parallel
@@ -147,6 +149,12 @@ class _Generator:
                 loop["require"] = rng.choice(["all", rng.randint(1, n), f"{rng.choice((34, 50, 100))} %"])
             elif rng.random() < 0.5:
                 loop["on_failure"] = "stop"
+            failing = [f.name for f in finals if f.outcome != "succeeded"]
+            if failing and self.retry_rng.random() < self.p_retry:
+                times = self.retry_rng.randint(1, 2)
+                named = self.retry_rng.random() < 0.5
+                loop["retry"] = {"times": times, "on": self.retry_rng.sample(failing, self.retry_rng.randint(1, len(failing)))} \
+                    if named else times
             node.loop = loop
 
     def composite_kind(self, parent: _Node) -> str:
@@ -317,14 +325,16 @@ class _Generator:
 
 
 def generate(seed: int, size: int | None = None, *, p_parallel: float = 0.15, p_history: float = 0.3,
-             p_foreach: float = 0.25, p_since: float = 0.1) -> str:
+             p_foreach: float = 0.25, p_since: float = 0.1, p_retry: float = 0.25) -> str:
     """A valid mission YAML text drawn from ``seed``: about ``size`` states (default: 3 to 50, drawn).  A composite
     is a parallel state with probability ``p_parallel`` (outside regions), a ``foreach`` with ``p_foreach``, and
-    has ``history: true`` with ``p_history``; a timeout counts ``since: first_entry`` with ``p_since`` (and since an
+    has ``history: true`` with ``p_history``; a ``foreach`` with a final that does not succeed retries with
+    ``p_retry`` (``retry: N`` or ``retry: {times: N, on: [...]}``, N of 1 or 2; drawn from a stream of its own, so
+    ``p_retry=0`` gives the machines of before retry existed); a timeout counts ``since: first_entry`` with ``p_since`` (and since an
     enclosing state with ``p_since`` again).  Those multiply the model's configurations (a region's clocks and
     leaves, a history's resume point, a loop's counters, a first-entry clock: each is kept while its state is
     not active), so a large machine keeps them rare."""
-    return _Generator(seed, size, p_parallel, p_history, p_foreach, p_since).text()
+    return _Generator(seed, size, p_parallel, p_history, p_foreach, p_since, p_retry).text()
 
 
 # -- driving a generated (or any) machine at random ------------------------------------------------------------

@@ -1,6 +1,7 @@
 """The abstraction test: the model of :mod:`taskflow.verify.model` over-approximates the engine.
 
-Random machines (``machines.generate``: nested composites, history, foreach with ``require`` rules, parallel
+Random machines (``machines.generate``: nested composites, history, foreach with ``require`` rules and
+``retry``, parallel
 regions with ``owns`` and ``outcome_map``, guards with dwells, timeouts ``since`` an enclosing state or
 ``first_entry``, declared events, ``done`` by outcome, finals of several outcomes) are driven by the real engine
 (scripted backend, ``machines.random_script``: metric values either side of the guards' thresholds, events,
@@ -31,7 +32,7 @@ RUNS = 10  # runs per machine
 BUDGET = 5_000  # configurations; a generated machine past it is skipped (counted), see machines.generate
 FEATURES = ("history: true", "foreach:", "require:", "on_failure: continue", "on_failure: stop", "regions:",
             "owns:", "outcome_map:", "for:", "since: first_entry", "'on': go_on", "'on': tool_done",
-            "done: failed", "done: true", "final: aborted", "action:")
+            "done: failed", "done: true", "final: aborted", "action:", "retry:", "times:")
 
 
 def test_every_generated_machine_loads_and_the_features_occur() -> None:

@@ -61,3 +61,45 @@ def test_the_real_run_is_a_path_and_each_forgery_is_refused() -> None:
 
     with pytest.raises(NotAPath, match="ended 'succeeded'"):
         model.path_of(records, outcome="succeeded")
+
+
+RETRY = """
+mission: m
+robot: toy_point
+world: toy_line
+rate_hz: 20
+max_time: 60 s
+parameters: {xs: [1, 2]}
+machine:
+  initial: loop
+  states:
+    loop:
+      foreach: {in: xs, as: x, on_failure: continue, require: 1, retry: 1}
+      initial: work
+      transitions: [{to: done, done: succeeded}, {to: gave_up, done: failed}]
+      states:
+        work: {transitions: [{to: ok, on: go_on}, {to: missed, after: 1 s}]}
+        ok: {final: succeeded}
+        missed: {final: failed}
+    done: {final: succeeded}
+    gave_up: {final: failed}
+events: [go_on]
+"""
+
+
+def test_a_retry_is_a_step_of_the_model_and_a_retry_past_the_budget_is_refused() -> None:
+    """The model keeps the item's attempt: the first item misses twice (a retry, then it counts failed), the
+    second succeeds; a forged third attempt of an item that has had its one retry is refused."""
+    from taskflow.mission.loader import load_mission_text
+
+    mission = load_mission_text(RETRY, "retry.yaml")
+    model = build_model(mission)
+    assert {c.loops[0][2] for c in model.configs} == {1, 2}  # the attempt is part of the configuration
+    result = drive(mission, Script(events=[(2.5, "go_on")]), max_time=60)
+    records = [r.as_dict() for r in result.executor.transitions_fired]
+    assert [r["cause"] for r in records] == ["start", "timeout", "retry", "timeout", "next_item", "event", "done"]
+    model.path_of(records, outcome=str(result.outcome))
+    forged = copy.deepcopy(records[:4])
+    forged += [{**records[2], "t": records[3]["t"], "attempt": 3}]  # a second retry of item 0 (retry: 1)
+    with pytest.raises(NotAPath, match="record 4 "):  # the timeout's step: it ends the item, not a retry
+        model.path_of(forged)

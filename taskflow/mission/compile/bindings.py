@@ -120,9 +120,26 @@ def _check_loop(c: Compilation, n: StateNode, spec: State) -> None:
         if fe.on_failure == "stop" and fe.require != "all":
             c.err(n.ypath + ("foreach", "require"), f"require {fe.require!r} with on_failure: stop — the first failed "
                   "item ends the loop, so the rule could never let one fail", "add `on_failure: continue`, or drop `require`")
+    if fe.retry is not None and fe.retry.on is not None:
+        _check_retry_on(c, n, fe.retry.on)
     if fe.as_ in params:
         c.err(n.ypath + ("foreach", "as"), f"{fe.as_!r} would hide the mission parameter of that name",
               "choose another item name")
+
+
+def _check_retry_on(c: Compilation, n: StateNode, on: list[str]) -> None:
+    """Each name of a ``retry: {on: [...]}`` is a final sub-state of the loop that does not succeed."""
+    retryable = [name for name, child in n.children.items() if child.final not in (None, "succeeded")]
+    for i, name in enumerate(on):
+        where = n.ypath + ("foreach", "retry", "on", i)
+        child = n.children.get(name)
+        if child is not None and child.final == "succeeded":
+            c.err(where, f"retry on {name!r}: that final state succeeds, there is nothing to retry",
+                  "name a final state whose outcome is failed or aborted" + (f": {', '.join(retryable)}" if retryable else ""))
+        elif child is None or child.final is None:
+            what = "is not a final state of" if child is not None else "names no final state of"
+            c.err(where, f"retry on {name!r} {what} the sub-machine of {n.path!r}",
+                  describe_choices(name, retryable) if retryable else "give the sub-machine a final state that fails")
 
 
 def _first_items(c: Compilation, n: StateNode) -> dict[str, Any]:

@@ -121,7 +121,7 @@ def _state_keys(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> N
         fe = spec.foreach
         items = c.spec.parameters.get(fe.in_)
         required = fe.required(len(items)) if isinstance(items, list) and items else 0  # the list is checked later
-        node.loop = Loop(fe.in_, fe.as_, fe.on_failure, required, str(fe.require))
+        node.loop = Loop(fe.in_, fe.as_, fe.on_failure, required, str(fe.require), *_retry_of(spec))
     if spec.action is not None:
         node.action = (spec.action.name, dict(spec.action.params))
     if spec.final and (spec.states or spec.task or spec.transitions or spec.action):
@@ -133,6 +133,18 @@ def _state_keys(c: Compilation, node: StateNode, spec: State, ypath: YPath) -> N
         c.err(ypath + ("outcome_map",), "`outcome_map` only applies to a state with `regions`")
     if spec.foreach is not None and not spec.states:
         c.err(ypath + ("foreach",), "foreach repeats a sub-machine: give the state `states` and `initial`")
+
+
+def _retry_of(spec: State) -> tuple[int, tuple[str, ...]]:
+    """A ``foreach``'s further attempts and the final sub-states they follow: those ``on`` names (the loader
+    checks each names a final that does not succeed), by default every ``failed`` one."""
+    retry = spec.foreach.retry if spec.foreach is not None else None
+    if retry is None or retry.times == 0:
+        return 0, ()
+    finals = {name: ("succeeded" if st.final is True else st.final) for name, st in spec.states.items() if st.final}
+    if retry.on is None:
+        return retry.times, tuple(name for name, outcome in finals.items() if outcome == "failed")
+    return retry.times, tuple(name for name in retry.on if finals.get(name) not in (None, "succeeded"))
 
 
 def catalogue(c: Compilation, root: StateNode) -> tuple[dict[str, str], set[str]]:

@@ -260,6 +260,7 @@ function recordText(r) {
     : r.cause === "timeout" ? `timeout ${r.label}`
     : r.cause === "done" ? `done (${r.outcome})`
     : r.cause === "next_item" ? `next item ${r.item} (after ${r.outcome})`
+    : r.cause === "retry" ? `retry item ${r.item}, attempt ${r.attempt} (after ${r.outcome})`
     : r.cause === "operator" ? `pre-empted by ${r.who}` : r.cause;
   return `${r.t.toFixed(2)} s  ${r.from} → ${r.to}  ${why}${r.resumed ? " (history)" : ""}`;
 }
@@ -313,6 +314,7 @@ function renderTransitions(t) {
     if (!past) li.classList.add("future");
     if (r.cause === "operator") li.classList.add("op");
     if (r.cause === "property") li.classList.add("prop");
+    if (r.cause === "retry") li.classList.add("retry");
     if (past && current === null) current = li;
     ol.appendChild(li);
   }

@@ -10,6 +10,7 @@ from pydantic import ValidationError
 from taskflow_robots.racecar import Racecar
 from taskflow_tasks.ground.car_goto import CarGains
 from taskflow_tasks.ground.car_kinematics import kinematic_control
+from taskflow_tasks.viki.evidence import cut_box_near_point
 from taskflow_tasks.viki.hyco import MEM_OBJECT, MEM_TARGET, ViKiGains, ViKiHyCo, ViKiHyCoParams
 from taskflow_tasks.viki.laws import desired_centre, object_base, reverse_control, saturate_twist
 from taskflow_tasks.viki.rotation import ViKiRotate, k_turn_legs
@@ -188,6 +189,20 @@ def test_rotation_plans_from_the_memory_object_and_starts_reversing():
     assert r.metrics["leg"] == 0.0
 
 
+def test_the_rotation_never_drives_the_body_toward_the_object_within_the_keep_out_margin():
+    """The K-turn's first leg reverses; with the object (memory) 0.6 m behind the rear axle, 0.55 m from the
+    body, reversing drives toward it: within a 1 m margin the keep-out turns the command around, with
+    margin 0 (off) it passes."""
+    cmds = {}
+    for margin in (0.0, 1.0):
+        memory = {MEM_OBJECT.name: np.array([1.0, 0.0])}
+        task = make_rotate(memory, keep_out_margin=margin)
+        task.step(obs(0.0))  # plans the K-turn with the object ahead
+        memory[MEM_OBJECT.name] = np.array([-0.6, 0.0])
+        cmds[margin] = task.step(obs(0.05)).command["v"][0]
+    assert cmds[0.0] < 0.0 and cmds[1.0] == -cmds[0.0]
+
+
 def test_rotation_without_an_object_raises_no_target():
     r = make_rotate({}).step(obs(0.0))
     assert r.events == ("no_target",) and r.command["v"][0] == 0.0
@@ -262,6 +277,16 @@ def test_only_a_cut_box_still_gives_a_first_target():
     r = task.step(obs(0.0, det(0.0, bbox=(-0.5, 100.0, 12.0, 190.0), depth=1.0)))
     assert MEM_OBJECT.present(memory) and task.target is not None  # better than no target at all
     assert "goal_error" not in r.metrics and "view_shift" not in r.metrics  # but it is no evidence
+    # where: the floor point under the box's inner column (issue 25), not eq. 18 on the cut box
+    T = RP.rear_camera.T_body_camera()
+    np.testing.assert_allclose(MEM_OBJECT(memory), cut_box_near_point((-0.5, 100.0, 12.0, 190.0), 640, 360, 2.0, K, T))
+    # while only cut boxes fixed it, each new one re-anchors it; a whole box then does, and cut boxes no longer
+    task.step(obs(0.05, det(0.05, bbox=(-0.5, 100.0, 30.0, 200.0), depth=1.0)))
+    np.testing.assert_allclose(MEM_OBJECT(memory), cut_box_near_point((-0.5, 100.0, 30.0, 200.0), 640, 360, 2.0, K, T))
+    task.step(obs(0.1, det(0.1)))
+    whole = MEM_OBJECT(memory).copy()
+    task.step(obs(0.15, det(0.15, bbox=(-0.5, 100.0, 12.0, 190.0), depth=1.0)))
+    np.testing.assert_array_equal(MEM_OBJECT(memory), whole)
 
 
 def test_goal_error_averages_the_whole_detections_near_the_current_view():
