@@ -147,9 +147,9 @@ def main() -> None:
     results = []
     if args.states:
         sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "tests" / "verify")]
-        from machines import generate
+        from machines import generate_large
 
-        text = generate(0, args.states, p_parallel=0.0, p_history=0.0, p_foreach=0.0, p_since=0.0)
+        text = generate_large(args.states)
         r = asyncio.run(_measure(f"generated_{args.states}.yaml", max(3, args.repeat // 5), text))
         r["in_process_ms"] = _in_process(text, str(ROOT / "missions" / f"generated_{args.states}.yaml"))
         results.append(r)

@@ -12,6 +12,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from taskflow.mission.yamlsrc import MAX_NODES
+
 ROOT = Path(__file__).resolve().parent.parent
 CAR = str(ROOT / "missions" / "car_waypoints.yaml")
 VIKI = str(ROOT / "missions" / "viki_hyco.yaml")
@@ -81,7 +83,7 @@ def cases(tmp: Path) -> list[BadInput]:
         BadInput("guard-not-chain", ("validate", str(_with_guard(tmp, nots, "nots.yaml"))), "more than 32 levels",
                  f"{tmp / 'nots.yaml'}:"),
         BadInput("device-file", ("validate", str(zero)), "is not a regular file", f"{zero}:"),
-        BadInput("too-many-states", ("validate", str(_states_file(tmp, 100_000))), "more than 20000 YAML nodes",
+        BadInput("too-many-states", ("validate", str(_states_file(tmp, 100_000))), f"more than {MAX_NODES} YAML nodes",
                  f"{tmp / 'huge.yaml'}:1:1:"),
         BadInput("history-yes", ("validate", CAR, "--set", "machine.states.drive.history=yes"), "write true or false",
                  f"{CAR}: --set machine.states.drive.history=yes"),

@@ -23,7 +23,7 @@ from taskflow.lsp.document import DocumentIndex, Span
 from taskflow.mission.loader import compile_mission
 from taskflow.mission.model import CompiledMission
 from taskflow.mission.submission_file import Submission, check_submission
-from taskflow.mission.yamlsrc import SourceMap, load_yaml_text
+from taskflow.mission.yamlsrc import SourceMap, gc_paused, load_yaml_text
 
 
 @dataclass
@@ -51,7 +51,14 @@ class Analysis:
 
 def analyse(text: str, file: str, sources: dict[Path, str] | None = None) -> Analysis:
     """``text`` (the buffer of ``file``) through the load path; ``sources``: other open buffers by resolved path,
-    read instead of their files when the mission uses them.  Never raises for any text."""
+    read instead of their files when the mission uses them.  Never raises for any text.  The garbage collector is
+    held off throughout (:func:`~taskflow.mission.yamlsrc.gc_paused`: a large machine's objects are not walked
+    again and again while they are built)."""
+    with gc_paused():
+        return _analyse(text, file, sources)
+
+
+def _analyse(text: str, file: str, sources: dict[Path, str] | None) -> Analysis:
     nodes: list[Any] = []
     try:
         data, smap = load_yaml_text(text, file, nodes)

@@ -82,12 +82,16 @@ class DocumentIndex:
 
     def _walk(self, root: yaml.Node) -> None:
         """Every node under ``root`` (depth first, no recursion: a deeply nested text is fine), at most
-        :data:`~taskflow.mission.yamlsrc.MAX_NODES` of them; an alias's node is indexed where it first appears."""
+        :data:`~taskflow.mission.yamlsrc.MAX_NODES` of them and 32 path elements a node on average (a 10,000-state
+        machine needs about 15; a text nested tens of thousands deep would need gigabytes); an alias's node is
+        indexed where it first appears."""
         stack: list[tuple[yaml.Node, YPath, Span | None]] = [(root, (), None)]
         budget = MAX_NODES
-        while stack and budget > 0:
+        cells = 32 * MAX_NODES  # path elements kept: a text nested thousands deep would need depth² of them
+        while stack and budget > 0 and cells > 0:
             node, path, key = stack.pop()
             budget -= 1
+            cells -= len(path)
             if path in self.entries:
                 continue
             if isinstance(node, yaml.MappingNode):

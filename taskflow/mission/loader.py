@@ -35,18 +35,20 @@ from taskflow.mission.model import (  # noqa: F401
 )
 from taskflow.mission.schema import Mission
 from taskflow.mission.submission import expand_uses
-from taskflow.mission.yamlsrc import MissionLoader, SourceMap, load_yaml_file, load_yaml_text
+from taskflow.mission.yamlsrc import MissionLoader, SourceMap, gc_paused, load_yaml_file, load_yaml_text
 from taskflow.registry import describe_choices
 
 
 def load_mission(path: str | Path, overrides: list[str] | None = None) -> CompiledMission:
-    data, smap, _ = load_yaml_file(path)
-    return compile_mission(data, smap, overrides)
+    with gc_paused():  # from the YAML to the compiled mission: no collection in between either
+        data, smap, _ = load_yaml_file(path)
+        return compile_mission(data, smap, overrides)
 
 
 def load_mission_text(text: str, file: str = "<string>", overrides: list[str] | None = None) -> CompiledMission:
-    data, smap = load_yaml_text(text, file)
-    return compile_mission(data, smap, overrides)
+    with gc_paused():
+        data, smap = load_yaml_text(text, file)
+        return compile_mission(data, smap, overrides)
 
 
 def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap | None = None) -> Any:
@@ -113,7 +115,14 @@ def apply_overrides(data: Any, overrides: list[str], file: str, smap: SourceMap 
 def compile_mission(data: Any, smap: SourceMap, overrides: list[str] | None = None,
                     sources: Mapping[Path, str] | None = None) -> CompiledMission:
     """The load path after YAML: ``use:`` expanded (``sources``: resolved path → unsaved text to read instead of
-    that sub-mission file), ``--set`` applied, the shape check, the compile passes."""
+    that sub-mission file), ``--set`` applied, the shape check, the compile passes (the garbage collector held off:
+    :func:`~taskflow.mission.yamlsrc.gc_paused`)."""
+    with gc_paused():
+        return _compile_mission(data, smap, overrides, sources)
+
+
+def _compile_mission(data: Any, smap: SourceMap, overrides: list[str] | None,
+                     sources: Mapping[Path, str] | None) -> CompiledMission:
     file = smap.file
     if isinstance(data, dict):
         data = expand_uses(data, smap, sources)  # `use:` sub-missions spliced in; `--set` applies to the result

@@ -337,6 +337,13 @@ def generate(seed: int, size: int | None = None, *, p_parallel: float = 0.15, p_
     return _Generator(seed, size, p_parallel, p_history, p_foreach, p_since, p_retry).text()
 
 
+def generate_large(size: int, seed: int = 0) -> str:
+    """A machine of about ``size`` states for timing the load path at scale (``benchmarks/loading.py``,
+    ``benchmarks/lsp.py``): nested composites, guards, timeouts and events, but no parallel, history, foreach or
+    ``since`` clocks (which only multiply a verification model's configurations)."""
+    return generate(seed, size, p_parallel=0.0, p_history=0.0, p_foreach=0.0, p_since=0.0)
+
+
 # -- driving a generated (or any) machine at random ------------------------------------------------------------
 def thresholds(mission: CompiledMission) -> dict[str, list[float]]:
     """Each metric the mission's guards compare, with the values (base units) they compare it with."""
