@@ -345,6 +345,8 @@ class _Explorer:
         self.max_ticks = None if max_time is None else _ms(max_time) // self.qms
         self.states = mission.states
         self.order = {p: i for i, p in enumerate(mission.states)}
+        # each state's ancestors, root first (StateNode.ancestors builds a list per call; a build asks ~400,000 times)
+        self.anc: dict[str, tuple[StateNode, ...]] = {p: tuple(n.ancestors()) for p, n in mission.states.items()}
         caps: dict[tuple[str, bool], int] = {}
         for tr in mission.transitions:
             if isinstance(tr, TimeoutTransition):
@@ -392,7 +394,7 @@ class _Explorer:
     def active_states(self, w: _Work) -> set[str]:
         out: set[str] = set()
         for leaf in w.leaves:
-            for a in self.states[leaf].ancestors()[1:]:
+            for a in self.anc[leaf][1:]:
                 out.add(a.path)
         return out
 
@@ -402,7 +404,7 @@ class _Explorer:
 
     def resume_point(self, w: _Work, node: StateNode) -> str:
         leaf = self.states[self.active_under(w, node)]
-        for a in leaf.ancestors():
+        for a in self.anc[leaf.path]:
             if a.parallel and a.depth > node.depth:
                 return a.path
         return leaf.path
@@ -425,12 +427,12 @@ class _Explorer:
 
     # -- entering and leaving ---------------------------------------------------------------------------------
     def go(self, w: _Work, dest: StateNode, cause: str, resume: bool, keep: int) -> None:
-        kept = dest.ancestors()[keep]  # the domain: it and its ancestors stay active
+        kept = self.anc[dest.path][keep]  # the domain: it and its ancestors stay active
         prefix = kept.path + "." if kept.path else ""
         under = [p for p in w.leaves if p.startswith(prefix)] if prefix else list(w.leaves)
         exited: set[str] = set()
         for leaf in under:
-            for a in self.states[leaf].ancestors():
+            for a in self.anc[leaf]:
                 if a.depth > keep:
                     exited.add(a.path)
         for path in exited:  # exits see the configuration before the change
@@ -440,8 +442,9 @@ class _Explorer:
         for path in exited:
             self._stop_entry_clock(w, path)
             self._drop_dead(w, path, exited)
-        w.leaves = [p for p in w.leaves if p not in set(under)]
-        chain = dest.ancestors()[keep + 1:]
+        gone = set(under)
+        w.leaves = [p for p in w.leaves if p not in gone]
+        chain = self.anc[dest.path][keep + 1:]
         for node in chain:
             self.enter(w, node, resume)
         if dest.parallel:
@@ -573,10 +576,10 @@ class _Explorer:
         """An operator's pre-emption to ``target`` (:mod:`taskflow.execution.preemption`): every active ``foreach``
         or parallel state it leaves for good records what its rule gives now."""
         leaf, resumed = self.destination(w, target, True, 0)
-        staying = {a.path for entered in leaf.entry_leaves() for a in entered.ancestors()}
+        staying = {a.path for entered in leaf.entry_leaves() for a in self.anc[entered.path]}
         rule_states: dict[str, StateNode] = {}
         for p in w.leaves:
-            for a in self.states[p].ancestors():
+            for a in self.anc[p]:
                 if a.loop is not None or a.parallel:
                     rule_states.setdefault(a.path, a)
         for node in sorted(rule_states.values(), key=lambda n: n.depth):
@@ -600,7 +603,7 @@ class _Explorer:
             node = self.states[leaf]
             if node.task_cls is not None and not node.final:
                 out.update(node.task_cls.events)
-            for a in node.ancestors():
+            for a in self.anc[node.path]:
                 if a.action is not None:
                     ends.update(self.action_events.get(a.action[0], ()))
         return out, ends
