@@ -20,6 +20,8 @@ the ground-truth translation error while the screwdriver ran (mean over every sa
 
     python benchmarks/screw_fastening.py --robustness --sequences 5 --workers 2
 
+The lost marker and the uneven trolleys (issue 25) are named rows in ``benchmarks/screw_faults.py``.
+
 Columns (paper, Table 1): time per screw (one ``foreach`` iteration — one of the mission's
 screws — approach, activation, fastening, retract; failed ones included) mean ± std; screwing time
 (tool activation start → fastened, over fastened operations) mean ± std; success rate (the mission's
