@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from taskflow.mission.model import CompiledMission
+from taskflow.mission.yamlsrc import gc_paused
 from taskflow.verify.counterexample import Counterexample, describe_step
 from taskflow.verify.export import label_name
 from taskflow.verify.model import DEFAULT_BUDGET, TICK, Model, Step, build_model
@@ -245,7 +246,15 @@ def check_region_conflicts(model: Model) -> CheckResult:
 def verify_mission(mission: CompiledMission, max_time: float | None = None, *, operator: bool = False,
                    budget: int = DEFAULT_BUDGET, extra: list[Callable[[Model], CheckResult]] | None = None) -> Verification:
     """Build the model of ``mission`` (at most ``budget`` configurations; ``operator``: with the operator's
-    pre-emptions and abort as steps) and answer every check (module docstring) with Storm."""
+    pre-emptions and abort as steps) and answer every check (module docstring) with Storm.  Python's collector is
+    held off meanwhile (:func:`~taskflow.mission.yamlsrc.gc_paused`, as a load is): the model's configurations and
+    steps, by the ten thousand, live until the end, and each collection walked them all again."""
+    with gc_paused():
+        return _verify(mission, max_time, operator, budget, extra)
+
+
+def _verify(mission: CompiledMission, max_time: float | None, operator: bool, budget: int,
+            extra: list[Callable[[Model], CheckResult]] | None) -> Verification:
     t0 = time.perf_counter()
     model = build_model(mission, max_time, operator=operator, budget=budget)
     build_s = time.perf_counter() - t0
