@@ -50,10 +50,11 @@ class _Evaluator:
         self.model = model
         self.states = states  # state(NAME) as written → path
         self.explorer = _Explorer(model.mission, model.max_time, model.operator)
-        self._active: dict[int, set[str]] = {}
+        self._active: dict[int, frozenset[str]] = {}
+        self._choices: dict[tuple[Any, ...], list[frozenset[str]]] = {}
         self._events: dict[int, set[str]] = {}
         self._preds: dict[int, Predicate] = {}  # id(guard) → its predicate over the facts below
-        self.facts_active: set[str] = set()  # what the atoms read: the configuration's active states, its
+        self.facts_active: frozenset[str] = frozenset()  # what the atoms read: the configuration's active states, its
         self.facts_outcome: str | None = None  # outcome, and the events chosen to arrive
         self.facts_events: frozenset[str] = frozenset()
 
@@ -72,11 +73,11 @@ class _Evaluator:
             pred = self._preds[id(g)] = compile_guard(g, atom)
         return pred
 
-    def active(self, s: int) -> set[str]:
+    def active(self, s: int) -> frozenset[str]:
         got = self._active.get(s)
         if got is None:
             nodes = self.model.mission.states
-            got = {a.path for leaf in self.model.configs[s].leaves for a in nodes[leaf].ancestors()[1:]}
+            got = frozenset(a.path for leaf in self.model.configs[s].leaves for a in nodes[leaf].ancestors()[1:])
             self._active[s] = got
         return got
 
@@ -96,14 +97,23 @@ class _Evaluator:
 
     def choices(self, s: int, exprs: list[Guard], wanted: list[bool]) -> Iterator[frozenset[str]]:
         """Each set of arriving events (among those the expressions name) that gives each of ``exprs`` its ``wanted``
-        value in configuration ``s``."""
-        names = sorted({a.name for e in exprs for a in e.atoms() if a.kind == "event"} & self.events(s))
-        preds = [self._pred(e) for e in exprs]
-        for choice in product((False, True), repeat=len(names)):
-            self.facts_active, self.facts_outcome = self.active(s), self.model.configs[s].outcome
-            self.facts_events = frozenset(n for n, v in zip(names, choice) if v)
-            if all(p({}, {}) == w for p, w in zip(preds, wanted)):
-                yield self.facts_events
+        value in configuration ``s``.  The answer depends only on what the atoms read — the active states, the
+        outcome, the events that can arrive — which configurations differing by clocks or counters alone (most of
+        a large model) share: it is kept per those."""
+        names = tuple(sorted({a.name for e in exprs for a in e.atoms() if a.kind == "event"} & self.events(s)))
+        active, outcome = self.active(s), self.model.configs[s].outcome
+        key = (tuple(map(id, exprs)), tuple(wanted), active, outcome, names)
+        got = self._choices.get(key)
+        if got is None:
+            preds = [self._pred(e) for e in exprs]
+            got = []
+            for choice in product((False, True), repeat=len(names)):
+                self.facts_active, self.facts_outcome = active, outcome
+                self.facts_events = frozenset(n for n, v in zip(names, choice) if v)
+                if all(p({}, {}) == w for p, w in zip(preds, wanted)):
+                    got.append(self.facts_events)
+            self._choices[key] = got
+        return iter(got)
 
     def first_steps(self, s: int, arriving: frozenset[str]) -> list[Step]:
         """The steps the machine can take in the control period ``arriving`` events arrive in configuration ``s``:
