@@ -82,12 +82,8 @@ class Executor(Preemptible):
         self.last_command = command
         if self.outcome is None:
             table = self._tables.get(state)
-            if table is not None:  # _check_table's loop for one leaf, inline: this is every tick's cost
-                held_s = self.held_s
-                for i, trigger in enumerate(table):
-                    if trigger.ready(t, held_s, metrics, events):
-                        self._fire_from(table, i, metrics)
-                        break
+            if table is not None:
+                self._check_table(t, table, metrics, events, None)
         return command, metrics, events
 
     def _tick_regions(self, obs: Observation) -> tuple[Command, dict[str, float], Collection[str]]:
