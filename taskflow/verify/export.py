@@ -29,20 +29,19 @@ def label_name(kind: str, name: str) -> str:
 
 
 def labels(model: Model) -> dict[str, list[int]]:
-    """Label → the configurations it holds in: ``final``, ``outcome_NAME`` per outcome, ``active_PATH`` per state."""
-    out: dict[str, list[int]] = {"final": model.finals()}
+    """Label → the configurations it holds in: ``final``, ``outcome_NAME`` per outcome, ``active_PATH`` per state
+    (computed once per model)."""
+    if model._labels:
+        return model._labels
+    out = model._labels
+    out["final"] = model.finals()
     for o in model.outcomes():
         out[label_name("outcome", o)] = [i for i, c in enumerate(model.configs) if c.outcome == o]
     active: dict[str, list[int]] = {}
-    states = model.mission.states
-    for i, c in enumerate(model.configs):
-        seen: set[str] = set()
-        for leaf in c.leaves:
-            for a in states[leaf].ancestors()[1:]:
-                if a.path not in seen:
-                    seen.add(a.path)
-                    active.setdefault(a.path, []).append(i)
-    for path in states:
+    for i in range(model.n_states):
+        for path in model.active_states(i):
+            active.setdefault(path, []).append(i)
+    for path in model.mission.states:
         out[label_name("active", path)] = active.get(path, [])
     return out
 

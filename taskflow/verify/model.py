@@ -157,6 +157,9 @@ class Model:
     start_records: tuple[tuple[str, str], ...] = ()
     max_time: float | None = None
     operator: bool = False  # the operator's pre-emption and abort are steps of the model
+    _active: dict[tuple[str, ...], frozenset[str]] = field(default_factory=dict, repr=False, compare=False)
+    _storm_rows: dict[bool, Any] = field(default_factory=dict, repr=False, compare=False)  # StormModel's matrices
+    _labels: dict[str, list[int]] = field(default_factory=dict, repr=False, compare=False)  # export.labels
 
     @property
     def n_states(self) -> int:
@@ -165,6 +168,16 @@ class Model:
     @property
     def n_steps(self) -> int:
         return sum(len(s) for s in self.steps)
+
+    def active_states(self, s: int) -> frozenset[str]:
+        """The states active in configuration ``s``: its leaves and their ancestors, the root left out (kept per
+        set of leaves, which a large model has few of)."""
+        leaves = self.configs[s].leaves
+        got = self._active.get(leaves)
+        if got is None:
+            states = self.mission.states
+            got = self._active[leaves] = frozenset(a.path for leaf in leaves for a in states[leaf].ancestors()[1:])
+        return got
 
     def finals(self) -> list[int]:
         return [i for i, c in enumerate(self.configs) if c.final]
@@ -370,6 +383,12 @@ class _Explorer:
         self.always_events = set(world.events) | set(mission.spec.events)
         self.action_events = {name: set(evs) for name, evs in world.actions.items()}
         self.params = mission.spec.parameters
+        # memo tables (a build asks the same questions of configurations that differ only by their clocks):
+        # the transitions that can fire from a set of active leaves, and a firing's effect on a configuration's
+        # clock-free part (see :meth:`fire_from`)
+        self._candidates: dict[tuple[str, ...], list[_Candidate]] = {}
+        self._firings: dict[tuple[Any, ...], dict[int, _Firing]] = {}  # clock-free part → transition → effect
+        self._tick_step = Step(TICK, -1, None, f"{self.q:g} s pass")
 
     # -- the working configuration (mutable while a step is computed) ----------------------------------------
     def thaw(self, c: Config) -> _Work:
@@ -473,8 +492,10 @@ class _Explorer:
         if i is not None:
             w.clocks[i] = 0
         j = self.clock_index.get((node.path, True))
-        if j is not None and w.clocks[j] < 0:
-            w.clocks[j] = 0
+        if j is not None:
+            w.started.add(j)
+            if w.clocks[j] < 0:
+                w.clocks[j] = 0
         if not resuming and node.children:
             self.forget_first_entries(w, node)
         if node.loop is not None and not resuming:
@@ -597,9 +618,12 @@ class _Explorer:
     def events_possible(self, c: Config) -> tuple[set[str], set[str]]:
         """The events that can arrive in ``c``: (the world's, the mission's and the active tasks', the end events
         of the actions its active states run)."""
+        return self._events_of(c.leaves)
+
+    def _events_of(self, leaves: tuple[str, ...]) -> tuple[set[str], set[str]]:
         out = set(self.always_events)
         ends: set[str] = set()
-        for leaf in c.leaves:
+        for leaf in leaves:
             node = self.states[leaf]
             if node.task_cls is not None and not node.final:
                 out.update(node.task_cls.events)
@@ -617,42 +641,103 @@ class _Explorer:
             return self.clock(c, state, False)
         return v
 
-    def enabled(self, c: Config) -> tuple[list[tuple[Transition, str, bool]], bool]:
-        """The transitions that may fire now, with their cause and whether an action's end fires it, and whether a
-        timer is due (no tick then)."""
-        out: list[tuple[Transition, str, bool]] = []
-        due = False
+    def candidates(self, leaves: tuple[str, ...]) -> list[_Candidate]:
+        """The transitions that may fire while ``leaves`` are active, innermost first and each once, with what
+        decides whether one is enabled (memoized: it depends on the leaves only)."""
+        out = self._candidates.get(leaves)
+        if out is not None:
+            return out
+        out = []
         seen: set[int] = set()
-        events = None
-        for leaf in c.leaves:
+        events: tuple[set[str], set[str]] | None = None
+        for leaf in leaves:
             for tr in self.tables.get(leaf, ()):
                 if tr.index in seen:
                     continue
                 seen.add(tr.index)
                 if isinstance(tr, TimeoutTransition):
-                    if self.clock(c, tr.since.path, tr.since_first) * self.qms >= _ms(tr.after):
-                        out.append((tr, TIMEOUT, False))
-                        due = True
+                    out.append(_Candidate(tr, TIMEOUT, False, self._clock_slots(tr.since.path, tr.since_first),
+                                          -(-_ms(tr.after) // self.qms)))
                 elif isinstance(tr, GuardTransition):
                     need = int(math.floor(_ms(tr.dwell) / self.qms + 1e-9)) if tr.dwell > 0.0 else 0
-                    if need == 0 or self.clock(c, tr.source.path, False) >= need:
-                        out.append((tr, GUARD, False))
+                    if need > 0:
+                        out.append(_Candidate(tr, GUARD, False, self._clock_slots(tr.source.path, False), need))
+                    else:
+                        out.append(_Candidate(tr, GUARD, False))
                 elif isinstance(tr, EventTransition):
                     if events is None:
-                        events = self.events_possible(c)
+                        events = self._events_of(leaves)
                     if tr.event in events[1]:
-                        out.append((tr, EVENT, True))
+                        out.append(_Candidate(tr, EVENT, True))
                     elif tr.event in events[0]:
-                        out.append((tr, EVENT, False))
+                        out.append(_Candidate(tr, EVENT, False))
+        self._candidates[leaves] = out
+        return out
+
+    def _clock_slots(self, state: str, first: bool) -> tuple[int, int]:
+        """Where :meth:`clock` reads ``(state, first)``: the clock's index (-1: none) and, for a first-entry clock,
+        the entry clock it falls back on while stopped."""
+        i = self.clock_index.get((state, first), -1)
+        return i, (self.clock_index.get((state, False), -1) if first and i >= 0 else -1)
+
+    def enabled(self, c: Config) -> tuple[list[tuple[Transition, str, bool]], bool]:
+        """The transitions that may fire now, with their cause and whether an action's end fires it, and whether a
+        timer is due (no tick then)."""
+        out: list[tuple[Transition, str, bool]] = []
+        due = False
+        clocks = c.clocks
+        for cand in self.candidates(c.leaves):
+            if cand.need < 0:
+                out.append((cand.tr, cand.cause, cand.action_end))
+                due = due or cand.cause == TIMEOUT
+                continue
+            i, fallback = cand.slots
+            v = clocks[i] if i >= 0 else -1
+            if v < 0 and fallback >= 0:  # a first-entry clock never started since forgotten: the entry clock's
+                v = clocks[fallback]
+            if v >= cand.need:
+                out.append((cand.tr, cand.cause, cand.action_end))
+                due = due or cand.cause == TIMEOUT
         return out, due
 
-    def fired(self, w: _Work) -> Config:
+    def fire_from(self, c: Config, tr: Transition, cause: str,
+                  memo: dict[int, _Firing] | None = None) -> tuple[Config, tuple[tuple[str, str], ...]]:
+        """The configuration after ``tr`` fires in ``c`` (before :meth:`fired`'s grace), and the records it writes.
+
+        What a firing does to everything but the clocks depends on that part alone, and what it does to a clock
+        is one of: leave it, stop it (-1), restart it (0), start it unless it runs (first entry) — so it is
+        computed once per clock-free part and transition, by firing with every clock running (a value no clock
+        reaches: what stays is left or started, what is -1 stopped, what is 0 restarted), and applied to each
+        configuration's clocks."""
+        if memo is None:
+            memo = self.firings_of(c)
+        f = memo.get(tr.index)
+        if f is None:
+            w = self.thaw(replace(c, clocks=(_PROBE,) * len(self.clocks)))
+            self.fire(w, tr, cause)
+            effect = tuple((k, _STOP if v < 0 else _RESTART if v == 0 else _START) for k, v in enumerate(w.clocks)
+                           if v != _PROBE or k in w.started)
+            f = memo[tr.index] = _Firing(self.freeze(w), effect, tuple(w.records))
+        clocks = list(c.clocks)
+        for k, e in f.effect:
+            if e == _RESTART or (e == _START and clocks[k] < 0):
+                clocks[k] = 0
+            elif e == _STOP:
+                clocks[k] = -1
+        n = f.config  # Config(...) directly: dataclasses.replace costs more than the firing's memo lookup
+        return (Config(n.leaves, tuple(clocks), n.history, n.loops, n.regions, n.outcome, c.mission_ticks, n.skipped,
+                       c.grace), f.records)
+
+    def firings_of(self, c: Config) -> dict[int, _Firing]:
+        """The memo of :meth:`fire_from` for the clock-free part of ``c``."""
+        return self._firings.setdefault((c.leaves, c.history, c.loops, c.regions, c.outcome, c.skipped), {})
+
+    def fired(self, c: Config) -> Config:
         """The configuration after a firing.  A timer due in it fires at the engine's next control period, not in
         the one that fired (one firing per region and period): when that period lies past the next tick, the tick
         comes first — a timer already due when its state is entered (``since: first_entry``, ``since: STATE``,
         ``after: 0 s``), or one a firing of the same period went before.  So one tick may pass (``grace``)."""
-        c = self.freeze(w)
-        if c.outcome is None and self.enabled(c)[1]:
+        if c.outcome is None and not c.grace and self.enabled(c)[1]:
             return replace(c, grace=True)
         return c
 
@@ -661,16 +746,17 @@ class _Explorer:
             return []
         out: list[tuple[Step, Config]] = []
         enabled, due = self.enabled(c)
+        memo = self.firings_of(c) if enabled else None
         for tr, cause, action_end in enabled:
-            w = self.thaw(c)
-            self.fire(w, tr, cause)
+            nc, records = self.fire_from(c, tr, cause, memo)
             event = tr.event if isinstance(tr, EventTransition) else None
-            out.append((Step(cause, -1, tr.index, tr.label, event, tuple(w.records), action_end), self.fired(w)))
+            out.append((Step(cause, -1, tr.index, tr.label, event, records, action_end), self.fired(nc)))
         if self.operator:
             for path in self.m.outside_regions:
                 w = self.thaw(c)
                 self.preempt(w, self.states[path])
-                out.append((Step(OPERATOR, -1, None, f"preempt --to {path}", None, tuple(w.records)), self.fired(w)))
+                out.append((Step(OPERATOR, -1, None, f"preempt --to {path}", None, tuple(w.records)),
+                            self.fired(self.freeze(w))))
             w = self.thaw(c)
             w.outcome = "aborted"
             out.append((Step(OPERATOR, -1, None, "abort"), self.freeze(w)))
@@ -679,15 +765,38 @@ class _Explorer:
             w.outcome = "timeout"
             out.append((Step(MAX_TIME, -1, None, f"max_time {self.max_ticks * self.q:g} s"), self.freeze(w)))
         elif not due or c.grace:
-            w = self.thaw(c)
-            w.grace = False
-            for k, clk in enumerate(self.clocks):
-                if w.clocks[k] >= 0:
-                    w.clocks[k] = min(w.clocks[k] + 1, clk.cap)
-            if self.max_ticks is not None:
-                w.mission_ticks = min(w.mission_ticks + 1, self.max_ticks)
-            out.append((Step(TICK, -1, None, f"{self.q:g} s pass"), self.freeze(w)))
+            clocks = tuple(v if v < 0 else min(v + 1, clk.cap) for v, clk in zip(c.clocks, self.clocks, strict=True))
+            ticks = c.mission_ticks if self.max_ticks is None else min(c.mission_ticks + 1, self.max_ticks)
+            out.append((self._tick_step, Config(c.leaves, clocks, c.history, c.loops, c.regions, c.outcome, ticks,
+                                                c.skipped, False)))
         return out
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    """A transition that may fire from a set of active leaves: it is enabled once clock ``slots`` (index, the
+    entry clock a stopped first-entry clock falls back on; -1: none) has run ``need`` ticks (a stopped clock never
+    has; ``need`` -1: always enabled)."""
+
+    tr: Transition
+    cause: str
+    action_end: bool
+    slots: tuple[int, int] = (-1, -1)
+    need: int = -1
+
+
+@dataclass(frozen=True)
+class _Firing:
+    """A firing's effect on a clock-free part (:meth:`_Explorer.fire_from`): the configuration it gives (its clocks
+    those of the probe), what it does to each clock it changes, the records it writes."""
+
+    config: Config
+    effect: tuple[tuple[int, int], ...]
+    records: tuple[tuple[str, str], ...]
+
+
+_PROBE = 1 << 30  # a running clock's value no model reaches (caps are the mission's timeouts in ticks)
+_STOP, _RESTART, _START = 1, 2, 3  # what a firing does to a clock: -1; 0; 0 unless it runs
 
 
 @dataclass
@@ -701,6 +810,7 @@ class _Work:
     mission_ticks: int
     records: list[tuple[str, str]] = field(default_factory=list)
     entered: list[str] = field(default_factory=list)  # the states the step entered, in order
+    started: set[int] = field(default_factory=set)  # the first-entry clocks the step started unless running
     skipped: dict[str, str] = field(default_factory=dict)  # rule state → the verdict an operator left it with
     grace: bool = False
 

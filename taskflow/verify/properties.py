@@ -50,7 +50,6 @@ class _Evaluator:
         self.model = model
         self.states = states  # state(NAME) as written → path
         self.explorer = _Explorer(model.mission, model.max_time, model.operator)
-        self._active: dict[int, frozenset[str]] = {}
         self._choices: dict[tuple[Any, ...], list[frozenset[str]]] = {}
         self._events: dict[int, set[str]] = {}
         self._preds: dict[int, Predicate] = {}  # id(guard) → its predicate over the facts below
@@ -73,14 +72,6 @@ class _Evaluator:
             pred = self._preds[id(g)] = compile_guard(g, atom)
         return pred
 
-    def active(self, s: int) -> frozenset[str]:
-        got = self._active.get(s)
-        if got is None:
-            nodes = self.model.mission.states
-            got = frozenset(a.path for leaf in self.model.configs[s].leaves for a in nodes[leaf].ancestors()[1:])
-            self._active[s] = got
-        return got
-
     def events(self, s: int) -> set[str]:
         got = self._events.get(s)
         if got is None:
@@ -99,12 +90,13 @@ class _Evaluator:
         """Each set of arriving events (among those the expressions name) that gives each of ``exprs`` its ``wanted``
         value in configuration ``s``.  The answer depends only on what the atoms read — the active states, the
         outcome, the events that can arrive — which configurations differing by clocks or counters alone (most of
-        a large model) share: it is kept per those."""
-        names = tuple(sorted({a.name for e in exprs for a in e.atoms() if a.kind == "event"} & self.events(s)))
-        active, outcome = self.active(s), self.model.configs[s].outcome
-        key = (tuple(map(id, exprs)), tuple(wanted), active, outcome, names)
+        a large model) share: it is kept per set of active leaves and outcome, which decide all three."""
+        c: Config = self.model.configs[s]
+        key = (tuple(map(id, exprs)), tuple(wanted), c.leaves, c.outcome)  # what decides active states and events
         got = self._choices.get(key)
         if got is None:
+            names = tuple(sorted({a.name for e in exprs for a in e.atoms() if a.kind == "event"} & self.events(s)))
+            active, outcome = self.model.active_states(s), c.outcome
             preds = [self._pred(e) for e in exprs]
             got = []
             for choice in product((False, True), repeat=len(names)):

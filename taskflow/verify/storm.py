@@ -23,26 +23,28 @@ class StormModel:
 
         st = dev.storage
         n = model.n_states
-        builder = st.SparseMatrixBuilder(rows=0, columns=0, entries=0, force_dimensions=False,
-                                         has_custom_row_grouping=True, row_groups=0)
-        reward: list[float] = []
-        row = 0
-        for s in range(n):
-            builder.new_row_group(row)
-            kept = [(x.target, x.cause == TICK) for x in (model.timed_steps(s) if timed_only else model.steps[s])] or [(s, False)]
-            for target, tick in sorted(set(kept)):
-                builder.add_next_value(row, target, 1.0)
-                reward.append(model.quantum if tick else 0.0)
-                row += 1
-        matrix = builder.build(row, n, n)
+        rows = model._storm_rows.get(timed_only)  # the same for every property checked on the model: built once
+        if rows is None:
+            builder = st.SparseMatrixBuilder(rows=0, columns=0, entries=0, force_dimensions=False,
+                                             has_custom_row_grouping=True, row_groups=0)
+            reward: list[float] = []
+            row = 0
+            for s in range(n):
+                builder.new_row_group(row)
+                kept = [(x.target, x.cause == TICK) for x in (model.timed_steps(s) if timed_only else model.steps[s])] or [(s, False)]
+                for target, tick in sorted(set(kept)):
+                    builder.add_next_value(row, target, 1.0)
+                    reward.append(model.quantum if tick else 0.0)
+                    row += 1
+            rows = model._storm_rows[timed_only] = (builder.build(row, n, n), reward)
+        matrix, reward = rows
         labeling = st.StateLabeling(n)
         labeling.add_label("init")
         for s in (range(n) if timed_only else [model.initial]):
             labeling.add_label_to_state("init", s)
         for name, states in {**labels(model), **(extra_labels or {})}.items():
             labeling.add_label(name)
-            for s in states:
-                labeling.add_label_to_state(name, s)
+            labeling.set_states(name, st.BitVector(n, list(states)))
         components = st.SparseModelComponents(
             transition_matrix=matrix, state_labeling=labeling,
             reward_models={"time": st.SparseRewardModel(optional_state_action_reward_vector=reward)})
