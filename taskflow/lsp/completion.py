@@ -15,6 +15,7 @@ from taskflow.catalogue.declarations import type_label
 from taskflow.lsp.document import Cursor, cursor_at
 from taskflow.lsp.knowledge import Knowledge, param_detail, params_table, submission_parameters
 from taskflow.mission import schema
+from taskflow.mission.submission import use_path
 from taskflow.mission.submission_file import Submission
 from taskflow.registry import ROBOTS, TASKS, WORLDS
 from taskflow.units import _UNITS_OF, UNITS
@@ -184,7 +185,7 @@ def _key_items(k: Knowledge, cur: Cursor, text: str) -> list[Item]:
         if use is None:
             m = re.search(r"use:\s*(\S+)", text)
             use = m.group(1) if m else None
-        params = submission_parameters(str(Path(k.analysis.file if k.analysis else "").parent / use)) if use else {}
+        params = submission_parameters(str(use_path(use, k.analysis.file if k.analysis else ""))) if use else {}
         return [(n, "required" if v is None else f"default {v!r}", "", types.CompletionItemKind.Property)
                 for n, v in params.items()]
     return []

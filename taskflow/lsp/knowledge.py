@@ -20,6 +20,7 @@ from taskflow.catalogue.declarations import Param, params_of
 from taskflow.lsp.analysis import Analysis, Workspace, same_file
 from taskflow.lsp.document import DocumentIndex
 from taskflow.mission.model import CompiledMission, StateNode, YPath
+from taskflow.mission.submission import use_path
 from taskflow.mission.yamlsrc import load_yaml_text
 
 
@@ -72,7 +73,7 @@ class Knowledge:
             for user in ws.missions_using(file):
                 assert user.mission is not None
                 for node in user.mission.states.values():
-                    if node.use and same_file(str(Path(user.file).parent / node.use), file):
+                    if node.use and same_file(str(use_path(node.use, user.file)), file):
                         return cls(a, user.mission, (("machine",), node.ypath), now)
         return cls(a, None, written=now)
 

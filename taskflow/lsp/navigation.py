@@ -25,6 +25,7 @@ from taskflow.lsp.analysis import Analysis, same_file
 from taskflow.lsp.document import DocumentIndex, Entry, Span, cursor_at
 from taskflow.mission.guards import DATA_PREFIX, Atom, Node
 from taskflow.mission.model import CompiledMission, StateNode, YPath
+from taskflow.mission.submission import use_path
 from taskflow.mission.yamlsrc import SourceMap
 
 if TYPE_CHECKING:
@@ -420,7 +421,7 @@ def _use_definition(ctx: Context, file: str, spot: Spot) -> list[types.Location]
         graft = a.smap.grafts.get(spot.ypath[:-1] + ("states",))
         target = graft.smap.file if graft is not None else None
     if target is None:
-        target = str(Path(file).resolve().parent / spot.word)
+        target = str(use_path(spot.word, Path(file).resolve()))
     if not Path(target).is_file():
         return []
     return [ctx.location(target, Span(0, 0, 0, 0))]
@@ -574,7 +575,7 @@ def _outline(ctx: Context, file: str, index: DocumentIndex, container: YPath, ro
         elif "states" in keys:
             children = _outline(ctx, file, index, e.path + ("states",), "state", shown_in, at, depth)
         elif "use" in keys and keys["use"].text and depth < _MAX_USE_DEPTH:
-            used = str(Path(file).resolve().parent / keys["use"].text)
+            used = str(use_path(keys["use"].text, Path(file).resolve()))
             used_index = ctx.ws.index_of(used)
             detail = f"use: {keys['use'].text}"
             if used_index is not None:

@@ -206,7 +206,7 @@ class State(_Model):
     outcome_map: dict[Outcome, dict[str, Outcome]] = Field(
         default_factory=dict, description="outcome → {region: outcome, ...}: the parallel state finishes with the "
                                           "first outcome whose regions have all finished so (checked in order)")
-    use: str | None = Field(None, description="a sub-mission file (relative to this one) whose machine is this state's "
+    use: str | None = Field(None, description="a sub-mission file (relative to this one, or taskflow:PATH for a shipped one) whose machine is this state's "
                                               "sub-machine; resolved at load by taskflow.mission.submission")
     with_: dict[str, Any] | None = Field(None, alias="with", description="the used sub-mission's parameters: a value "
                                                                           "or $name of this file")

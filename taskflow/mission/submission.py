@@ -28,8 +28,12 @@ spliced region, so a problem inside a used file is reported at that file's line 
 where it was used from (``Problem.via``).  A file that uses itself, directly or through others, is
 refused with the chain.
 
+A shipped sub-mission is also reachable by name from anywhere: ``use: taskflow:lib/screw_operation.yaml`` is
+the file of the installed missions package (``taskflow_missions``, :data:`SHIPPED_PREFIX`), so a copy of a shipped
+mission keeps working outside the package (:func:`use_path` resolves both forms, for the loader and the editor).
+
 Bad input is bounded: a ``use:`` path must be relative and resolve inside the folder of the mission given
-to taskflow; expansion stops at the first budget that runs out (:data:`MAX_USE_DEPTH`, :data:`MAX_USE_FILES`,
+to taskflow (a ``taskflow:`` name inside the missions package); expansion stops at the first budget that runs out (:data:`MAX_USE_DEPTH`, :data:`MAX_USE_FILES`,
 :data:`MAX_EXPANDED_STATES`, :data:`~taskflow.mission.statetree.MAX_STATE_DEPTH`), with one problem where it ran out.
 """
 
@@ -77,6 +81,27 @@ class _Scope:
 
     def with_item(self, name: str) -> _Scope:
         return _Scope(self.file, self.chain, self.env, self.known | {name}, self.items | {name})
+
+
+SHIPPED_PREFIX = "taskflow:"
+"""``use: taskflow:PATH``: PATH inside the installed missions package (``taskflow_missions``), from any folder."""
+
+
+def shipped_missions_dir() -> Path:
+    """The folder of the missions shipped with taskflow (the package ``taskflow_missions``, installed or a checkout)."""
+    import taskflow_missions
+
+    return taskflow_missions.DIR
+
+
+def use_path(target: str, using_file: str | Path) -> Path:
+    """The file ``use: target`` written in ``using_file`` names: ``taskflow:PATH`` inside the shipped missions'
+    folder, anything else relative to the using file's folder (an in-memory file, ``<...>``: the working folder)."""
+    if target.startswith(SHIPPED_PREFIX):
+        return (shipped_missions_dir() / target[len(SHIPPED_PREFIX):].lstrip("/")).resolve()
+    name = str(using_file)
+    base = Path(name).parent if name and not name.startswith("<") else Path.cwd()
+    return (base / target).resolve()
 
 
 class _Expander:
@@ -200,16 +225,26 @@ class _Expander:
             self.err(ypath + ("with",), "`with:` maps the sub-mission's parameters to values or $names",
                      "write `with: {param: value}`")
             return
-        base = Path(scope.file).parent if not scope.file.startswith("<") else Path.cwd()
-        if Path(target).is_absolute():
+        shipped = target.startswith(SHIPPED_PREFIX)
+        if Path(target[len(SHIPPED_PREFIX):] if shipped else target).is_absolute():
             self.err(ypath + ("use",), f"`use: {target}` is an absolute path",
-                     "write it relative to the using file, inside the mission's folder (e.g. lib/NAME.yaml)")
+                     "write it relative to the using file, inside the mission's folder (e.g. lib/NAME.yaml), or "
+                     f"name a shipped one ({SHIPPED_PREFIX}lib/NAME.yaml)")
             return
-        path = (base / target).resolve()
-        if not path.is_relative_to(self.root):
+        path = use_path(target, scope.file)
+        home = shipped_missions_dir().resolve()
+        if shipped and not path.is_relative_to(home):
+            self.err(ypath + ("use",), f"`use: {target}` resolves to {path}, outside the shipped missions' folder "
+                     f"{home}", f"`{SHIPPED_PREFIX}PATH` names a file of the shipped missions, e.g. "
+                     f"{SHIPPED_PREFIX}lib/screw_operation.yaml")
+            return
+        # a file of the shipped missions may use its neighbours (it sits in the package, not the mission's folder)
+        if not shipped and not path.is_relative_to(self.root) and not (
+                Path(scope.file).resolve().is_relative_to(home) and path.is_relative_to(home)):
             self.err(ypath + ("use",), f"`use: {target}` resolves to {path}, outside the mission's folder {self.root}",
                      "a sub-mission sits in the folder of the mission given to taskflow or below it (e.g. lib/), "
-                     "so that the folder holds everything the mission runs: copy the file there")
+                     "so that the folder holds everything the mission runs: copy the file there, or name a shipped "
+                     f"one from anywhere ({SHIPPED_PREFIX}lib/NAME.yaml)")
             return
         if path in scope.chain:
             names = [str(p) for p in scope.chain[scope.chain.index(path):]] + [str(path)]
@@ -292,9 +327,14 @@ class _Expander:
             if first.line == 0:  # the file itself: missing, a directory, unreadable
                 near = (sorted(f.name for f in itertools.islice(path.parent.glob("*.yaml"), 500))
                         if path.parent.is_dir() else [])  # a few hundred names are enough for a "did you mean"
-                hint = "the path is relative to the file that uses it"
+                hint = ("the name is a file of the shipped missions' folder" if target.startswith(SHIPPED_PREFIX)
+                        else "the path is relative to the file that uses it")
                 if first.message == "no such file" and near:
                     hint += "; " + describe_choices(path.name, near)
+                if first.message == "no such file" and not target.startswith(SHIPPED_PREFIX):
+                    home = shipped_missions_dir()
+                    if (home / target).is_file():  # a copied shipped mission: its sub-mission is in the package
+                        hint += f"; taskflow ships {target}: write `use: {SHIPPED_PREFIX}{target}` to use it from anywhere"
                 self.err(ypath + ("use",), f"sub-mission {target!r}: {first.message} ({path})", hint)
             else:
                 self.problems.extend(with_via(p, self.via(ypath + ("use",))) for p in got.problems)

@@ -268,3 +268,14 @@ async def test_a_data_key_goes_to_the_task_class_that_declares_it(toy_client):
         assert source.name == "toys.py"
         line = source.read_text().split("\n")[loc.range.start.line]
         assert line.startswith("class ToyMark")
+
+
+async def test_use_of_a_shipped_name_goes_to_the_shipped_file(client, tmp_path):
+    """A copy of a shipped mission outside the package names its sub-mission ``taskflow:lib/…``: no diagnostic,
+    and go to definition opens the shipped file."""
+    text = SCREW.read_text().replace("use: lib/screw_operation.yaml", "use: taskflow:lib/screw_operation.yaml")
+    copy = tmp_path / "screw_fastening.yaml"
+    copy.write_text(text)
+    assert await open_doc(client, copy) == []
+    [loc] = await definition(client, copy, pos(text, "use: taskflow:lib/screw_", offset=-2))
+    assert loc.uri == LIB.resolve().as_uri()

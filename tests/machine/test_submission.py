@@ -311,3 +311,49 @@ def test_malformed_yaml_in_the_used_file_is_located_there(tmp_path: Path) -> Non
     (msg,) = problems(main)
     assert msg.startswith(f"{tmp_path / 'lib' / 'goto.yaml'}:3:1: YAML error"), msg
     assert msg.endswith(f"(used from {main}:14:7)"), msg
+
+
+# -- shipped sub-missions by name (`use: taskflow:PATH`) ------------------------------------------------------------
+def _copied_screw_mission(tmp_path: Path, use: str | None) -> Path:
+    """The shipped screw mission copied alone into a folder of its own, its `use:` rewritten to ``use``."""
+    from taskflow_missions import DIR
+
+    text = (DIR / "screw_fastening.yaml").read_text()
+    assert "use: lib/screw_operation.yaml" in text
+    if use is not None:
+        text = text.replace("use: lib/screw_operation.yaml", f"use: {use}")
+    out = tmp_path / "mine" / "screw_fastening.yaml"
+    out.parent.mkdir()
+    out.write_text(text)
+    return out
+
+
+def test_a_copied_shipped_mission_names_its_sub_mission_and_runs_the_same_machine(tmp_path: Path) -> None:
+    from taskflow_missions import DIR
+
+    copy = load_mission(_copied_screw_mission(tmp_path, "taskflow:lib/screw_operation.yaml"))
+    shipped = load_mission(DIR / "screw_fastening.yaml")
+    assert list(copy.states) == list(shipped.states)
+    assert [t.label for t in copy.transitions] == [t.label for t in shipped.transitions]
+    assert copy.spec.parameters == shipped.spec.parameters
+
+
+def test_a_copy_that_kept_the_relative_use_is_told_the_shipped_name(tmp_path: Path) -> None:
+    path = _copied_screw_mission(tmp_path, None)
+    with pytest.raises(MissionError) as err:
+        load_mission(path)
+    [problem] = err.value.problems
+    assert problem.file == str(path) and "no such file" in problem.message
+    assert "write `use: taskflow:lib/screw_operation.yaml` to use it from anywhere" in problem.hint
+
+
+@pytest.mark.parametrize("use, says", [
+    ("taskflow:../pyproject.toml", "outside the shipped missions' folder"),
+    ("taskflow:/etc/passwd", "is an absolute path"),
+    ("taskflow:lib/screw_operatin.yaml", "did you mean 'screw_operation.yaml'"),
+])
+def test_a_shipped_name_stays_inside_the_missions_package(tmp_path: Path, use: str, says: str) -> None:
+    with pytest.raises(MissionError) as err:
+        load_mission(_copied_screw_mission(tmp_path, use))
+    [problem] = err.value.problems
+    assert says in problem.message + problem.hint
