@@ -32,7 +32,7 @@ REFERENCE: Schema = {"type": "string", "pattern": r"^\$[A-Za-z_][A-Za-z0-9_]*$",
 DISTRIBUTION: Schema = {"type": "object", "minProperties": 1, "maxProperties": 1, "additionalProperties": False,
                         "properties": {k: {"type": "array"} for k in DISTRIBUTIONS},
                         "description": "a value drawn with the run's seed: {uniform: [a, b]}, {normal: [mu, sigma]}, "
-                                       "{choice: [...]}, {randint: [a, b]}"}
+                                       "{choice: [...]}, {randint: [a, b]}, {signed_uniform: [a, b]} (±[a, b])"}
 _KEEP_OUTSIDE = ("title", "description", "default")
 
 

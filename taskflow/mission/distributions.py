@@ -1,5 +1,6 @@
 """Random world parameters: ``{uniform: [a, b]}``, ``{normal: [mu, sigma]}``, ``{choice: [...]}``,
-``{randint: [a, b]}`` anywhere inside a world's ``params``.
+``{randint: [a, b]}``, ``{signed_uniform: [a, b]}`` (a magnitude uniform in ``[a, b]`` with a random sign: ±[a, b])
+anywhere inside a world's ``params``.
 
 A batch is a Monte Carlo campaign: every trial draws its own values from its seed.  Draws go through
 one ``numpy.random.Generator`` seeded from the run seed, in document order, so a seed reproduces them.
@@ -11,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-KINDS = ("uniform", "normal", "choice", "randint")
+KINDS = ("uniform", "normal", "choice", "randint", "signed_uniform")
 
 
 class DistributionError(ValueError):
@@ -37,6 +38,12 @@ def _draw(spec: dict[str, Any], rng: np.random.Generator, path: tuple[Any, ...])
         if b < a:
             raise DistributionError(path, f"uniform bounds must be ordered: [{a:g}, {b:g}]")
         return float(rng.uniform(a, b))
+    if kind == "signed_uniform":
+        if b < a or a < 0:
+            raise DistributionError(path, f"signed_uniform draws a magnitude in [a, b] with a random sign: a and b "
+                                    f"must be ordered and not negative, got [{a:g}, {b:g}]")
+        magnitude = float(rng.uniform(a, b))  # the magnitude first, then the sign: one stream, in document order
+        return magnitude if rng.integers(2) else -magnitude
     if kind == "normal":
         if b < 0:
             raise DistributionError(path, f"normal standard deviation must be ≥ 0, got {b:g}")
@@ -60,6 +67,8 @@ def support(spec: dict[str, Any]) -> list[tuple[Any, str]]:
                 (a + 1e12 * b, f"normal [{a:g}, {b:g}] (unbounded: any value)")]
     if kind == "randint":
         return [(int(a), f"randint bound {int(a)}"), (int(b), f"randint bound {int(b)}")]
+    if kind == "signed_uniform":
+        return [(v, f"signed_uniform bound {v:g}") for v in (-b, -a, a, b)]
     return [(a, f"uniform bound {a:g}"), (b, f"uniform bound {b:g}")]
 
 

@@ -18,7 +18,7 @@ def table(tmp_path_factory: pytest.TempPathFactory) -> dict[str, BadInput]:
 
 
 NAMES = ["max-time-nan", "max-time-inf", "max-time-huge", "max-time-negative", "max-time-unit", "set-max-time-nan",
-         "physics-1-hz", "rates-do-not-divide", "rate-with-wrong-unit", "distribution-support",
+         "physics-1-hz", "rates-do-not-divide", "rate-with-wrong-unit", "distribution-support", "distribution-signed-support",
          "distribution-normal-bounded", "guard-syntax-in-set", "guard-deep-parentheses", "guard-not-chain",
          "device-file", "too-many-states", "history-yes", "quad-start-outside-room", "batch-zero-trials",
          "batch-zero-workers", "batch-negative-workers", "plot-missing-folder", "plot-batch-folder",
