@@ -358,6 +358,14 @@ class World:
         after checking that ``rate_hz`` divides the physics rate.  Default: any rate."""
         return None
 
+    @classmethod
+    def parameter_problems(cls, params: BaseModel, parameters: Mapping[str, Any]) -> list[tuple[str, str, str]]:
+        """What is wrong with the mission's own ``parameters`` (its ``parameters:`` block, as written) for this world
+        with these (drawn) parameters — values a mission keeps in step with the world by hand, such as the poses
+        of the part's bolts —, each as ``(parameter name, what is wrong, what would be valid)``.  The loader asks it
+        once the world's parameters are valid.  Default: nothing to check."""
+        return []
+
     # --- asynchronous actions ---------------------------------------------------------------
     def start_action(self, name: str, params: Mapping[str, Any]) -> None:
         raise KeyError(name)

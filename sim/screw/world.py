@@ -64,7 +64,7 @@ import numpy as np
 import pybullet as p
 from numpy.typing import NDArray
 from pydantic import BaseModel
-from taskflow_robots.mobile_iiwa import MobileIiwa
+from taskflow_robots.mobile_iiwa import MobileIiwa, Pose
 from taskflow_sim.core.faults import IntervalFault
 from taskflow_sim.core.stepped import Scene, SteppedWorld, check_command
 from taskflow_sim.ground.ground_plane import connect
@@ -108,6 +108,37 @@ class ScrewConveyor(SteppedWorld[Scene]):  # the PyBullet client is self.client 
                 f"{need * tol_t:g} m/s) moves {step:.3g} mm between two commands, more than the tool's coupling "
                 f"tolerance tol_t = {1000.0 * tol_t:g} mm",
                 f"rate_hz of at least {need:.3g} Hz that divides physics_hz, or a slower part")
+
+    SCREWS_PARAMETER: ClassVar[str] = "screws"
+    """The mission parameter listing the operation poses ``H*_ot_i`` (paper eq. 6) in the marker frame, one per bolt
+    (``foreach in: $screws`` in ``lib/screw_operation.yaml``): checked against the part's ``bolts`` at load."""
+
+    @classmethod
+    def parameter_problems(cls, params: BaseModel, parameters: Mapping[str, Any]) -> list[tuple[str, str, str]]:
+        """The mission's ``screws`` against the part's ``bolts`` (kept in step by hand before): fewer poses than bolts
+        is refused — the mission's rule (every screw) would hold with bolts left unfastened, a success the part
+        does not have.  A pose on no bolt, or a second pose on a bolt, fails at run time where the tool lands
+        (``no_bolt``, over-force: the faults the safety region is there for), so it is left to run.  A pose that
+        does not parse is left to the task's own check."""
+        screws = parameters.get(cls.SCREWS_PARAMETER)
+        if not isinstance(screws, list) or not screws:
+            return []
+        for raw in screws:
+            try:
+                Pose.model_validate(raw)
+            except (ValueError, TypeError):
+                return []
+        wp = cast(ScrewWorldParams, params)
+        if len(screws) >= len(wp.bolts):
+            return []
+        heads = [T[:3, 3] for T in sc.T_marker_bolts(wp.bolts)]
+        name = cls.SCREWS_PARAMETER
+        return [(name, f"`{name}` lists {len(screws)} operation poses but the part of world {cls.name!r} has "
+                 f"{len(heads)} bolts (world.params.bolts): the mission would succeed with "
+                 f"{len(heads) - len(screws)} of them unfastened",
+                 "one pose per bolt, in the marker frame (paper eq. 6): "
+                 + ", ".join(f"{{xyz: [{x:.4f}, {y:.4f}, {z:.4f}], rpy_deg: [180, 0, -90]}}" for x, y, z in heads))]
+
     events: ClassVar[tuple[str, ...]] = ("target_lost", "target_found")
     metrics: ClassVar[dict[str, str]] = {}
     ground_truth_keys: ClassVar[tuple[str, ...]] = ("base_x", "base_y", "base_yaw", "base_speed", "base_yaw_rate",

@@ -191,7 +191,9 @@ def test_the_safety_region_stops_an_over_force_and_leaves_the_robot_at_rest(tmp_
     the world's ground truth in the trace."""
     import csv
 
-    deep = "parameters.screws=[{xyz: [0.14, 0.06, -0.0725], rpy_deg: [180, 0, -90]}]"
+    deep = ("parameters.screws=[{xyz: [0.14, 0.06, -0.0725], rpy_deg: [180, 0, -90]}, "  # the first bolt 8 cm deep
+            "[0.14, -0.06, 0.0075, 3.14159265, 0, -1.57079633], [0.24, 0.06, 0.0075, 3.14159265, 0, -1.57079633], "
+            "[0.24, -0.06, 0.0075, 3.14159265, 0, -1.57079633]]")
     r = run_mission(load_mission(CONVEYOR, overrides=[deep]), seed=0, out_dir=tmp_path / "run")
     assert_outcome(r, "failed")
     trip = next(t for t in r.executor.transitions_fired if t.target == "cell.safety.over_force")

@@ -132,3 +132,25 @@ def test_rendered_dropout_misses_about_the_given_fraction_of_frames():
     assert n == 41  # 20 Hz over 2 s, both ends
     assert abs(s["rendered_dropped"] - 0.5 * n) <= 3.5 * math.sqrt(0.25 * n)  # binomial, 3.5 sigma
     assert s["perception_frames"] == s["rendered_frames"]  # every frame not dropped found the marker
+
+
+SIX_BOLTS = ((0.02, 0.06), (0.02, -0.06), (0.12, 0.06), (0.12, -0.06), (0.17, 0.0), (0.07, 0.0))
+
+
+def test_a_mission_listing_fewer_operation_poses_than_the_part_has_bolts_is_refused_at_load():
+    """The part's `bolts` (world) and the mission's `screws` were kept in step by hand: a six-bolt part with the
+    four shipped poses validated and ended `succeeded` with two bolts unfastened.  The world checks them at load,
+    at the --set that changed the layout, and says the poses to write; the matching six load."""
+    override = f"world.params.bolts={[list(b) for b in SIX_BOLTS]}"
+    with pytest.raises(MissionError) as exc:
+        load_mission(CONVEYOR, [override])
+    [problem] = exc.value.problems
+    assert str(problem).startswith(f"{CONVEYOR}: --set {override}: ")
+    assert "`screws` lists 4 operation poses but the part of world 'screw_conveyor' has 6 bolts" in problem.message
+    assert "2 of them unfastened" in problem.message
+    assert "{xyz: [0.2900, 0.0000, 0.0075], rpy_deg: [180, 0, -90]}" in problem.hint  # bolt 4 in the marker frame
+    mission = load_mission(CONVEYOR, [override, f"parameters.screws={_screws_in_marker(SIX_BOLTS)}"])
+    assert len(mission.spec.parameters["screws"]) == 6
+    # the poses the hint lists are the ones the world scores the tool against
+    heads = [T[:3, 3] for T in sc.T_marker_bolts(SIX_BOLTS)]
+    assert np.allclose(heads[4], [0.29, 0.0, 0.0075])

@@ -1,7 +1,7 @@
 """Compile pass: the robot and the world — registered names, their parameters (world distributions
 drawn with the mission's seed and checked at the edges of their range), the pairing (the robot offers
-what the world needs, :func:`taskflow.mission.contracts.world_problem`), and the control
-rate against the world's physics rate."""
+what the world needs, :func:`taskflow.mission.contracts.world_problem`), the control
+rate against the world's physics rate, and the mission parameters the world checks against itself."""
 
 from __future__ import annotations
 
@@ -39,6 +39,16 @@ def resolve_components(c: Compilation) -> None:
     if wparams is not None:
         _check_rates(c, world_cls, wparams, wpath)
         _check_support(c, world_cls, world_raw, drawn, wpath)
+        _check_parameters(c, world_cls, wparams)
+
+
+def _check_parameters(c: Compilation, world_cls: type[World], wparams: BaseModel) -> None:
+    """The mission's parameters the world checks against itself (:meth:`World.parameter_problems`), reported at the
+    parameter (at its ``--set`` when one changed it, else at a ``--set`` of the world's parameters, if any)."""
+    for name, problem, valid in world_cls.parameter_problems(wparams, dict(c.spec.parameters)):
+        mine = [p for p in c.smap.overrides if p[:2] == ("parameters", name)]
+        sets = [p for p in c.smap.overrides if p[:1] == ("world",)]
+        c.err(mine[-1] if mine else sets[-1] if sets else ("parameters", name), problem, valid)
 
 
 def _component(c: Compilation, key: str, registry: Any) -> tuple[Any, dict[str, Any], YPath]:
