@@ -170,3 +170,15 @@ def test_an_object_at_the_edge_of_the_view_seen_only_cut_is_not_driven_into():
     assert m["detections"] > 0 and m["first_detection_s"] == 0.0  # the object is visible from the start
     assert m["contact"] is False and m["min_clearance_m"] > 0.05
     assert r.summary["properties"]["never_touches"]["verdict"] == "held"
+
+
+@pytest.mark.parametrize("seed", [16, 19])
+def test_at_the_paper_like_level_a_long_burst_after_the_goal_does_not_drive_the_car_off(seed):
+    """Seeds 16 and 19 of 50 % dropout in 15-frame bursts at the paper-like level ended in the backward state's
+    45 s timeout (a false failure): the car had reached the goal (goal_error 1-5 mm), a long burst followed one
+    detection that put the object 1-2 cm off, and the fallback drove there — ground truth 1.4 cm (seed 16) from
+    the zone, neither completion rule then holding.  With the object anchored on the evidence mean
+    (`target_update: evidence`) both are placed in the zone."""
+    r = run(COMPLETE, seed, ["world.params.dropout=0.5", "world.params.fidelity=paper", "world.params.dropout_burst=15"])
+    _placed_without_touching(r)
+    assert r.summary["metrics"]["final_error_m"] < 0.01
