@@ -71,19 +71,21 @@ class TrialJob:
 
 def run_trial(job: TrialJob, run_dir: str | None = None) -> TrialResult:
     """Run one trial and return its summary and wall-clock figures (``started``/``ended``: epoch seconds
-    around the whole trial, mission loading included; ``host``/``pid``: where it ran).  ``run_dir``
+    around the whole trial, mission loading included; ``cpu_s``: the CPU time the process spent on it, the same
+    span — PyBullet steps in this process; ``host``/``pid``: where it ran).  ``run_dir``
     replaces the job's (a Ray worker writes into its own temporary directory)."""
     from taskflow.execution.runtime import run_mission
     from taskflow.mission.loader import load_mission
 
-    started = time.time()
+    started, cpu = time.time(), time.process_time()
     out = job.run_dir if run_dir is None else run_dir
     mission = load_mission(job.mission, list(job.overrides))
     result = run_mission(mission, seed=job.seed, out_dir=out, max_time=job.max_time, record=out is not None,
                          frames_hz=0)  # kept trials hold no camera frames: ~100 KB each, times every trial
     return result.summary, {"seed": job.seed, "wall_time_s": result.timing.get("wall_time_s"),
                             "real_time_factor": result.timing.get("real_time_factor"), "started": started,
-                            "ended": time.time(), "host": socket.gethostname(), "pid": os.getpid()}
+                            "ended": time.time(), "cpu_s": time.process_time() - cpu, "host": socket.gethostname(),
+                            "pid": os.getpid()}
 
 
 class Backend(Protocol):

@@ -310,6 +310,7 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
                            "trials_run": len(jobs) - len(campaign.missing()) if jobs else 0,
                            "started": started, "total_wall_s": wall, "trials": timing_trials})
     timing["per_trial_wall_s"] = wall / max(1, timing["trials_run"])
+    timing.update(cpu_figures(timing_trials))
     write_json(campaign.root / "timing.json", timing)
     if interrupted is not None:
         signum = getattr(interrupted, "signum", signal.SIGINT)  # BatchInterrupted: SIGTERM; a trial's: its own
@@ -318,6 +319,19 @@ def _run(campaign: Campaign, name: str, workers: int | None, backend: str, addre
         raise WorkerLost(f"{lost}: the trials that finished are recorded in {batch_file}; run the rest with "
                          f"taskflow batch --resume {campaign.root}")
     return dict(result, timing=timing, batch_file=str(batch_file))
+
+
+def cpu_figures(trials: list[dict[str, Any]]) -> dict[str, Any]:
+    """What the campaign's trials cost in CPU: ``trial_cpu_s`` (their sum: loading, world, control loop, records;
+    the batch's own start-up and aggregation not included), ``per_trial_cpu_s`` and ``trials_per_cpu_hour`` — a
+    figure that does not depend on how many cores ran them or what else the machine did.  Over the trials that
+    recorded their CPU time (a campaign resumed from records of an older version may hold some that did not)."""
+    cpu = [float(t["cpu_s"]) for t in trials if isinstance(t.get("cpu_s"), (int, float))]
+    total = sum(cpu)
+    if not cpu or total <= 0.0:
+        return {}
+    return {"trials_with_cpu": len(cpu), "trial_cpu_s": total, "per_trial_cpu_s": total / len(cpu),
+            "trials_per_cpu_hour": 3600.0 * len(cpu) / total}
 
 
 def campaign_result(campaign: Campaign, name: str) -> tuple[dict[str, Any], list[dict[str, Any]]]:
@@ -389,6 +403,8 @@ def format_table(result: dict[str, Any]) -> str:
     agg, timing = result["aggregate"], result.get("timing", {})
     head = (f"{result['mission']}: {agg['trials']} trials  wall {timing.get('total_wall_s', 0):.1f} s "
             f"({timing.get('workers', '?')} workers, {timing.get('backend', 'pool')})")
+    if timing.get("trials_per_cpu_hour"):
+        head += f"  {timing['per_trial_cpu_s']:.2f} CPU s a trial: {timing['trials_per_cpu_hour']:.0f} trials per CPU-hour"
     conditions = result.get("conditions", [])
     if result.get("interrupted"):
         head += f"  INTERRUPTED after {agg['trials']} of {result.get('trials_requested', 0) * max(1, len(conditions))}"

@@ -325,3 +325,21 @@ def test_compare_pairs_conditions_of_the_same_grid(tmp_path: Path) -> None:
     plain = tmp_path / "plain"
     run_batch(str(TOY), trials=1, workers=1, out=plain)
     assert main(["compare", str(a), str(plain), "--plot", str(tmp_path / "x.png")]) == 1  # nothing swept in one
+
+
+def test_timing_holds_each_trial_s_cpu_time_and_the_trials_per_cpu_hour(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """What a trial costs, independent of cores and load: each trial's CPU time in its process (mission load,
+    world, loop, records), their sum and the campaign's trials per CPU-hour in ``timing.json`` and its table;
+    ``batch.json`` (which depends on the mission and seeds alone) holds none of it."""
+    out = tmp_path / "b"
+    # exit 1: not every trial succeeds in 2 s (the batch's rule); the figures are written either way
+    assert main(["batch", FAST, "--trials", "3", "--workers", "2", "--max-time", "2 s", "--out", str(out)]) == 1
+    timing = json.loads((out / "timing.json").read_text())
+    cpu = [t["cpu_s"] for t in timing["trials"]]
+    assert len(cpu) == 3 and all(0.05 < c < 60.0 for c in cpu)  # a 2 s ViKi trial: PyBullet steps in the worker
+    assert timing["trial_cpu_s"] == pytest.approx(sum(cpu))
+    assert timing["trials_per_cpu_hour"] == pytest.approx(3 * 3600.0 / sum(cpu))
+    assert timing["per_trial_cpu_s"] == pytest.approx(sum(cpu) / 3)
+    assert "trials per CPU-hour" in capsys.readouterr().out
+    assert "cpu_s" not in (out / "batch.json").read_text()
