@@ -129,7 +129,8 @@ def pinv(J: ArrayLike, rcond: float = 1e-9) -> Array:
             if det > 1e-6 * (g00 + g11) ** 2:
                 out = a.T @ (np.array([[g11, -g01], [-g01, g00]]) / det)
                 return out
-    return np.linalg.pinv(a, rcond=rcond)
+    svd: Array = np.linalg.pinv(a, rcond=rcond).astype(np.float64, copy=False)
+    return svd
 
 
 @dataclass(frozen=True)

@@ -116,8 +116,8 @@ def _residual_at(T: Array) -> Callable[[float], float]:
     ``f`` keeps its precision where ``M`` is small (a view near its keyframe).  Plain floats because the
     refinement evaluates a few dozen single angles, where numpy's cost per call on 3x3 arrays would
     dominate."""
-    (h0, h1, h2, h3, h4, h5, h6, h7, h8), (q0, q1, q2, q3, q4, q5, q6, q7, q8), (k0, k1, k2, k3, k4, k5, k6, k7, k8) = \
-        T.tolist()
+    rows: list[list[float]] = T.tolist()
+    (h0, h1, h2, h3, h4, h5, h6, h7, h8), (q0, q1, q2, q3, q4, q5, q6, q7, q8), (k0, k1, k2, k3, k4, k5, k6, k7, k8) = rows
 
     def f(theta: float) -> float:
         c, s = math.cos(theta), math.sin(theta)
