@@ -41,9 +41,6 @@ def _unit_axis(yaw_axis: ArrayLike) -> Array:
     return a / n
 
 
-# S(θ) = (H − R_a(θ))ᵀ (H − R_a(θ)) has the entries of a first-degree trigonometric polynomial, so its
-# invariants I1 = tr S, I2 (the sum of its principal 2x2 minors) and I3 = det S have degrees 1, 2, 3:
-# seven samples at 2πj/7 give their Fourier coefficients exactly (no aliasing below degree 4).
 def _residual_terms(H: Array, a: Array) -> Array:
     """``T`` (3, 9) with ``vec M(θ) = [1, −cos θ, −sin θ] T`` for ``M = H − R_a(θ)`` (row-major): by Rodrigues,
     ``R_a(θ) = P + cos θ (I − P) + sin θ A`` with ``P = a aᵀ`` and ``A = [a]x``, so the rows of ``T`` are
@@ -99,7 +96,10 @@ def _scan_residuals(C: Array, trig: Array) -> Array:
 def _scan(max_angle: float, n: int) -> tuple[Array, Array]:
     """The scan's angles and their ``[1, cos θ, sin θ]``."""
     angles = np.linspace(-max_angle, max_angle, n)
-    return angles, np.column_stack((np.ones(n), np.cos(angles), np.sin(angles)))
+    trig = np.column_stack((np.ones(n), np.cos(angles), np.sin(angles)))
+    angles.setflags(write=False)
+    trig.setflags(write=False)  # shared by every call (cached)
+    return angles, trig
 
 
 def rank_one_residual(H: ArrayLike, yaw_axis: ArrayLike, angles: ArrayLike) -> Array:
