@@ -109,8 +109,28 @@ def points_outside(points_px: ArrayLike, rect: ArrayLike) -> bool:
 
 
 def pinv(J: ArrayLike, rcond: float = 1e-9) -> Array:
-    """Moore–Penrose pseudo-inverse (singular values below ``rcond·σ_max`` treated as zero)."""
-    return np.linalg.pinv(np.asarray(J, dtype=np.float64), rcond=rcond)
+    """Moore–Penrose pseudo-inverse (singular values below ``rcond·σ_max`` treated as zero).
+
+    A matrix of one or two rows (the collision task's ``Ĵ_a``, the visibility task's ``Ĵ_m`` and
+    ``Ĵ_m N_a``) of full row rank is inverted as ``Jᵀ (J Jᵀ)⁻¹`` with the 1x1 or 2x2 inverse in closed
+    form — the same matrix to about 1e-10 relative, without an SVD; a zero row, or two rows nearly
+    parallel (``det(J Jᵀ) ≤ 1e-6 tr(J Jᵀ)²``, where the Gram matrix would square an ill condition and
+    the rank decision belongs to the SVD's ``rcond``), go to numpy's SVD."""
+    a = np.asarray(J, dtype=np.float64)
+    if a.ndim == 2 and a.shape[0] <= 2 <= a.shape[1]:
+        if a.shape[0] == 1:
+            g = float(a[0] @ a[0])
+            if g > 0.0:
+                out: Array = a.T / g
+                return out
+        else:
+            g00, g01, g11 = float(a[0] @ a[0]), float(a[0] @ a[1]), float(a[1] @ a[1])
+            det = g00 * g11 - g01 * g01
+            if det > 1e-6 * (g00 + g11) ** 2:
+                out = a.T @ (np.array([[g11, -g01], [-g01, g00]]) / det)
+                return out
+    svd: Array = np.linalg.pinv(a, rcond=rcond).astype(np.float64, copy=False)
+    return svd
 
 
 @dataclass(frozen=True)

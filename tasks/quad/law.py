@@ -28,6 +28,7 @@ from taskflow_tasks.quad.homography import (
     adaptive_gain,
     feedforward_blend,
     gain_matrix,
+    homography_control,
     mean_pixel_error,
     normalize_pixels,
     robot_velocity,
@@ -106,9 +107,13 @@ class ServoLaw:
             e_c = yaw_decoupled_error(H, m_star, yaw_axis, homography_yaw(H, yaw_axis, m_cur))
         else:
             e_c = e
-        res = hierarchical_control(J_a, [e_a], J_m, e_m, np.eye(6), e_c, hier.lambda_a, hier.lambda_m, lam_v, h_a, h_m)
+        if h_a == 0.0 and h_m == 0.0:  # both upper tasks inactive: (13)-(19) are the visual task's law (3)
+            nu_c = homography_control(e_c, lam_v)
+        else:
+            nu_c = hierarchical_control(J_a, [e_a], J_m, e_m, np.eye(6), e_c, hier.lambda_a, hier.lambda_m, lam_v,
+                                        h_a, h_m).nu
         h_t = transition_weight(t - self.t_enter, self.path_gains.transition_s, self.path_gains.h0) if self.transition else 1.0
-        nu_e = robot_velocity(h_t * res.nu, self.Ad_body_camera)
+        nu_e = robot_velocity(h_t * nu_c, self.Ad_body_camera)
         if p.feedforward and not p.is_last:
             nu_e = feedforward_blend(nu_e, self.nu_p, self.path_gains.p)
         # imgChVerif inputs

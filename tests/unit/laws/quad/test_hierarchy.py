@@ -14,6 +14,7 @@ from taskflow_tasks.quad.hierarchy import (
     collision_error,
     collision_jacobian,
     hierarchical_control,
+    pinv,
     point_interaction,
     points_outside,
     transition_weight,
@@ -157,3 +158,17 @@ def test_activation_state_is_continuous_across_switches():
     assert 0.0 < h.max() <= 1.0 and h.min() >= 0.0
     # full rise takes 3 s: from 5.0 s the weight is 1 by 8 s
     assert h[np.searchsorted(ts, 8.05)] == pytest.approx(1.0)
+
+
+def test_pinv_of_one_or_two_rows_is_numpys():
+    """The closed-form pseudo-inverse of one or two rows (``Jᵀ (J Jᵀ)⁻¹``) is numpy's SVD one to 1e-9
+    relative, for well-conditioned, nearly parallel (handed to the SVD) and zero rows."""
+    rng = np.random.default_rng(7)
+    for k in range(300):
+        J = rng.normal(size=(1 + k % 2, 6)) * 10.0 ** rng.uniform(-4, 2)
+        if k % 6 == 1:
+            J[1] = 2.0 * J[0] + rng.normal(size=6) * 10.0 ** rng.uniform(-12, -1) * np.linalg.norm(J[0])
+        ref = np.linalg.pinv(J, rcond=1e-9)
+        assert np.max(np.abs(pinv(J) - ref)) <= 1e-9 * np.max(np.abs(ref))
+    assert np.array_equal(pinv(np.zeros((1, 6))), np.zeros((6, 1)))
+    assert np.array_equal(pinv(np.zeros((2, 6))), np.zeros((6, 2)))
