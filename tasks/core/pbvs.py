@@ -174,8 +174,12 @@ def impedance_joint_offset(J_star: Array, dX: Array, damping: float) -> Array:
 # -- velocity feed-forward (beyond the paper) ------------------------------------------------------------------
 
 
-def fit_velocity(t: Array, x: Array) -> tuple[Array, Array]:
-    """Least-squares line through samples ``x[k]`` (rows) at times ``t[k]``: ``(value at t[-1], slope)``.
+def fit_velocity(t: Array, x: Array, order: int = 1) -> tuple[Array, Array]:
+    """Least-squares polynomial of ``order`` (1: a line, 2: a parabola — constant acceleration) through
+    samples ``x[k]`` (rows) at times ``t[k]``: ``(value at t[-1], slope at t[-1])``.  A line's slope is
+    the mean velocity over the samples (the velocity at their mean time, so it lags a changing one by
+    half the window); the parabola's slope at ``t[-1]`` does not lag, at the cost of more noise.  With
+    fewer than ``order + 1`` distinct samples the order drops.
 
     The paper names prediction as the fix for its irregular-motion failures; the part's velocity
     estimated this way is fed forward into both twists when the ``prediction`` profile enables it.
@@ -188,6 +192,12 @@ def fit_velocity(t: Array, x: Array) -> tuple[Array, Array]:
     den = float(tc @ tc)
     if den <= 0.0:
         return x[-1].copy(), np.zeros(x.shape[1:])
+    if order >= 2 and len(t) >= 4:
+        A = np.stack([np.ones_like(tc), tc, tc * tc], axis=1)
+        coef, _, rank, _ = np.linalg.lstsq(A, x, rcond=None)
+        if rank == 3:
+            u = tc[-1]
+            return coef[0] + coef[1] * u + coef[2] * u * u, coef[1] + 2.0 * coef[2] * u
     slope = tc @ (x - x.mean(axis=0)) / den
     return x.mean(axis=0) + slope * (t[-1] - t.mean()), slope
 

@@ -36,7 +36,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, field_validator
+from pydantic import BaseModel, Field, field_validator
 from taskflow_robots.iiwa_urdf import IiwaKinematics
 from taskflow_robots.mobile_iiwa import MobileIiwaParams, Pose
 from taskflow_tasks.core import pbvs
@@ -58,6 +58,7 @@ from taskflow_tasks.screw.prediction import MotionPredictor, Prediction, no_moti
 
 from taskflow.api import (
     DISTANCE,
+    FLAG,
     FORCE,
     ROTATION_ANGLE,
     MemoryKey,
@@ -142,6 +143,7 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
             if st is not None:
                 st.reset_derivative()  # a new set-point or gain set: no derivative kick
         self.arm_gains_zero = not (np.any(self.g_a.kp) or np.any(self.g_a.ki) or np.any(self.g_a.kd))
+        self.max_age: float | None = None  # how far a marker pose is propagated: the profile's max_age
 
     def _arm_target(self, params: Any) -> Target:
         return None, None
@@ -160,10 +162,10 @@ class MobilePbvs(Task[Any, MobileIiwaParams]):
         predictor.record_odometry(t, odom)
         if marker is None:
             return None, _ZERO3, _ZERO3
-        fit = predictor.add_marker(marker, self.T_body_camera, self.pred.window)
+        fit = predictor.add_marker(marker, self.T_body_camera, self.pred.window, self.pred.order)
         if not fit.slope.any():
             return no_motion(marker)
-        return propagate(fit, t, odom, self.T_camera_body, self.pred)
+        return propagate(fit, t, odom, self.T_camera_body, self.pred, self.max_age)
 
     # -- one tick -------------------------------------------------------------------------------------
     def step(self, obs: Observation) -> StepResult:
@@ -274,3 +276,73 @@ class PbvsPlatformRetract(MobilePbvs):
 
     Params = PlatformParams
     slots: ClassVar[dict[str, type[BaseModel]]] = {"platform": PidProfile, "arm": PidProfile, "prediction": Prediction}
+
+
+class FollowParams(StrictModel):
+    """``camera_target``: ``H*_co`` (eq. 5), the camera–object pose the platform keeps; ``coast`` (s): how
+    long after the last marker's capture the part's predicted motion is followed without a new one."""
+
+    camera_target: Pose
+    coast: float = Field(default=1.5, ge=0.0, le=10.0)
+
+
+@register_task("pbvs_follow")
+class PbvsFollow(MobilePbvs):
+    """The searching state (beyond the paper's, which holds still): the screwdriver has stopped; while the
+    marker is lost, and for at most ``coast`` after its last capture, the platform servoes ``H*_co`` on the
+    part's *predicted* pose (the prediction profile's fitted motion, propagated over the marker's age) and
+    the arm holds the tool where it was on the part when the loss began (eqs. 21–23 with that pose as
+    ``H*_ot``), so a short loss leaves the bit on its bolt.  Without prediction (profile off, or nothing
+    fitted), or once the last marker is older than ``coast``, it stops all motion — the paper's searching
+    state.  When a new marker arrives the platform re-aligns on it (the arm as before: on the held tool
+    pose, or still); ``target_seen`` (1 from then on, else 0) and ``camera_error.*`` say when the
+    interrupted operation may resume.  Metrics: those of :class:`MobilePbvs`, ``ee_error.*`` while the
+    tool pose is held, ``target_seen`` and ``following`` (1 while the prediction is followed)."""
+
+    Params = FollowParams
+    metrics: ClassVar[dict[str, str]] = {**MobilePbvs.metrics, "ee_error.t": DISTANCE, "ee_error.r": ROTATION_ANGLE,
+                                         "tool_force_z": "N", "target_seen": FLAG, "following": FLAG}
+
+    def __init__(self, ctx: TaskContext[Any, MobileIiwaParams]) -> None:
+        super().__init__(ctx)
+        self.coast = float(ctx.params.coast)
+        self.max_age = max(self.pred.max_age, self.coast)
+        self.entry_seq: int | None = None  # the last marker before the loss (its seq), set at the first tick
+        self.started = False
+        self.capture = False  # take the tool's pose on the part at this tick's pose estimate
+
+    def _object_pose(self, obs: Observation, t: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64], NDArray[np.float64]]:
+        """:meth:`MobilePbvs._object_pose`; on the first tick that follows the prediction, the tool's nominal
+        pose in the part's predicted frame becomes the arm's target ``H*_ot`` (held through the loss)."""
+        T_co, v_o, w_o = super()._object_pose(obs, t)
+        if self.capture and T_co is not None:
+            self.capture = False
+            q_nom = Q_NOM.get(self.mem)
+            if q_nom is not None:
+                self.T_object_target = inverse(self.T_body_camera @ T_co) @ self.kin.fk(q_nom)
+        return T_co, v_o, w_o
+
+    def step(self, obs: Observation) -> StepResult:
+        marker = MARKER(obs)
+        if not self.started:
+            self.started = True
+            self.entry_seq = None if marker is None else marker.seq
+        seen = marker is not None and marker.seq != self.entry_seq
+        age = math.inf if marker is None else obs.t - marker.stamp
+        follow = (not seen and self.pred.enabled and age <= self.coast
+                  and (fit := self._fit()) is not None and bool(fit.slope.any()))
+        extra = {"target_seen": float(seen), "following": float(follow)}
+        self.capture = follow and self.T_object_target is None
+        if seen or follow:
+            res = super().step(obs)
+            return StepResult(res.command, {**res.metrics, **extra})
+        if self.pred.enabled:  # keep the odometry history the predictor places markers with
+            self._object_pose(obs, obs.t)
+        wrench = WRENCH(obs)
+        force = np.asarray(wrench.force, dtype=np.float64) if wrench is not None else _ZERO3
+        return StepResult({"base_twist": np.zeros(3), "arm_dq": np.zeros(7)},
+                          {"contact_force": float(math.sqrt(force @ force)), **extra})
+
+    def _fit(self) -> Any:
+        predictor = PREDICTOR.get(self.mem)
+        return None if predictor is None else predictor.fit

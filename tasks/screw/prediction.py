@@ -15,7 +15,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,6 +42,9 @@ class Prediction(StrictModel):
     window: float = Field(default=0.4, gt=0.0, le=5.0)
     gain: float = Field(default=1.0, ge=0.0, le=2.0)
     max_age: float = Field(default=0.3, gt=0.0)
+    order: Literal[1, 2] = Field(default=1, description="the fit's order: 1 a constant velocity over the window "
+                                 "(it lags a changing one by half the window), 2 a constant acceleration (the "
+                                 "velocity at the latest pose, noisier)")
     relative: bool = Field(default=True, description="eq. 35 compensates the platform's motion relative to the "
                            "target's estimated motion (false: the paper's E − V_be dt, which leaves the tool v·dt behind)")
 
@@ -91,8 +94,10 @@ class MotionPredictor:
             cut = bisect.bisect_left(times, t - ODOM_HISTORY_S)
             del times[:cut], poses[:cut]
 
-    def add_marker(self, marker: MarkerPose, T_body_camera: NDArray[np.float64], window: float) -> PartFit:
-        """The fit with ``marker`` in it (refitted once per new marker, by its ``seq``)."""
+    def add_marker(self, marker: MarkerPose, T_body_camera: NDArray[np.float64], window: float,
+                   order: int = 1) -> PartFit:
+        """The fit (a polynomial of ``order`` over the window, :func:`pbvs.fit_velocity`) with ``marker``
+        in it (refitted once per new marker, by its ``seq``)."""
         if marker.seq != self.seq or self.fit is None:
             self.seq = marker.seq
             x, y, th = interp_odom(self.odom_t, self.odom_p, marker.stamp)
@@ -107,17 +112,17 @@ class MotionPredictor:
             slope = np.zeros(3)
             if len(objs) >= 3:
                 arr = np.array(objs)
-                _, slope = pbvs.fit_velocity(arr[:, 0], arr[:, 1:])
+                _, slope = pbvs.fit_velocity(arr[:, 0], arr[:, 1:], order)
             self.fit = PartFit(marker.stamp, T_world_object, slope)
         return self.fit
 
 
 def propagate(fit: PartFit, t: float, odom: NDArray[np.float64], T_camera_body: NDArray[np.float64],
-              pred: Prediction) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """``(T_camera_object now, v_o, w_o)``: the fitted pose moved over its age (at most ``max_age``) with
-    the fitted motion, seen from the current camera, and the part's velocity (times ``gain``) in the
-    current base frame."""
-    age = min(pred.max_age, max(0.0, t - fit.stamp))
+              pred: Prediction, max_age: float | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``(T_camera_object now, v_o, w_o)``: the fitted pose moved over its age (at most ``max_age``, by
+    default the profile's) with the fitted motion, seen from the current camera, and the part's velocity
+    (times ``gain``) in the current base frame."""
+    age = min(pred.max_age if max_age is None else max_age, max(0.0, t - fit.stamp))
     vx, vy, wz = float(fit.slope[0]), float(fit.slope[1]), float(fit.slope[2])
     dyaw = wz * age
     c, s = math.cos(dyaw), math.sin(dyaw)

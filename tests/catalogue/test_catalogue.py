@@ -117,7 +117,7 @@ def test_describe_world_shows_actions_events_ground_truth(capsys: pytest.Capture
                  'phase: "activate" | "fasten", default "activate"',
                  "duration: float | null, default null, unit s, > 0, ≤ 600",
                  "target_lost", "base_arm", "camera: rgb_camera", "robot mobile_iiwa",
-                 "sensors.wrench: Wrench (task contact_monitor, task pbvs_arm, task pbvs_platform, task pbvs_platform_retract)",
+                 "sensors.wrench: Wrench (task contact_monitor, task pbvs_arm, task pbvs_follow, task pbvs_platform, task pbvs_platform_retract)",
                  "physics_hz: float, default 100.0, unit Hz, ≥ 100, ≤ 10000"):
         assert any(x.startswith(f"  {line}") for x in out.splitlines()), line
     assert "tool_err_t" in out and "contact_force" in out

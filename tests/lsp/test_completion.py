@@ -136,7 +136,7 @@ async def test_sub_mission_files_their_parameters_and_targets_inside_the_sub_mis
 
 async def test_foreach_and_retry_keys(client):
     sub = SUB.read_text()
-    line = "      foreach: {in: screws, as: screw, on_failure: continue, require: all, retry: {times: 2, on: [activation_failed]}}"
+    line = "      foreach: {in: screws, as: screw, on_failure: continue, require: all, retry: {times: 2, on: [attempt_failed]}}"
     assert line in sub
     await open_doc(client, SUB)
     cut = sub.replace(line, "      foreach:\n        in: screws\n        as: screw\n        re", 1)

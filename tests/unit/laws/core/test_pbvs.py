@@ -193,6 +193,22 @@ def test_fit_velocity_recovers_a_line_and_object_feedforward_is_a_rigid_motion()
     np.testing.assert_allclose(ff_a2, 0.0, atol=1e-12)
 
 
+def test_a_parabola_fit_gives_the_velocity_at_the_last_sample_where_a_line_lags_it():
+    """x = 0.05 t + 0.5 · 0.2 t² (accelerating at 0.2 m/s²) over 0.3 s: the line's slope is the velocity at
+    the window's mean time (0.05 + 0.2 · 0.15 = 0.08 m/s, 0.03 m/s behind), the parabola's the one at its
+    end (0.05 + 0.2 · 0.3 = 0.11 m/s); a line through three points stays a line (order drops below 4 samples)."""
+    t = np.linspace(0.0, 0.3, 13)
+    x = np.stack([0.05 * t + 0.1 * t * t, 0 * t], axis=1)
+    _, line = pbvs.fit_velocity(t, x)
+    last, slope = pbvs.fit_velocity(t, x, order=2)
+    assert line[0] == pytest.approx(0.08, abs=1e-12)
+    assert slope[0] == pytest.approx(0.11, abs=1e-12) and slope[1] == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(last, x[-1], atol=1e-12)
+    _, three = pbvs.fit_velocity(t[:3], x[:3], order=2)
+    _, three_line = pbvs.fit_velocity(t[:3], x[:3])
+    np.testing.assert_allclose(three, three_line, atol=1e-12)
+
+
 def test_eq_35_against_a_moving_target_leaves_no_v_dt_offset_with_the_target_twist():
     """Hand-computed: the platform and the target both move at 0.08 m/s along x (base axes), dt = 0.01 s,
     the tool sits exactly on the target (E = 0).  The paper's E − V_be dt reads −0.8 mm along x, so an

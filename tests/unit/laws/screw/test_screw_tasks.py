@@ -13,7 +13,7 @@ from taskflow_tasks.core.impedance import ImpedanceProfile
 from taskflow_tasks.core.pid import PidProfile
 from taskflow_tasks.screw.data import ADMITTANCE, PID_B, PREDICTOR, Q_NOM
 from taskflow_tasks.screw.home import ArmHome, HomeParams
-from taskflow_tasks.screw.mobile_pbvs import ArmParams, PbvsArm, PbvsPlatform, PlatformParams
+from taskflow_tasks.screw.mobile_pbvs import ArmParams, FollowParams, PbvsArm, PbvsFollow, PbvsPlatform, PlatformParams
 from taskflow_tasks.screw.prediction import MotionPredictor, Prediction
 
 from taskflow import spatial
@@ -141,6 +141,51 @@ def test_the_motion_predictor_keeps_its_whole_state_under_one_key():
     predictor = PREDICTOR(memory)
     assert isinstance(predictor, MotionPredictor) and predictor.seq == 12 and predictor.fit is not None
     np.testing.assert_allclose(predictor.fit.slope[:2], [0.001 / DT, 0.0], atol=1e-9)  # 1 mm per tick along x
+
+
+def _moving_part_obs(k: int, T: np.ndarray, q: np.ndarray, seq: int | None = None) -> Observation:
+    """Tick ``k``: the part 1 mm further along the platform's x per tick; the marker is the one captured at
+    tick ``seq`` (default ``k``: a fresh one) — an older one is what a lost marker leaves in the observation."""
+    s = k if seq is None else seq
+    return Observation(k * DT, state={"q": q, "qd": np.zeros(7), "q_ref": q, "odom": np.zeros(3), "base_twist": np.zeros(3)},
+                       sensors={"marker": MarkerPose(stamp=s * DT, frame="camera", T_camera_object=marker_offset_along_base_x(T, 0.001 * s),
+                                                     seq=s + 1), "wrench": None})
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_searching_follows_the_predicted_part_for_the_coast_then_stops(enabled):
+    """pbvs_follow with the marker lost after 12 ticks of a part moving 40 mm/s: with prediction it keeps
+    commanding the platform after the part (v_x > 0) while the last marker is at most ``coast`` old, and holds
+    the tool pose it had on the part as the arm's target; past the coast — or without prediction, at once — it
+    commands no motion at all (the paper's searching); a new marker (``target_seen``) re-aligns the platform."""
+    pid = PidProfile(kp=[0, 0, 0, 1.5, 0, 0], **NO_LIMITS)
+    q = np.array(ROBOT.params.q_home)
+    memory: dict = {}
+    profiles = {"platform": pid, "arm": PidProfile(kp=[0] * 6), "prediction": Prediction(enabled=enabled)}
+    params = PlatformParams.model_validate({"camera_target": CAMERA_TARGET})
+    T = params.camera_target.matrix()
+    before = PbvsPlatform(task_context(PbvsPlatform, params, ROBOT, profiles, memory=memory, dt=DT))
+    for k in range(12):
+        before.step(_moving_part_obs(k, T, q))
+    fparams = FollowParams.model_validate({"camera_target": CAMERA_TARGET, "coast": 0.5})
+    arm = PidProfile(kp=[1.0] * 6, **NO_LIMITS)
+    task = PbvsFollow(task_context(PbvsFollow, fparams, ROBOT, {**profiles, "arm": arm}, memory=memory, dt=DT, t=12 * DT))
+    out = [task.step(_moving_part_obs(k, T, q, seq=11)) for k in range(12, 12 + 40)]  # 1 s without a new marker
+    follow = [r.metrics["following"] for r in out]
+    coasting = [r for r in out if r.metrics["following"] == 1.0]
+    if enabled:
+        # the last marker (tick 11) is at most 0.5 s old up to tick 31: 20 ticks of following
+        assert follow == [1.0] * 20 + [0.0] * 20
+        assert all(r.command["base_twist"][0] > 0.03 for r in coasting)
+        assert task.T_object_target is not None and "ee_error.t" in coasting[0].metrics
+    else:
+        assert follow == [0.0] * 40 and task.T_object_target is None
+    for r in out[len(coasting):]:
+        assert not np.any(r.command["base_twist"]) and not np.any(r.command["arm_dq"])
+        assert r.metrics["target_seen"] == 0.0
+    seen = task.step(_moving_part_obs(60, T, q))  # the marker is back: 60 mm off (the robot of this test never moves)
+    assert seen.metrics["target_seen"] == 1.0 and seen.metrics["camera_error.t"] == pytest.approx(0.06, abs=1e-9)
+    assert seen.command["base_twist"][0] > 0.05  # re-aligning on it
 
 
 def test_a_required_observation_that_is_absent_is_an_error_not_a_default():
