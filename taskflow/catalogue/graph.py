@@ -180,7 +180,7 @@ def to_dot(m: CompiledMission, highlight: Highlight | None = None) -> str:
         return sid(node) if node.children else ids[node.path]
 
     lines = [f'digraph "{_dot_escape(m.name)}" {{',
-             "    compound=true; rankdir=TB; newrank=true; nodesep=0.3; ranksep=0.35;",
+             "    compound=true; rankdir=TB; newrank=true; nodesep=0.25; ranksep=0.35;",
              '    node [shape=box, style=rounded, fontsize=11]; edge [fontsize=9];']
 
     def start_node(node: StateNode, indent: str) -> None:

@@ -309,7 +309,7 @@ def _settled(s: ScriptState) -> dict[str, float]:
     """Every error small once a state has run 0.3 s (each guard of the two missions below holds then)."""
     e = 0.0 if s.time_in_state > 0.3 else 1.0
     return {"pos_error": e, "camera_error.t": e, "camera_error.r": e, "ee_error.t": e, "ee_error.r": e,
-            "joint_error": e, "tool_force": 0.0, "marker_age": 0.0}
+            "joint_error": e, "tool_force": 0.0, "marker_age": 0.0, "target_seen": 1.0}  # searching resumes on it
 
 
 @pytest.mark.parametrize("mission_file, script", [
