@@ -36,7 +36,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 import tempfile
 import time
@@ -51,7 +50,7 @@ sys.path.insert(0, str(ROOT))
 import taskflow_robots.quadcopter  # noqa: F401 - registration
 import taskflow_sim.quad.world  # noqa: F401
 import taskflow_tasks.quad.visual_path  # noqa: F401
-from visual_path_shapes import path_shapes
+from visual_path_shapes import path_shapes, shape_mission
 
 from taskflow.campaigns.batch import run_batch
 from taskflow.campaigns.stats import mean_interval, wilson_interval
@@ -273,23 +272,9 @@ def shapes(out: Path, seeds: int, overrides: list[str]) -> dict:
     """The shipped oval mission over every :func:`path_shapes` path (its keyframes replaced; the others in
     a room 1.6 m beyond the path), geometric camera, seeds 0 … ``seeds`` − 1: success [Wilson 95 %], max
     deviation (mean, worst), final error."""
-    text = (ROOT / "missions" / EXPERIMENTS["oval"][0]).read_text()
-    head, rest = text.split("    keyframes:\n", 1)
-    tail = rest[rest.index("rate_hz:"):]  # the keyframe list ends where the mission's top-level keys resume
-    out.mkdir(parents=True, exist_ok=True)
     rows = {}
     for name, poses in path_shapes().items():
-        kfs = [f"      - {{id: {i}, pose: [{x:.4f}, {y:.4f}, 1.0, {math.remainder(yaw, 2 * math.pi):.4f}]}}\n"
-               for i, (x, y, yaw) in enumerate(poses)]
-        top = head.replace("mission: visual_path_oval", f"mission: visual_path_{name}", 1)
-        if name != "oval":  # a room 1.6 m beyond the path every way: the geometric camera's 20 landmarks per m²
-            # of a wall faced closer than ~1.2 m across a 22° keyframe step leave fewer than 16 shared points
-            xs, ys = [q[0] for q in poses], [q[1] for q in poses]
-            room = f"{{x0: {min(xs) - 1.6:.2f}, x1: {max(xs) + 1.6:.2f}, y0: {min(ys) - 1.6:.2f}, y1: {max(ys) + 1.6:.2f}, height: 2.5}}"
-            top = re.sub(r"    room: \{[^}]*\}", f"    room: {room}", top, count=1)
-        file = out / f"visual_path_{name}.yaml"
-        ids = ", ".join(f"{{id: {i}}}" for i in range(len(poses)))
-        file.write_text(top + "    keyframes:\n" + "".join(kfs) + re.sub(r"  path: \[[^\]]*\]", f"  path: [{ids}]", tail, count=1))
+        file = shape_mission(name, poses, out, room_margin=None if name == "oval" else 1.6)
         res = run_batch(str(file), trials=seeds, seed=0, out=out / name,
                         overrides=["world.params.perception=geometric", *overrides])
         trials = res["trials"]

@@ -29,6 +29,7 @@ class RoomScore:
     def __init__(self, start: Sequence[float], taught: Sequence[Pose]) -> None:
         self.taught = list(taught)
         self.taught_path = np.array([start[:2]] + [p[:2] for p in taught], dtype=np.float64)
+        self.taught_path_3d = np.array([start[:3]] + [p[:3] for p in taught], dtype=np.float64)
         self.restart()
 
     def restart(self) -> None:
@@ -39,6 +40,7 @@ class RoomScore:
         self.clearance = (math.inf, math.inf)
         self.path_length = 0.0
         self._dev_sum, self._dev_n, self.max_path_deviation = 0.0, 0, 0.0
+        self._dev3_sum, self.max_path_deviation_3d = 0.0, 0.0
 
     def contacts(self, obstacle: float, wall: float) -> bool:
         """Record this step's clearances (m); whether a contact starts now (a ``collision`` event)."""
@@ -62,16 +64,19 @@ class RoomScore:
         self.max_path_deviation = max(self.max_path_deviation, d)
         self._dev_sum += d
         self._dev_n += 1
+        d3 = self.path_deviation_3d(pose[:3])
+        self.max_path_deviation_3d = max(self.max_path_deviation_3d, d3)
+        self._dev3_sum += d3
 
     def path_deviation(self, xy: Sequence[float] | Array) -> float:
         """Horizontal distance (m) from ``xy`` to the taught path polyline (start → keyframe 0 → …)."""
-        poly = self.taught_path
-        q = np.asarray(xy, dtype=np.float64)
-        if len(poly) < 2:
-            return float(np.linalg.norm(q - poly[0]))
-        a, ab = poly[:-1], np.diff(poly, axis=0)
-        s = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
-        return float(np.min(np.linalg.norm(a + s[:, None] * ab - q, axis=1)))
+        return _polyline_distance(self.taught_path, xy)
+
+    def path_deviation_3d(self, xyz: Sequence[float] | Array) -> float:
+        """Distance (m) in 3-D from ``xyz`` to the taught path polyline through the taught positions
+        (start → keyframe 0 → …, heights included): a climb flown below its apex shows here, not in the
+        horizontal :meth:`path_deviation`."""
+        return _polyline_distance(self.taught_path_3d, xyz)
 
     def summary(self, pose: Array, has_obstacles: bool, final_epsilon: float | None) -> dict[str, Any]:
         """Collisions and clearances over the run; final errors against the last taught pose."""
@@ -91,7 +96,19 @@ class RoomScore:
             out["final_epsilon_px"] = final_epsilon
             out["path_deviation_max_m"] = self.max_path_deviation
             out["path_deviation_mean_m"] = self._dev_sum / self._dev_n if self._dev_n else 0.0
+            out["path_deviation_3d_max_m"] = self.max_path_deviation_3d
+            out["path_deviation_3d_mean_m"] = self._dev3_sum / self._dev_n if self._dev_n else 0.0
         return out
+
+
+def _polyline_distance(poly: Array, point: Sequence[float] | Array) -> float:
+    """Distance (m) from ``point`` to the polyline ``poly`` (rows: vertices, 2-D or 3-D)."""
+    q = np.asarray(point, dtype=np.float64)
+    if len(poly) < 2:
+        return float(np.linalg.norm(q - poly[0]))
+    a, ab = poly[:-1], np.diff(poly, axis=0)
+    s = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(a + s[:, None] * ab - q, axis=1)))
 
 
 def ground_truth_epsilon(cam: QuadCamera, kf_pose: Pose, pose: Sequence[float], landmarks: Array | None = None,

@@ -19,7 +19,9 @@ keyframe images of the visual path; no pose ever enters an observation.
   when a contact starts, and ``collisions``, ``min_clearance_m`` … in the summary.
 * **Path following accuracy.**  After every step the horizontal distance from the drone to the taught
   path (the polyline start → keyframe 0 → … → last keyframe) is measured; the summary has its maximum
-  and mean (``path_deviation_max_m``, ``path_deviation_mean_m``) next to the flown ``path_length_m``.
+  and mean (``path_deviation_max_m``, ``path_deviation_mean_m``) next to the flown ``path_length_m``, and
+  the 3-D distance to the polyline through the taught positions with their heights
+  (``path_deviation_3d_max_m``, ``path_deviation_3d_mean_m``: a climb flown below its apex shows there).
 * **The camera** is one declared sensor stream (:mod:`taskflow_sim.quad.sensors`): its rate, its
   latency (``frame_latency_s``), its ``blackout`` intervals (black frames: lost video or occlusion, so
   missions can exercise their lost-features handling) and its noise; ``observe()`` only reads it.

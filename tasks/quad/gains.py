@@ -76,9 +76,13 @@ class HierarchyGains(StrictModel):
                          "keep the collision task on it until it is behind the body (obstacle_memory); off: the paper's "
                          "task, which lets h_a decay as soon as an edge leaves the image")
     obstacle_width: float | None = Field(default=None, gt=0.0, le=5.0,
-                                         description="width (m) that places a seen obstacle in the body frame; "
+                                         description="width (m) that places a seen obstacle in the body frame "
+                                                     "(with width_from_views: the prior of each obstacle's fit); "
                                                      "default sigma x z_obstacle (the width that looks sigma wide at "
                                                      "the depth estimate)")
+    width_from_views: bool = Field(default=True, description="place a seen obstacle with the width its edge rays over "
+                                   "the views give (obstacle_memory.fit_circle; obstacle_width, or sigma x z_obstacle, is "
+                                   "the prior); false: every obstacle is placed with that one width")
     pass_margin_m: float = Field(default=0.3, ge=0.0, le=5.0,
                                  description="a remembered obstacle is forgotten once both its edges are this far "
                                              "behind the body's centre (m)")

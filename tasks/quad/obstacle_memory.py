@@ -22,6 +22,15 @@ This module gives the two missing pieces, as pure functions (arrays in, arrays o
   obstacle is watched until it is behind the body.  A new view is matched to a remembered obstacle
   by :func:`associate`; a remembered one switches the task on once the drone would reach its disc
   within the activation time (:func:`closing_in`), so that ``h_a`` (eq. 20) is up when it gets there.
+* **Width from what is seen.**  One view cannot tell a narrow near column from a wide far one: the
+  edge rays of every view (:func:`edge_rays`, kept in the body frame and carried with the odometry
+  like the edges) are tangent to the column's circle, ``n_l·(c − o) = −r`` and ``n_r·(c − o) = +r``
+  for the left and right rays from the camera position ``o`` (``n`` the ray's left normal) — linear in
+  the centre ``c`` and radius ``r`` (:func:`fit_circle`, least squares over the views, with a weak
+  prior on ``r`` that decides while the views have no baseline).  Approaching a column ahead (looming)
+  or passing it (parallax), two views a few centimetres apart fix both; the remembered edges and the
+  width ``2r`` are that fit's, per obstacle (``hierarchy.obstacle_width``, or ``σ z_obstacle``, is only
+  the prior).
 * **Escape side.**  Chosen once per obstacle when the task first activates (:func:`escape_side`: away
   from the obstacle's offset in the image, or a fixed side when it is centred) and kept;
   :func:`committed_edges` moves both edge points so that the obstacle's centre lies at least
@@ -49,10 +58,15 @@ __all__ = [
     "RIGHT",
     "ObstacleMemory",
     "RememberedObstacle",
+    "Sighting",
     "associate",
     "closing_in",
     "committed_edges",
+    "edge_rays",
+    "associate_view",
+    "circle_edges",
     "edges_in_body",
+    "fit_circle",
     "escape_side",
     "has_passed",
     "propagate",
@@ -61,16 +75,28 @@ __all__ = [
 
 
 @dataclass(frozen=True)
+class Sighting:
+    """One view of an obstacle, in the body frame at the obstacle's time: the camera's position ``origin``
+    (m, body ``(x, y)``) and the unit directions of its left and right edge rays."""
+
+    origin: Array
+    left: Array
+    right: Array
+
+
+@dataclass(frozen=True)
 class RememberedObstacle:
     """An obstacle placed in the body frame: its left and right edge points ``p1``, ``p2`` (m, body
-    ``(x, y)`` at time ``t``, s), its estimated width ``width`` (m) and the committed escape side
-    (``LEFT``, ``RIGHT``, or 0 while the task has not activated for it)."""
+    ``(x, y)`` at time ``t``, s), its estimated width ``width`` (m), the committed escape side
+    (``LEFT``, ``RIGHT``, or 0 while the task has not activated for it) and the views it was placed from
+    (:class:`Sighting`, same frame)."""
 
     p1: Array
     p2: Array
     width: float
     t: float
     side: int = 0
+    sightings: tuple[Sighting, ...] = ()
 
     @property
     def centre(self) -> Array:
@@ -92,6 +118,34 @@ def associate(remembered: Sequence[RememberedObstacle], seen: RememberedObstacle
         if dist < best_d:
             best, best_d = i, dist
     return best
+
+
+def associate_view(remembered: Sequence[RememberedObstacle], seen: Sighting, tolerance: float) -> int | None:
+    """Index of the remembered obstacle the view ``seen`` shows: the one whose centre, seen from the
+    camera, lies nearest in bearing to the view's centre bearing, if within its angular half-width plus
+    ``tolerance`` (rad) — a bearing test, since one view does not give the distance."""
+    mid = seen.left + seen.right
+    beta = math.atan2(mid[1], mid[0])
+    best, best_d = None, math.inf
+    for i, r in enumerate(remembered):
+        v = r.centre - seen.origin
+        rho = float(np.hypot(*v))
+        if rho <= 0.5 * r.width:
+            continue
+        d = abs(math.remainder(math.atan2(v[1], v[0]) - beta, 2.0 * math.pi))
+        if d < math.asin(min(1.0, 0.5 * r.width / rho)) + tolerance and d < best_d:
+            best, best_d = i, d
+    return best
+
+
+def circle_edges(centre: ArrayLike, radius: float, origin: ArrayLike) -> tuple[Array, Array]:
+    """The left and right edge points (body ``(x, y)``) of a circle of ``radius`` at ``centre`` seen from
+    ``origin``: ``radius`` either side of the centre across the line of sight."""
+    c = np.asarray(centre, dtype=np.float64).reshape(2)
+    v = c - np.asarray(origin, dtype=np.float64).reshape(2)
+    u = v / max(float(np.hypot(*v)), 1e-9)
+    left = np.array([-u[1], u[0]])
+    return c + radius * left, c - radius * left
 
 
 def edges_in_body(p1: ArrayLike, p2: ArrayLike, width: float, T_body_camera: ArrayLike) -> tuple[Array, Array]:
@@ -117,6 +171,44 @@ def edges_in_body(p1: ArrayLike, p2: ArrayLike, width: float, T_body_camera: Arr
     return pts[0, :2].copy(), pts[1, :2].copy()
 
 
+def edge_rays(p1: ArrayLike, p2: ArrayLike, T_body_camera: ArrayLike) -> Sighting:
+    """The horizontal edge rays (body frame) of an obstacle whose silhouette edges are ``p1``, ``p2``
+    (normalised, left and right): the camera's position and the unit directions of ``(x, 0, 1)``."""
+    T = np.asarray(T_body_camera, dtype=np.float64).reshape(4, 4)
+    dirs = []
+    for p in (p1, p2):
+        d = T[:3, :3] @ np.array([float(np.asarray(p, dtype=np.float64).reshape(2)[0]), 0.0, 1.0])
+        dirs.append(d[:2] / float(np.hypot(d[0], d[1])))
+    return Sighting(T[:2, 3].copy(), dirs[0], dirs[1])
+
+
+def fit_circle(sightings: Sequence[Sighting], prior_radius: float, prior_weight: float = 0.05) -> tuple[Array, float]:
+    """Centre (body ``(x, y)``, m) and radius (m) of the circle every sighting's left and right edge rays
+    are tangent to: ``n_l·(c − o) + r = 0`` and ``n_r·(c − o) − r = 0`` (``n = (−d_y, d_x)``: the obstacle
+    lies right of its left edge ray and left of its right one), least squares with the prior
+    ``prior_weight (r − prior_radius) = 0`` (residuals in metres: the weight is the rays' error over the
+    prior's, ~2.5 mm / 5 cm).  A single view gives the prior's radius at the distance its angle says; two
+    views with a baseline (looming or parallax) fix the radius.  The radius is clipped to
+    ``[prior_radius / 4, 4 prior_radius]``."""
+    if not sightings:
+        raise ValueError("fit_circle needs at least one sighting")
+    if not prior_radius > 0.0:
+        raise ValueError(f"prior radius must be > 0, got {prior_radius}")
+    A, b = [], []
+    for s in sightings:
+        for d, sign in ((s.left, 1.0), (s.right, -1.0)):
+            n = np.array([-d[1], d[0]])
+            A.append([n[0], n[1], sign])
+            b.append(float(n @ s.origin))
+    A.append([0.0, 0.0, prior_weight])
+    b.append(prior_weight * prior_radius)
+    sol = np.linalg.lstsq(np.array(A), np.array(b), rcond=None)[0]
+    r = float(np.clip(sol[2], 0.25 * prior_radius, 4.0 * prior_radius))
+    if r != sol[2]:  # the radius at its bound: the centre that fits the rays best with it
+        sol = np.linalg.lstsq(np.array(A)[:-1, :2], np.array(b)[:-1] - np.array(A)[:-1, 2] * r, rcond=None)[0]
+    return np.asarray(sol[:2], dtype=np.float64), r
+
+
 def propagate(obstacle: RememberedObstacle, nu_body: ArrayLike, t: float) -> RememberedObstacle:
     """``obstacle`` at time ``t``: the body moved with ``nu_body = [vx, vy, vz, wz]`` (m/s, rad/s, body
     frame) since ``obstacle.t``, so a fixed point ``P`` becomes ``R(−θ)(P − R(θ/2) v Δt)`` with
@@ -130,13 +222,16 @@ def propagate(obstacle: RememberedObstacle, nu_body: ArrayLike, t: float) -> Rem
     shift = np.array([c * nu[0] - s * nu[1], s * nu[0] + c * nu[1]]) * dt
     c, s = math.cos(th), math.sin(th)
     R_back = np.array([[c, s], [-s, c]])  # R(−θ)
+    seen = tuple(Sighting(R_back @ (v.origin - shift), R_back @ v.left, R_back @ v.right) for v in obstacle.sightings)
     return RememberedObstacle(R_back @ (obstacle.p1 - shift), R_back @ (obstacle.p2 - shift), obstacle.width, t,
-                              obstacle.side)
+                              obstacle.side, seen)
 
 
-def has_passed(obstacle: RememberedObstacle, margin: float) -> bool:
-    """Whether both edge points are more than ``margin`` (m) behind the body's centre."""
-    return bool(max(obstacle.p1[0], obstacle.p2[0]) < -margin)
+def has_passed(obstacle: RememberedObstacle, margin: float, keep_out: float = 0.0) -> bool:
+    """Whether both edge points are more than ``margin`` (m) behind the body's centre and the centre is
+    outside the keep-out disc (farther than ``keep_out``, m): a drone that has slid past a column beside
+    it, or backs up toward a keyframe, may still be inside the disc and must keep it in mind."""
+    return bool(max(obstacle.p1[0], obstacle.p2[0]) < -margin and float(np.hypot(*obstacle.centre)) > keep_out)
 
 
 def remembered_collision(obstacle: RememberedObstacle, keep_out: float) -> tuple[float, Array]:

@@ -44,8 +44,10 @@ Choices where the paper is silent or its reading would not work (each marked in 
   camera loses a column 0.4–0.6 m before the drone reaches it, and the visual task pulls the drone back
   into it.  By default (``memory: true``) the task remembers the obstacle in the body frame, carries it
   along with the measured body velocity (``state.nu``: odometry, the only non-image input) and acts on
-  it until it is behind the drone (:mod:`~taskflow_tasks.quad.obstacle_memory`: eq. 8 seen from the body's
-  centre, a keep-out distance ``keep_out_m``); the memory lasts across the keyframes of a run
+  it until it is behind the drone and outside its keep-out disc (:mod:`~taskflow_tasks.quad.obstacle_memory`:
+  eq. 8 seen from the body's centre, a keep-out distance ``keep_out_m``); each obstacle's place and width
+  are fitted to the edge rays of all its views (``width_from_views``; one view cannot tell a narrow near
+  column from a wide far one); the memory lasts across the keyframes of a run
   (mission data ``visual_path.obstacle``, not in the summary).
 * **Symmetric block.**  With the obstacle dead ahead eq. (9) has no yaw term and the task only holds
   the drone back (rendered, it hovered in front of the column at ~1 mm/s).  When the task first

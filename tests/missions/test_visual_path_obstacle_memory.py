@@ -3,8 +3,10 @@ PyBullet ground truth: collisions and clearance from the drone's collision shape
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
+import pytest
 import taskflow_robots.quadcopter  # noqa: F401 - registration
 import taskflow_sim.quad.world  # noqa: F401
 import taskflow_tasks.quad.visual_path  # noqa: F401
@@ -44,3 +46,26 @@ def test_a_column_that_leaves_the_view_beside_the_drone_is_kept_clear_of():
     paper = run(column, "profiles.hierarchy.paper.memory=false")
     assert_outcome(paper, "failed")
     assert paper.summary["final_state"] == "crashed" and paper.summary["metrics"]["min_obstacle_clearance_m"] < 0.0
+
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_two_columns_of_drawn_widths_beside_a_figure_eights_leg_are_passed(seed, tmp_path):
+    """The campaign condition of ``benchmarks/visual_path_obstacles.py --only figure_eight``: a figure-eight
+    (turns both ways) flown by the oval's mission with the collision task on, one cylinder of 6-16 cm
+    each side of its first straight leg within 0.15 m of it, places and widths drawn from the seed.  Ground
+    truth: no contact, positive clearance, and the mission's own success rule."""
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        from visual_path_obstacles import beside
+        from visual_path_shapes import figure_eight, shape_mission, with_columns
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    mission = with_columns(shape_mission("figure_eight", figure_eight(), tmp_path))
+    r = run_mission(load_mission(mission, overrides=[GEOMETRIC, beside("figure_eight")]), seed=seed, record=False)
+    assert_outcome(r, "succeeded")
+    m = r.summary["metrics"]
+    assert m["collisions"] == 0 and m["min_obstacle_clearance_m"] > 0.0
+    assert len(r.summary["iterations"]) == 38  # every keyframe of the path, the last one reached

@@ -229,3 +229,23 @@ def test_path_deviation_is_the_distance_to_the_taught_polyline():
         assert 0.0 < s["path_deviation_mean_m"] < s["path_deviation_max_m"]
     finally:
         w.close()
+
+
+def test_3d_path_deviation_sees_a_climb_flown_below_its_apex_that_the_horizontal_one_cannot():
+    w = make_world(start=(0.0, 0.0, 1.0, 0.0))  # path (0,0,1) → (1,0,1) → (1.5,0.3,0.8), heights included
+    try:
+        assert w.score.path_deviation_3d((0.5, 0.0, 1.0)) == pytest.approx(0.0, abs=1e-12)
+        assert w.score.path_deviation_3d((0.5, 0.0, 0.9)) == pytest.approx(0.1)  # 10 cm under the first leg
+        assert w.score.path_deviation((0.5, 0.0)) == pytest.approx(0.0, abs=1e-12)  # horizontally on it
+        assert w.score.path_deviation_3d((1.25, 0.15, 0.9)) == pytest.approx(0.0, abs=1e-12)  # on the descent
+        w.vel[:] = 0.0
+        w.apply({"nu": np.array([0.0, 0.0, -0.3, 0.0])})  # straight down under the first leg, 0.3 m/s for 1 s
+        for _ in range(25):
+            w.advance(0.04)
+        s = w.summary_metrics()
+        drop = 1.0 - w.pose[2]
+        assert 0.2 < drop < 0.3 and s["path_deviation_max_m"] == pytest.approx(0.0, abs=1e-9)
+        assert s["path_deviation_3d_max_m"] == pytest.approx(drop, rel=1e-9)
+        assert 0.0 < s["path_deviation_3d_mean_m"] < s["path_deviation_3d_max_m"]
+    finally:
+        w.close()

@@ -13,11 +13,16 @@ from taskflow_tasks.quad.obstacle_memory import (
     LEFT,
     RIGHT,
     RememberedObstacle,
+    Sighting,
     associate,
+    associate_view,
+    circle_edges,
     closing_in,
     committed_edges,
+    edge_rays,
     edges_in_body,
     escape_side,
+    fit_circle,
     has_passed,
     propagate,
     remembered_collision,
@@ -67,6 +72,8 @@ def test_an_obstacle_is_passed_once_both_edges_are_behind_the_margin():
     assert not has_passed(obstacle(-0.25, 0.5), 0.3)
     assert has_passed(obstacle(-0.35, 0.5), 0.3)
     assert not has_passed(RememberedObstacle(np.array([-0.5, 0.4]), np.array([-0.2, 0.5]), 0.1, 0.0), 0.3)
+    # behind, but the drone is still inside its keep-out disc (slid past it, may back up): kept
+    assert not has_passed(obstacle(-0.35, 0.2), 0.3, 0.55) and has_passed(obstacle(-0.35, 0.5), 0.3, 0.55)
 
 
 def test_remembered_collision_is_eq_8_9_of_a_centred_obstacle():
@@ -122,3 +129,42 @@ def test_a_view_is_matched_to_the_nearest_remembered_obstacle_within_the_gate():
     assert associate(rems, obstacle(2.9, -0.2), 0.5) == 1
     assert associate(rems, obstacle(2.0, 0.0), 0.5) is None
     assert associate([], obstacle(1.0, 0.0), 0.5) is None
+
+
+def sighting(origin, centre, radius) -> Sighting:
+    """The exact edge rays of a circle seen from ``origin`` (left edge: counter-clockwise of the centre)."""
+    v = np.asarray(centre, float) - np.asarray(origin, float)
+    rho, b = float(np.hypot(*v)), math.atan2(v[1], v[0])
+    h = math.asin(radius / rho)
+    return Sighting(np.asarray(origin, float), np.array([math.cos(b + h), math.sin(b + h)]),
+                    np.array([math.cos(b - h), math.sin(b - h)]))
+
+
+@pytest.mark.parametrize("centre, radius", [((1.0, 0.1), 0.03), ((1.2, 0.0), 0.08), ((0.9, -0.15), 0.055)])
+def test_the_width_comes_from_the_views_not_from_the_prior(centre, radius):
+    """One view: the prior's radius at the distance its angle gives; views along a 0.3 m approach (looming
+    for a column dead ahead, parallax for one beside the line) give back the true centre and radius."""
+    prior = 0.065
+    one = sighting((0.0, 0.0), centre, radius)
+    c1, r1 = fit_circle([one], prior)
+    assert r1 == pytest.approx(prior, rel=1e-6)
+    bearing = math.atan2(centre[1], centre[0])
+    assert math.atan2(c1[1], c1[0]) == pytest.approx(bearing, abs=1e-9)  # on the line of sight
+    views = [sighting((x, 0.0), centre, radius) for x in np.linspace(0.0, 0.3, 10)]
+    c, r = fit_circle(views, prior)
+    assert c == pytest.approx(centre, abs=5e-3) and r == pytest.approx(radius, rel=0.03)  # the weak prior pulls by mm
+    left, right = circle_edges(c, r, (0.0, 0.0))
+    assert np.hypot(*(left - right)) == pytest.approx(2 * r) and left[1] > right[1]
+
+
+def test_edge_rays_of_the_forward_camera_and_association_by_bearing():
+    cam = QuadCamera()
+    rays = edge_rays([-0.1, 0.0], [0.1, 0.0], cam.T_body_camera())
+    assert rays.origin == pytest.approx([0.17, 0.0])
+    assert rays.left == pytest.approx([math.cos(math.atan(0.1)), math.sin(math.atan(0.1))])  # image left: body +y
+    assert rays.right == pytest.approx([math.cos(math.atan(0.1)), -math.sin(math.atan(0.1))])
+    ahead, aside = obstacle(1.2, 0.0, 0.2), obstacle(0.8, 0.6, 0.1)
+    assert associate_view([aside, ahead], rays, 0.05) == 1
+    assert associate_view([aside], rays, 0.05) is None  # 37 deg away: another column
+    with pytest.raises(ValueError):
+        fit_circle([], 0.05)
