@@ -396,27 +396,86 @@ class Posterior:
     t: NDArray[np.float64]
 
 
+DENSE_MAX = 40
+"""Chains of at most this many configurations are solved for all samples at once, densely (:func:`absorption`);
+larger ones sample by sample on sparse matrices (:func:`absorption_sparse`): the dense batch is O(S n³) in time and
+O(S n²) in memory — a 141-configuration trolley campaign took 2 minutes and 1 GB that way, its chain has ~300
+entries."""
+
+
+def absorption_sparse(rows: NDArray[np.intp], cols: NDArray[np.intp], p: NDArray[np.float64],
+                      r: NDArray[np.float64], n: int, m: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`absorption` for chains given by their entries: ``(rows[e], cols[e])`` with probability ``p[s, e]`` and
+    mean duration ``r[s, e]`` in sample ``s`` (columns ``n`` and above absorbing), one sparse LU a sample."""
+    from scipy.sparse import csc_matrix, identity
+    from scipy.sparse.linalg import splu
+
+    samples = p.shape[0]
+    inner = cols < n
+    eye = identity(n, format="csc")
+    h = np.zeros((samples, n, m))
+    t = np.full((samples, n, m), np.nan)
+    for k in range(samples):
+        q = csc_matrix((p[k, inner], (rows[inner], cols[inner])), shape=(n, n))
+        b = np.zeros((n, m))
+        np.add.at(b, (rows[~inner], cols[~inner] - n), p[k, ~inner])
+        lu = splu((eye - q).tocsc())
+        hk = lu.solve(b)
+        hfull = np.vstack([hk, np.eye(m)])
+        pr = csc_matrix((p[k] * r[k], (rows, cols)), shape=(n, n + m))
+        w = lu.solve(np.asarray(pr @ hfull))
+        h[k] = hk
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t[k] = np.where(hk > 1e-12, w / np.where(hk > 1e-12, hk, 1.0), np.nan)
+    return h, t
+
+
 def sample_posterior(chain: Chain, samples: int = SAMPLES, seed: int = 0) -> Posterior:
-    """Draw ``samples`` chains and solve each (:func:`absorption`): rows Dirichlet(count + ½) over the successors
-    seen, mean times by Bayesian bootstrap; and, from the same draws with one more successor of weight
-    Dirichlet ½ (absorbing), the probability of taking a step no run took."""
+    """Draw ``samples`` chains and solve each (:func:`absorption`, :func:`absorption_sparse` past
+    :data:`DENSE_MAX` configurations): rows Dirichlet(count + ½) over the successors seen, mean times by Bayesian
+    bootstrap; and, from the same draws with one more successor of weight Dirichlet ½ (absorbing), the probability
+    of taking a step no run took."""
     rng = np.random.default_rng(seed)
     n, m = chain.n, len(chain.outcomes)
-    p = np.zeros((samples, n, n + m))
-    r = np.zeros((samples, n, n + m))
-    wide = np.zeros((samples, n, n + m + 1))
+    rows: list[int] = []
+    cols: list[int] = []
+    p_cols: list[NDArray[np.float64]] = []  # per entry, its value in every sample (the draws in the order of before)
+    w_cols: list[NDArray[np.float64]] = []
+    r_cols: list[NDArray[np.float64]] = []
+    extra_rows: list[int] = []
+    extra_cols: list[NDArray[np.float64]] = []
     for i, row in chain.counts.items():
         js = sorted(row)
         g = rng.gamma(np.array([row[j] + PRIOR for j in js]), size=(samples, len(js)))
         extra = rng.gamma(PRIOR, size=samples)
-        p[:, i, js] = g / g.sum(axis=1, keepdims=True)
         total = g.sum(axis=1) + extra
-        wide[:, i, js] = g / total[:, None]
-        wide[:, i, -1] = extra / total
-        for j in js:
+        pg, wg = g / g.sum(axis=1, keepdims=True), g / total[:, None]
+        for c, j in enumerate(js):
             d = np.asarray(chain.times[i][j])
             w = rng.gamma(1.0, size=(samples, d.size))
-            r[:, i, j] = (w @ d) / w.sum(axis=1)
+            rows.append(i)
+            cols.append(j)
+            p_cols.append(pg[:, c])
+            w_cols.append(wg[:, c])
+            r_cols.append((w @ d) / w.sum(axis=1))
+        extra_rows.append(i)
+        extra_cols.append(extra / total)
+    ri, ci = np.asarray(rows, dtype=np.intp), np.asarray(cols, dtype=np.intp)
+    pe, we, re_ = (np.stack(x, axis=1) if x else np.zeros((samples, 0)) for x in (p_cols, w_cols, r_cols))
+    # the wide chain: the same entries renormalised with an "unseen" absorbing column n + m per drawn row
+    wri = np.concatenate([ri, np.asarray(extra_rows, dtype=np.intp)])
+    wci = np.concatenate([ci, np.full(len(extra_rows), n + m, dtype=np.intp)])
+    wpe = np.concatenate([we, np.stack(extra_cols, axis=1) if extra_cols else np.zeros((samples, 0))], axis=1)
+    if n > DENSE_MAX:
+        h, t = absorption_sparse(ri, ci, pe, re_, n, m)
+        hw, _ = absorption_sparse(wri, wci, wpe, np.zeros_like(wpe), n, m + 1)
+        return Posterior(h, hw[..., m], t)
+    p = np.zeros((samples, n, n + m))
+    r = np.zeros((samples, n, n + m))
+    wide = np.zeros((samples, n, n + m + 1))
+    p[:, ri, ci] = pe
+    r[:, ri, ci] = re_
+    wide[:, wri, wci] = wpe
     h, t = absorption(p, r, m)
     hw, _ = absorption(wide, np.zeros_like(wide), m + 1)
     return Posterior(h, hw[..., m], t)
