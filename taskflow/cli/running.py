@@ -125,7 +125,8 @@ def cmd_ctl(args: argparse.Namespace) -> int:
         reply = client.send(action, who=args.who if args.who is not None else user_name(), **extra)
     except ControlError as exc:
         raise UsageError(str(exc)) from None
-    print(f"{reply['queued']} queued by {reply['who']}: applied at the next tick boundary")
+    print(f"{reply['queued']} queued by {reply['who']}: applied at the next tick boundary"
+          + (f" — {reply['note']}" if reply.get("note") else ""))
     return 0
 
 

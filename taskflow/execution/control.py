@@ -22,7 +22,8 @@ those queued by the endpoint, in order, and writes each as an :class:`~taskflow.
 operator script (:func:`script_from_records`): replayed, it gives the same run record.
 
 A ``preempt`` leaves pause and hold (the run goes on from the new state); the other actions change only
-what they name.  Events the world emits while the run is held are recorded in the trace but not acted on.
+what they name.  Events the world emits while the run is held are recorded in the trace but not acted on, and so
+is an ``inject`` applied while held (the endpoint's reply says so: :meth:`OperatorChannel.note`).
 """
 
 from __future__ import annotations
@@ -238,6 +239,14 @@ class OperatorChannel:
         if problem is not None:
             raise ControlError(problem)
         self._queue.put(action)
+
+    def note(self, action: OperatorAction) -> str | None:
+        """What the operator should know about ``action`` just queued (the endpoint's reply says it), or None: an
+        ``inject`` while the run is held is recorded but fires nothing — no transition fires while held."""
+        if action.action == "inject" and self.mode == HELD:
+            return (f"the run is held: the injected {action.args.get('event')!r} is recorded but not acted on "
+                    "(no transition fires while held); resume first to have an event fire")
+        return None
 
     @staticmethod
     def _refusal(action: OperatorAction, executor: Executor | None) -> str | None:

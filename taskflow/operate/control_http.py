@@ -216,7 +216,8 @@ def control_app(channel: OperatorChannel | None, host: str, view: RunView | None
         except ValidationError as exc:
             msgs = "; ".join(e["msg"].removeprefix("Value error, ") for e in exc.errors())
             return JSONResponse({"error": f"{name}: {msgs}"}, status_code=400)
-        return JSONResponse({"queued": name, "who": action.who})
+        note = channel.note(action)
+        return JSONResponse({"queued": name, "who": action.who, **({"note": note} if note else {})})
 
     routes = [Route("/state", state), Route("/mission", mission), Route("/{action}", act, methods=["POST"])]
     if view is not None:

@@ -206,3 +206,34 @@ def test_the_endpoint_refuses_a_preempt_into_an_unwritten_read_then_takes_it_onc
     assert result.summary["preempted"] == [{"t": 2.25, "who": "erin", "to": "back", "from": "mark"}]
     assert result.summary["states_visited"] == ["away", "mark", "back", "done"]
     assert not [r for r in operator_records(out) if "refused" in r]  # the refused one never reached the run
+
+
+# -- an injection while held --------------------------------------------------------------------------------
+
+
+def test_an_injection_while_held_is_answered_with_what_it_will_not_do(tmp_path, capsys):
+    """No transition fires while a run is held, so an injected event then is recorded but does nothing (a user's
+    hold → inject → resume on the screw mission found it silent); the endpoint's reply, and `taskflow ctl`'s line,
+    say so — and say nothing of the kind once the run is no longer held."""
+    from taskflow.execution.control import HELD, RUNNING, OperatorChannel
+    from taskflow.operate.control_http import ControlClient
+
+    channel = OperatorChannel(load_mission(TOY), live=True)
+    server = ControlServer("127.0.0.1:0")
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    server.start(channel, run_dir)
+    try:
+        client = ControlClient(server.url, token=server.token)
+        channel.mode = HELD
+        reply = client.send("inject", who="ivy", event="target_lost")
+        assert reply["queued"] == "inject" and "held" in reply["note"] and "not acted on" in reply["note"]
+        assert main(["ctl", str(run_dir), "inject", "target_lost", "--who", "ivy"]) == 0
+        assert "recorded but not acted on" in capsys.readouterr().out
+        assert "note" not in client.send("hold", who="ivy")  # only an injection is dropped by a hold
+        channel.mode = RUNNING
+        assert "note" not in client.send("inject", who="ivy", event="target_lost")
+        assert main(["ctl", str(run_dir), "inject", "target_lost", "--who", "ivy"]) == 0
+        assert "not acted on" not in capsys.readouterr().out
+    finally:
+        server.stop()
