@@ -410,13 +410,6 @@ class _Explorer:
         return self.freeze(w), tuple(w.records)
 
     # -- the configuration's structure ------------------------------------------------------------------------
-    def active_states(self, w: _Work) -> set[str]:
-        out: set[str] = set()
-        for leaf in w.leaves:
-            for a in self.anc[leaf][1:]:
-                out.add(a.path)
-        return out
-
     def active_under(self, w: _Work, node: StateNode) -> str:
         prefix = node.path + "."
         return next(p for p in sorted(w.leaves, key=self.order.__getitem__) if p.startswith(prefix) or p == node.path)

@@ -295,6 +295,7 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         whole = usable and det is not None and det.bbox is not None and not box_cut_by_border(det.bbox, det.width, det.height, self.p.border_px)
         events: tuple[str, ...] = ()
         bbox = Z_o = Z_d = centre = None
+        evidence: tuple[float, np.ndarray | None] | None = None  # (view_shift, mean of the near ones): once a tick
         if det is not None and usable:
             O_box, r, z_c = self._object_from(det, pose)
             O: np.ndarray | None = O_box
@@ -308,7 +309,8 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             follows = self.p.target_update != "first"
             anchor = not MEM_OBJECT.present(self.memory) or (follows and (whole or self.anchored_by_cut))
             if O is not None and whole and self.p.target_update == "evidence":
-                O = self._evidence_mean(pose)
+                evidence = self._evidence_at(pose)
+                O = evidence[1]  # the detection just stored is among the near ones: never None here
             if O is not None and anchor:
                 if not MEM_OBJECT.present(self.memory):
                     MEM_FIRST.set(self.memory, {"t": obs.t, "camera": self.camera})
@@ -371,11 +373,10 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
             h = planar_apply(pose, (self.d_point, 0.0))  # the controlled point, eq. 1
             metrics["pos_error"] = float(np.hypot(*(self.target - h)))
         if self.evidence:
-            shifts = view_shifts([P for P, _ in self.evidence], pose, self.goal)
-            metrics["view_shift"] = float(shifts[-1])
-            near = [O for (_, O), shift in zip(self.evidence, shifts) if shift < self.p.evidence_window]
-            if near:
-                metrics["goal_error"] = float(np.hypot(*goal_offset(pose, np.mean(near, axis=0), self.goal)))
+            shift, mean = evidence if evidence is not None else self._evidence_at(pose)
+            metrics["view_shift"] = shift
+            if mean is not None:
+                metrics["goal_error"] = float(np.hypot(*goal_offset(pose, mean, self.goal)))
         if object_robot is not None:
             metrics["object_x"], metrics["object_y"] = object_robot.tolist()
         elif obs.t - self.t0 >= self.p.search_timeout - 1e-9:
@@ -383,12 +384,13 @@ class ViKiHyCo(Task[ViKiHyCoParams, CameraCar]):
         command = {"v": np.array([out.v_cmd]), "steer": np.array([out.psi])}
         return StepResult(command=command, metrics=metrics, events=events, sensors=self._sensors)
 
-    def _evidence_mean(self, pose: np.ndarray) -> np.ndarray:
-        """The mean object position (odometry frame) of the stored whole detections taken within ``evidence_window``
-        of view shift of ``pose`` — the estimate ``goal_error`` reads; the latest detection is always among them."""
+    def _evidence_at(self, pose: np.ndarray) -> tuple[float, np.ndarray | None]:
+        """The settle rule's evidence at ``pose``: the view shift since the latest stored whole detection, and the
+        mean object position (odometry frame) of those taken within ``evidence_window`` of view shift of ``pose``
+        (None: none is) — what ``goal_error`` reads and ``target_update: evidence`` anchors the object on."""
         shifts = view_shifts([P for P, _ in self.evidence], pose, self.goal)
         near = [O for (_, O), shift in zip(self.evidence, shifts) if shift < self.p.evidence_window]
-        return np.asarray(np.mean(near, axis=0), dtype=float)
+        return float(shifts[-1]), (np.asarray(np.mean(near, axis=0), dtype=float) if near else None)
 
     def _goal_depth(self, r: float, z_c: float) -> float:
         """MGBM's desired depth: camera Z of the object's box-centre point at the goal."""
