@@ -412,13 +412,15 @@ def absorption_sparse(rows: NDArray[np.intp], cols: NDArray[np.intp], p: NDArray
 
     samples = p.shape[0]
     inner = cols < n
+    q_at = (rows[inner], cols[inner])  # the transient part's entries, and the absorbing ones (row, outcome)
+    b_at = (rows[~inner], cols[~inner] - n)
     eye = identity(n, format="csc")
     h = np.zeros((samples, n, m))
     t = np.full((samples, n, m), np.nan)
     for k in range(samples):
-        q = csc_matrix((p[k, inner], (rows[inner], cols[inner])), shape=(n, n))
+        q = csc_matrix((p[k, inner], q_at), shape=(n, n))
         b = np.zeros((n, m))
-        np.add.at(b, (rows[~inner], cols[~inner] - n), p[k, ~inner])
+        np.add.at(b, b_at, p[k, ~inner])
         lu = splu((eye - q).tocsc())
         hk = lu.solve(b)
         hfull = np.vstack([hk, np.eye(m)])

@@ -4,6 +4,8 @@ obstacle in view or, by default, on the obstacles it remembers in the body frame
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numpy.typing import NDArray
 from taskflow_tasks.quad.gains import HierarchyGains
@@ -98,7 +100,7 @@ class CollisionTask:
         the fit of all of them (:func:`~taskflow_tasks.quad.obstacle_memory.fit_circle`)."""
         hier, mem = self.hier, self.memory
         rems = [propagate(r, nu_body, t) for r in mem.obstacles]
-        rems = [r for r in rems if not has_passed(r, hier.pass_margin_m, self._keep_out(r))]
+        rems = [r for r in rems if not has_passed(r, hier.pass_margin_m, hier.keep_out_m)]
         seen, view = None, None
         if obstacle is not None:
             p1n, p2n = normalize_pixels([obstacle.p1, obstacle.p2], self.K)
@@ -118,10 +120,10 @@ class CollisionTask:
                 i = associate(rems, RememberedObstacle(p1, p2, width, t), 0.5)
             side = rems[i].side if i is not None else 0
             seen = RememberedObstacle(p1, p2, width, t, side, sightings)
-            closing = hier.width_from_views and closing_in(seen, nu_body, self._keep_out(seen), hier.activation_s)
+            closing = hier.width_from_views and closing_in(seen, nu_body, hier.keep_out_m, hier.activation_s)
             if side == 0 and (e_view > 0.0 or closing):
                 side = escape_side(p1n, p2n, 0.5 * hier.escape_offset, LEFT if hier.escape_side == "left" else RIGHT)
-            seen = RememberedObstacle(p1, p2, width, t, side, sightings)
+            seen = replace(seen, side=side)
             if i is not None:
                 rems[i] = seen
             elif e_view > 0.0 or hier.width_from_views:  # remembered once the task acts on it, or to be fitted
@@ -132,7 +134,7 @@ class CollisionTask:
         horizon = hier.activation_s
         # the obstacles out of view, and the one in view while eq. (8) does not yet see it too close
         others = [r for r in rems if r is not seen or (hier.width_from_views and view is not None and view[0] <= 0.0)]
-        out_of_view = [(*remembered_collision(r, self._keep_out(r)), closing_in(r, nu_body, self._keep_out(r), horizon))
+        out_of_view = [(*remembered_collision(r, hier.keep_out_m), closing_in(r, nu_body, hier.keep_out_m, horizon))
                        for r in others]
         nearest = max(out_of_view, key=lambda eja: (eja[2], eja[0])) if out_of_view else None
         if nearest is not None and (nearest[2] or view is None):
@@ -140,10 +142,6 @@ class CollisionTask:
         if view is not None:
             return view[0], view[1], view[0] > 0.0
         return 0.0, np.zeros((1, 6)), False
-
-    def _keep_out(self, obstacle: RememberedObstacle) -> float:
-        """The keep-out distance (m, from the obstacle's centre)."""
-        return self.hier.keep_out_m
 
 
 _BEARING_GATE = 0.05  # rad: a view belongs to a remembered obstacle within its angular half-width plus this
